@@ -1,0 +1,129 @@
+//! The validated light position.
+
+use core::fmt;
+
+use crate::arith::Vec3;
+use crate::word::{OutOfRange, Q};
+
+/// Size of a light request on the wire: three big-endian `i32`.
+pub const LIGHT_WIRE_BYTES: usize = 12;
+
+/// A point light position in world units, every component a valid Q13.10 word.
+///
+/// Any position in the word range is accepted, up to +-8191 units: the tracer
+/// range-reduces light vectors ([`crate::arith::normalize`]), so a far light
+/// acts like a directional light instead of overflowing.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Hash)]
+pub struct Light {
+    pos: Vec3,
+}
+
+/// Which component of a light was rejected.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Axis {
+    /// x component.
+    X,
+    /// y component.
+    Y,
+    /// z component.
+    Z,
+}
+
+/// A light component outside `[-2^23, 2^23)` raw (or not a finite number).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub struct LightError {
+    /// The offending component.
+    pub axis: Axis,
+    /// Why it was rejected.
+    pub source: OutOfRange,
+}
+
+impl fmt::Display for LightError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "light {:?}: {}", self.axis, self.source)
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for LightError {}
+
+fn component(axis: Axis, r: Result<Q, OutOfRange>) -> Result<Q, LightError> {
+    r.map_err(|source| LightError { axis, source })
+}
+
+impl Light {
+    /// A light from raw Q13.10 components; values outside `[-2^23, 2^23)`
+    /// are rejected, never wrapped.
+    pub fn from_raw(x: i32, y: i32, z: i32) -> Result<Light, LightError> {
+        Ok(Light {
+            pos: Vec3::new(
+                component(Axis::X, Q::from_raw(x as i64))?,
+                component(Axis::Y, Q::from_raw(y as i64))?,
+                component(Axis::Z, Q::from_raw(z as i64))?,
+            ),
+        })
+    }
+
+    /// A light from world units, rounded to the nearest Q13.10 word.
+    pub fn from_world(x: f64, y: f64, z: f64) -> Result<Light, LightError> {
+        Ok(Light {
+            pos: Vec3::new(
+                component(Axis::X, Q::checked_from_f64(x))?,
+                component(Axis::Y, Q::checked_from_f64(y))?,
+                component(Axis::Z, Q::checked_from_f64(z))?,
+            ),
+        })
+    }
+
+    /// A light from the 12-byte wire request (x, y, z as big-endian `i32`).
+    pub fn from_wire(bytes: &[u8; LIGHT_WIRE_BYTES]) -> Result<Light, LightError> {
+        let word = |i: usize| i32::from_be_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
+        Light::from_raw(word(0), word(4), word(8))
+    }
+
+    /// The 12-byte wire request for this light.
+    pub fn to_wire(&self) -> [u8; LIGHT_WIRE_BYTES] {
+        let mut out = [0u8; LIGHT_WIRE_BYTES];
+        for (chunk, q) in out.chunks_exact_mut(4).zip([self.pos.x, self.pos.y, self.pos.z]) {
+            chunk.copy_from_slice(&q.raw().to_be_bytes());
+        }
+        out
+    }
+
+    /// The position as words.
+    pub const fn position(&self) -> Vec3 {
+        self.pos
+    }
+
+    /// The raw components `(x, y, z)`, each in `[-2^23, 2^23)`.
+    pub const fn raw(&self) -> [i32; 3] {
+        [self.pos.x.raw(), self.pos.y.raw(), self.pos.z.raw()]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn range_is_checked_not_wrapped() {
+        assert!(Light::from_raw(-(1 << 23), (1 << 23) - 1, 0).is_ok());
+        let e = Light::from_raw(0, 1 << 23, 0).unwrap_err();
+        assert_eq!(e.axis, Axis::Y);
+        assert_eq!(Light::from_raw(0, 0, -(1 << 23) - 1).unwrap_err().axis, Axis::Z);
+        assert_eq!(Light::from_raw(i32::MIN, 0, 0).unwrap_err().axis, Axis::X);
+        assert!(Light::from_world(8192.0, 0.0, 0.0).is_err());
+        assert!(Light::from_world(0.0, f64::INFINITY, 0.0).is_err());
+    }
+
+    #[test]
+    fn wire_round_trip() {
+        let l = Light::from_world(3.0, 4.0, -2.0).unwrap();
+        let w = l.to_wire();
+        assert_eq!(&w[..4], &[0, 0, 0x0c, 0x00]);
+        assert_eq!(&w[8..], &(-2048i32).to_be_bytes());
+        assert_eq!(Light::from_wire(&w), Ok(l));
+        let bad = [0x00, 0x80, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0];
+        assert_eq!(Light::from_wire(&bad).unwrap_err().axis, Axis::X);
+    }
+}

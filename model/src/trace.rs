@@ -1,0 +1,171 @@
+//! The per-pixel tracer: camera ray, intersections, shading and the one
+//! secondary ray. This is the computation each hardware lane pipelines.
+//!
+//! Per pixel, in the order of the four hardware stages:
+//!
+//! 1. **Camera ray** ([`camera_ray`]): an exact integer direction `d`, and
+//!    its normalised form `n`.
+//! 2. **Intersect**: the sphere ([`hit_sphere`] with `n`), else the plane if
+//!    `d.y < 0` ([`hit_plane`] with the exact `d`), else the sky. The sphere
+//!    stands on the plane and the eye is above it, so a sphere hit is always
+//!    the nearer one.
+//! 3. **Shade**: `intensity = AMBIENT + (1 - AMBIENT) * max(0, N . L)` with
+//!    `L` the normalised vector to the light; the colour is
+//!    `albedo * intensity` ([`crate::colour::shade`]).
+//! 4. **Secondary ray**: on the plane, a shadow ray toward the light tested
+//!    against the sphere (hit nearer than the light: ambient only). On the
+//!    sphere, the mirror ray `R = n - 2 (n . N) N` looks up the plane (its
+//!    unlit checker colour) or the sky, blended in by `REFLECTANCE`.
+
+use crate::arith::{
+    clamp_unit, fp_add, fp_div, fp_mul, fp_neg, fp_sqrt, fp_sub, normalize, vec3_add,
+    vec3_cross, vec3_dot, vec3_scale, vec3_sub, Normalized, Vec3, WideVec3,
+};
+use crate::colour::{lerp, shade, Rgb};
+use crate::light::Light;
+use crate::scene::*;
+use crate::word::{Q, FRAC_BITS};
+
+/// Mask of the 9-bit pixel coordinates the hardware registers hold.
+pub const COORD_MASK: u16 = 0x1ff;
+
+/// The un-normalised camera ray direction through pixel `(x, y)`, exact.
+///
+/// With `xs = 2x - 479` and `ys = 359 - 2y` (pixel centres in half pixels,
+/// screen up positive) and the integer camera basis of [`crate::scene`]:
+/// `d = xs * right + ys * up + FOCAL_HALF_PIXELS * forward`, taken as raw
+/// Q13.10 words. Only the direction matters. `x` and `y` are used as 9-bit
+/// values (masked with [`COORD_MASK`]) exactly as the hardware's registers
+/// and counters hold them, so rows and columns past the frame extrapolate the
+/// same camera.
+#[inline(always)]
+pub const fn camera_ray(x: u16, y: u16) -> Vec3 {
+    let xs = 2 * (x & COORD_MASK) as i32 - (WIDTH as i32 - 1);
+    let ys = (HEIGHT as i32 - 1) - 2 * (y & COORD_MASK) as i32;
+    Vec3::from_raw(
+        CAMERA_RIGHT_X * xs,
+        CAMERA_UP.0 * ys + CAMERA_FORWARD.0 * FOCAL_HALF_PIXELS,
+        CAMERA_UP.1 * ys + CAMERA_FORWARD.1 * FOCAL_HALF_PIXELS,
+    )
+}
+
+/// Distance along a unit ray from `origin` to the front of the unit sphere.
+///
+/// `oc = SPHERE_CENTRE - origin`, `b = oc . dir`, `p = oc x dir` (the
+/// perpendicular offset of the centre from the ray), `d2 = p . p`. The ray
+/// hits when `b > 0` and `d2 <= 1.0`; the distance is `b - sqrt(1.0 - d2)`.
+/// The cross product keeps every intermediate small for origins near the
+/// sphere and saturates harmlessly (to "miss") for far ones.
+#[inline(always)]
+pub fn hit_sphere(origin: Vec3, dir: Vec3) -> Option<Q> {
+    let oc = vec3_sub(SPHERE_CENTRE, origin);
+    let b = vec3_dot(oc, dir);
+    if b.raw() <= 0 {
+        return None;
+    }
+    let perp = vec3_cross(oc, dir);
+    let d2 = vec3_dot(perp, perp);
+    if d2 > Q::ONE {
+        return None;
+    }
+    Some(fp_sub(b, fp_sqrt(fp_sub(Q::ONE, d2))))
+}
+
+/// Where a ray from `origin` (above the plane) along `dir` meets y = 0, as
+/// `(x, z)`; `None` when `dir.y >= 0`.
+///
+/// Uses only ratios of `dir`, so `dir` need not be normalised:
+/// `x = origin.x + (origin.y * dir.x) / (-dir.y)`, each step by
+/// [`fp_mul`], [`fp_div`] and [`fp_add`] (far hits saturate).
+#[inline(always)]
+pub fn hit_plane(origin: Vec3, dir: Vec3) -> Option<(Q, Q)> {
+    if dir.y.raw() >= 0 {
+        return None;
+    }
+    let down = fp_neg(dir.y);
+    let x = fp_add(origin.x, fp_div(fp_mul(origin.y, dir.x), down));
+    let z = fp_add(origin.z, fp_div(fp_mul(origin.y, dir.z), down));
+    Some((x, z))
+}
+
+/// The checkerboard colour at `(x, z)`: bit 10 (the units bit) of each raw
+/// coordinate, XORed, so `floor(x) + floor(z)` odd gives [`CHECKER_ODD`].
+#[inline(always)]
+pub const fn checker(x: Q, z: Q) -> Rgb {
+    if ((x.raw() ^ z.raw()) >> FRAC_BITS) & 1 == 1 {
+        CHECKER_ODD
+    } else {
+        CHECKER_EVEN
+    }
+}
+
+/// The sky colour for a unit direction's y component:
+/// `lerp(SKY_HORIZON, SKY_ZENITH, clamp_unit(dir_y))`.
+#[inline(always)]
+pub fn sky(dir_y: Q) -> Rgb {
+    lerp(SKY_HORIZON, SKY_ZENITH, clamp_unit(dir_y))
+}
+
+/// `AMBIENT + (1.0 - AMBIENT) * clamp_unit(cosine)`, at most 1.0.
+#[inline(always)]
+pub fn intensity(cosine: Q) -> Q {
+    fp_add(AMBIENT, fp_mul(fp_sub(Q::ONE, AMBIENT), clamp_unit(cosine)))
+}
+
+/// Trace one pixel. `x` and `y` are 9-bit coordinates (see [`camera_ray`]).
+#[inline]
+pub fn trace_pixel(x: u16, y: u16, light: &Light) -> Rgb {
+    let d = camera_ray(x, y);
+    let n = normalize(WideVec3::from_vec3(d)).dir;
+    if let Some(t) = hit_sphere(EYE, n) {
+        shade_sphere(n, t, light)
+    } else if let Some((px, pz)) = hit_plane(EYE, d) {
+        shade_plane(px, pz, light)
+    } else {
+        sky(n.y)
+    }
+}
+
+/// The sphere point at distance `t` along the unit primary ray `n`.
+fn shade_sphere(n: Vec3, t: Q, light: &Light) -> Rgb {
+    let p = vec3_add(EYE, vec3_scale(n, t));
+    let normal = vec3_sub(p, SPHERE_CENTRE);
+    let to_light = normalize(WideVec3::sub(light.position(), p));
+    let local = shade(SPHERE_BASE, intensity(vec3_dot(normal, to_light.dir)));
+
+    // Mirror ray R = n - 2 (n . N) N.
+    let k = vec3_dot(n, normal);
+    let r = vec3_sub(n, vec3_scale(normal, fp_add(k, k)));
+    let mirrored = match hit_plane(p, r) {
+        Some((qx, qz)) => checker(qx, qz),
+        None => sky(r.y),
+    };
+    lerp(local, mirrored, REFLECTANCE)
+}
+
+/// The plane point `(px, 0, pz)`: diffuse light and the shadow ray.
+fn shade_plane(px: Q, pz: Q, light: &Light) -> Rgb {
+    let p = Vec3::new(px, Q::ZERO, pz);
+    let to_light = normalize(WideVec3::sub(light.position(), p));
+    let cosine = to_light.dir.y;
+    let lit = cosine.raw() > 0 && !shadowed(p, &to_light);
+    shade(checker(px, pz), if lit { intensity(cosine) } else { AMBIENT })
+}
+
+/// Whether the sphere blocks the segment from `p` to the light: the shadow
+/// ray hits it at a distance shorter than the light's (`to_light.len`).
+#[inline(always)]
+fn shadowed(p: Vec3, to_light: &Normalized) -> bool {
+    match hit_sphere(p, to_light.dir) {
+        Some(t) => t < to_light.len,
+        None => false,
+    }
+}
+
+/// Trace row `y` into `out` as line-buffer words `0x00RRGGBB`, pixel `x` at
+/// index `x`: exactly what the hardware leaves in its line buffer.
+pub fn render_row(y: u16, light: &Light, out: &mut [u32; WIDTH]) {
+    for (x, px) in (0u16..).zip(out.iter_mut()) {
+        *px = trace_pixel(x, y, light).to_word();
+    }
+}
