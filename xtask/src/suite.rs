@@ -1,19 +1,25 @@
 //! `cargo xtask test`: the whole suite, installing what it needs.
+//!
+//! Each step prints a `==>` line; the first failure stops the run with a
+//! non-zero exit. Tools come from the machine's package registries: rustup
+//! targets, Debian packages (`apt-get`), PyPI (`pip`).
 
 use std::process::Command;
 
 use crate::Result;
 
 /// The firmware's target; everything `no_std` must build for it.
-const FIRMWARE_TARGET: &str = "armv7a-none-eabi";
+pub const FIRMWARE_TARGET: &str = "armv7a-none-eabi";
 
 pub fn run() -> Result<()> {
     ensure_rust_target(FIRMWARE_TARGET)?;
     step("host tests", cargo(&["test", "--workspace"]))?;
-    step(
-        "model builds no_std for the firmware target",
-        cargo(&["build", "-p", "model", "--target", FIRMWARE_TARGET]),
-    )?;
+    for krate in NO_STD_CRATES {
+        step(
+            &format!("{krate} builds no_std for {FIRMWARE_TARGET}"),
+            cargo(&["build", "-p", krate, "--target", FIRMWARE_TARGET]),
+        )?;
+    }
     let mut doc = cargo(&["doc", "--workspace", "--no-deps"]);
     doc.env("RUSTDOCFLAGS", "-D warnings");
     step("rustdoc without warnings", doc)?;
@@ -21,13 +27,18 @@ pub fn run() -> Result<()> {
     Ok(())
 }
 
-fn cargo(args: &[&str]) -> Command {
+/// Library crates that must build for the bare-metal target without `std`.
+const NO_STD_CRATES: &[&str] = &["model"];
+
+/// A `cargo` command using the same cargo that runs xtask.
+pub fn cargo(args: &[&str]) -> Command {
     let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
     c.args(args);
     c
 }
 
-fn step(what: &str, mut cmd: Command) -> Result<()> {
+/// Run one step, echoing it; a failure becomes an error naming the step.
+pub fn step(what: &str, mut cmd: Command) -> Result<()> {
     println!("==> {what}: {cmd:?}");
     let status = cmd.status().map_err(|e| format!("{what}: cannot start: {e}"))?;
     if status.success() {
@@ -38,7 +49,7 @@ fn step(what: &str, mut cmd: Command) -> Result<()> {
 }
 
 /// Add a rustup target when it is missing (a fresh machine has only the host).
-fn ensure_rust_target(target: &str) -> Result<()> {
+pub fn ensure_rust_target(target: &str) -> Result<()> {
     let out = Command::new("rustup")
         .args(["target", "list", "--installed"])
         .output()
@@ -49,4 +60,46 @@ fn ensure_rust_target(target: &str) -> Result<()> {
     let mut add = Command::new("rustup");
     add.args(["target", "add", target]);
     step(&format!("install rust target {target}"), add)
+}
+
+/// Whether a Debian package is installed (`dpkg-query` status).
+pub fn apt_installed(package: &str) -> bool {
+    Command::new("dpkg-query")
+        .args(["-W", "-f=${Status}", package])
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).contains("install ok installed"))
+        .unwrap_or(false)
+}
+
+/// Install the missing ones of `packages` with apt-get (non-interactive),
+/// optionally from a suite such as `bookworm-backports`.
+pub fn ensure_apt_packages(packages: &[&str], suite: Option<&str>) -> Result<()> {
+    let missing: Vec<&str> = packages.iter().copied().filter(|p| !apt_installed(p)).collect();
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let sudo = needs_sudo();
+    let apt = |args: &[&str]| {
+        let mut c = if sudo { Command::new("sudo") } else { Command::new("apt-get") };
+        if sudo {
+            c.arg("apt-get");
+        }
+        c.args(args).env("DEBIAN_FRONTEND", "noninteractive");
+        c
+    };
+    step("apt-get update", apt(&["update", "-q"]))?;
+    let mut args = vec!["install", "-y", "-q", "--no-install-recommends"];
+    if let Some(s) = suite {
+        args.extend(["-t", s]);
+    }
+    args.extend(&missing);
+    step(&format!("install {}", missing.join(" ")), apt(&args))
+}
+
+fn needs_sudo() -> bool {
+    Command::new("id")
+        .arg("-u")
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim() != "0")
+        .unwrap_or(true)
 }
