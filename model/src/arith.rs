@@ -65,11 +65,30 @@ pub const fn fp_mul(a: Q, b: Q) -> Q {
 /// Division by zero: `MAX` when `a >= 0`, `MIN` when `a < 0` (the limit of a
 /// tiny positive divisor), so `0 / 0 = MAX`.
 #[inline(always)]
-pub const fn fp_div(a: Q, b: Q) -> Q {
+pub fn fp_div(a: Q, b: Q) -> Q {
     if b.raw() == 0 {
         return if a.raw() >= 0 { Q::MAX } else { Q::MIN };
     }
-    Q::saturate(((a.raw() as i64) << FRAC_BITS) / b.raw() as i64)
+    Q::saturate(div_trunc((a.raw() as i64) << FRAC_BITS, b.raw() as i64))
+}
+
+/// `n / d` truncated toward zero, for `|n| <= 2^33` and `0 < |d| < 2^24`, exact
+/// wherever the caller's saturation at `2^23` does not hide the difference.
+#[inline(always)]
+fn div_trunc(n: i64, d: i64) -> i64 {
+    #[cfg(feature = "std")]
+    {
+        // Faster than a 64-bit integer divide on x86, and exact: both operands
+        // are exact doubles, a non-integer quotient lies at least 1/|d| >=
+        // 2^-24 from an integer, more than an ulp of any quotient below 2^24,
+        // so truncating the correctly rounded quotient gives the integer one
+        // (larger quotients saturate either way). Property-tested both ways.
+        (n as f64 / d as f64) as i64
+    }
+    #[cfg(not(feature = "std"))]
+    {
+        n / d
+    }
 }
 
 /// Square root: `floor(sqrt(a_raw * 2^10))` for `a >= 0`, and `0` for `a < 0`.
@@ -270,7 +289,8 @@ pub fn normalize(v: WideVec3) -> Normalized {
     };
     let q = (wx * wx + wy * wy + wz * wz) as u64;
     let len_w = isqrt(q);
-    let recip = ((1u64 << NORMALIZE_RECIP_NUM_BITS) / len_w) as i64;
+    // len_w >= 2^13, so the quotient is below 2^21: `div_trunc` is exact.
+    let recip = div_trunc(1i64 << NORMALIZE_RECIP_NUM_BITS, len_w as i64);
     let round = 1i64 << (NORMALIZE_RECIP_SHIFT - 1);
     let dir = Vec3::new(
         Q::saturate((wx * recip + round) >> NORMALIZE_RECIP_SHIFT),

@@ -112,18 +112,45 @@ pub fn intensity(cosine: Q) -> Q {
     fp_add(AMBIENT, fp_mul(fp_sub(Q::ONE, AMBIENT), clamp_unit(cosine)))
 }
 
-/// Trace one pixel. `x` and `y` are 9-bit coordinates (see [`camera_ray`]).
-#[inline]
-pub fn trace_pixel(x: u16, y: u16, light: &Light) -> Rgb {
+/// What a primary ray sees before any light-dependent work: stages 1 and 2.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Primary {
+    /// The ray misses everything: the final colour.
+    Sky(Rgb),
+    /// The ray meets the plane at `(x, 0, z)`.
+    Plane(Q, Q),
+    /// The unit ray `n` meets the sphere at distance `t`.
+    Sphere(Vec3, Q),
+}
+
+/// Stages 1 and 2 for pixel `(x, y)` (9-bit coordinates, see [`camera_ray`]).
+#[inline(always)]
+pub fn primary(x: u16, y: u16) -> Primary {
     let d = camera_ray(x, y);
     let n = normalize(WideVec3::from_vec3(d)).dir;
     if let Some(t) = hit_sphere(EYE, n) {
-        shade_sphere(n, t, light)
+        Primary::Sphere(n, t)
     } else if let Some((px, pz)) = hit_plane(EYE, d) {
-        shade_plane(px, pz, light)
+        Primary::Plane(px, pz)
     } else {
-        sky(n.y)
+        Primary::Sky(sky(n.y))
     }
+}
+
+/// Stages 3 and 4: the colour of what a primary ray sees, lit by `light`.
+#[inline(always)]
+pub fn shade_primary(hit: Primary, light: &Light) -> Rgb {
+    match hit {
+        Primary::Sky(colour) => colour,
+        Primary::Plane(px, pz) => shade_plane(px, pz, light),
+        Primary::Sphere(n, t) => shade_sphere(n, t, light),
+    }
+}
+
+/// Trace one pixel. `x` and `y` are 9-bit coordinates (see [`camera_ray`]).
+#[inline]
+pub fn trace_pixel(x: u16, y: u16, light: &Light) -> Rgb {
+    shade_primary(primary(x, y), light)
 }
 
 /// The sphere point at distance `t` along the unit primary ray `n`.
@@ -164,8 +191,43 @@ fn shadowed(p: Vec3, to_light: &Normalized) -> bool {
 
 /// Trace row `y` into `out` as line-buffer words `0x00RRGGBB`, pixel `x` at
 /// index `x`: exactly what the hardware leaves in its line buffer.
+///
+/// With the `std` feature the light-independent [`primary`] results of the
+/// frame's rows are computed once per process and reused (same values,
+/// about half the work per pixel).
 pub fn render_row(y: u16, light: &Light, out: &mut [u32; WIDTH]) {
+    #[cfg(feature = "std")]
+    if let Some(row) = primary_cache::row(y) {
+        for (px, hit) in out.iter_mut().zip(row) {
+            *px = shade_primary(*hit, light).to_word();
+        }
+        return;
+    }
     for (x, px) in (0u16..).zip(out.iter_mut()) {
         *px = trace_pixel(x, y, light).to_word();
+    }
+}
+
+#[cfg(feature = "std")]
+mod primary_cache {
+    //! The frame's [`Primary`] hits, computed once (3.5 MB).
+    use super::{primary, Primary};
+    use crate::scene::{HEIGHT, WIDTH};
+    use std::sync::OnceLock;
+
+    static HITS: OnceLock<Vec<Primary>> = OnceLock::new();
+
+    /// The hits of row `y`, or `None` past the frame.
+    pub fn row(y: u16) -> Option<&'static [Primary]> {
+        let y = usize::from(y);
+        if y >= HEIGHT {
+            return None;
+        }
+        let hits = HITS.get_or_init(|| {
+            (0..HEIGHT as u16)
+                .flat_map(|y| (0..WIDTH as u16).map(move |x| primary(x, y)))
+                .collect()
+        });
+        hits.get(y * WIDTH..(y + 1) * WIDTH)
     }
 }

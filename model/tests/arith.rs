@@ -67,6 +67,10 @@ fn word() -> impl Strategy<Value = i32> {
         Just(1),
         Just(1024),
         Just(-1024),
+        // Half-LSB products (odd x 512) exercise the rounding ties.
+        Just(512),
+        Just(-512),
+        (-4096..4096i32).prop_map(|v| v | 1),
     ]
 }
 
