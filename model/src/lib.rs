@@ -10,7 +10,7 @@
 //! * [`trace`]: [`trace_pixel`] and [`render_row`]; [`frame`]: the 518,400-byte
 //!   wire format.
 //! * [`light`]: the validated light position.
-//! * With the `std` feature, [`reference`] (an `f64` renderer of the same
+//! * With the `std` feature, [`mod@reference`] (an `f64` renderer of the same
 //!   scene) and [`quality`] (PSNR and the share of pixels within +-8).
 #![cfg_attr(not(feature = "std"), no_std)]
 #![warn(missing_docs)]

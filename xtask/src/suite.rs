@@ -14,6 +14,10 @@ pub const FIRMWARE_TARGET: &str = "armv7a-none-eabi";
 pub fn run() -> Result<()> {
     ensure_rust_target(FIRMWARE_TARGET)?;
     step("host tests", cargo(&["test", "--workspace"]))?;
+    // The workspace run enables the model's `std` feature (fast float paths);
+    // this runs the arithmetic properties against the pure-integer paths the
+    // firmware uses.
+    step("model arithmetic without std", cargo(&["test", "-p", "model", "--test", "arith"]))?;
     for krate in NO_STD_CRATES {
         step(
             &format!("{krate} builds no_std for {FIRMWARE_TARGET}"),
@@ -28,7 +32,7 @@ pub fn run() -> Result<()> {
 }
 
 /// Library crates that must build for the bare-metal target without `std`.
-const NO_STD_CRATES: &[&str] = &["model"];
+const NO_STD_CRATES: &[&str] = &["model", "hal-avalon"];
 
 /// A `cargo` command using the same cargo that runs xtask.
 pub fn cargo(args: &[&str]) -> Command {

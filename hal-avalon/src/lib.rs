@@ -1,0 +1,49 @@
+//! Hardware access to the FPGA ray-tracing accelerator.
+//!
+//! The accelerator sits behind the Cyclone V lightweight HPS-to-FPGA bridge:
+//! a small CSR block starts one row at a time, a line buffer returns it.
+//!
+//! * [`map`]: the register map, the single source of truth for every
+//!   address and bit (`fpga/` implements the same numbers).
+//! * [`port`]: [`RegisterPort`], the one trait through which software touches
+//!   the accelerator.
+//! * [`mmio`]: [`Mmio`], the memory-mapped port on the board (the crate's only
+//!   raw-pointer code).
+//! * [`driver`]: [`Accelerator`], the row driver generic over the port, with
+//!   bounded polling ([`PollTimeout`], an `embedded-hal` [`DelayNs`]) and
+//!   [`Error`]s instead of hangs or panics.
+//! * `sim` (feature `sim`): `SimAccelerator`, a simulated device built from
+//!   [`model`], bit-exact at the register level, with fault injection.
+//!
+//! ```
+//! # #[cfg(feature = "sim")] {
+//! use hal_avalon::sim::{CountingDelay, SimAccelerator};
+//! use hal_avalon::{Accelerator, PollTimeout};
+//!
+//! let mut accel = Accelerator::new(SimAccelerator::new(), CountingDelay::default(), PollTimeout::DEFAULT);
+//! let light = model::Light::from_raw(3 << 10, 4 << 10, -(2 << 10)).unwrap();
+//! let mut row = [0u32; 480];
+//! accel.run_row(200, &light, &mut row).unwrap();
+//!
+//! let mut expected = [0u32; 480];
+//! model::render_row(200, &light, &mut expected);
+//! assert_eq!(row, expected);
+//! # }
+//! ```
+//!
+//! [`DelayNs`]: embedded_hal::delay::DelayNs
+#![no_std]
+#![warn(missing_docs)]
+#![deny(unsafe_op_in_unsafe_fn)]
+
+pub mod driver;
+pub mod map;
+pub mod mmio;
+pub mod port;
+#[cfg(feature = "sim")]
+pub mod sim;
+
+pub use driver::{Accelerator, Error, PollTimeout};
+pub use map::Csr;
+pub use mmio::Mmio;
+pub use port::RegisterPort;

@@ -1,0 +1,224 @@
+//! The register map: the contract between the firmware and the FPGA.
+//!
+//! This module is the single source of truth for every address, offset and
+//! bit of the accelerator; `fpga/` implements the same numbers.
+//!
+//! # Windows inside the lightweight bridge
+//!
+//! | window | bridge offset | size | contents |
+//! |---|---|---|---|
+//! | CSR block | [`CSR_OFFSET`] `0x0000` | 7 registers (`0x00..=0x18`) | [`Csr`] |
+//! | line buffer | [`LINE_BUFFER_OFFSET`] `0x1000` | [`LINE_WORDS`] x 32 bit | pixel `x` at `0x1000 + 4 * x`, word `0x00RRGGBB` |
+//!
+//! Every register is 32 bits wide and word aligned. Offsets of the bridge
+//! window outside the seven registers and the 480 line-buffer words are not
+//! part of the contract, except that unmapped offsets of the CSR block read 0.
+//!
+//! # CSR block
+//!
+//! | offset | name | access | meaning |
+//! |---|---|---|---|
+//! | `0x00` | [`Csr::Control`] | W | bit 0 [`CONTROL_START`]: start a row (pulse; also clears a latched done); bit 1 [`CONTROL_CLEAR_DONE`]: clear done. Other bits ignored; with both bits set, start wins. Reads return 0. |
+//! | `0x04` | [`Csr::Status`] | R | bit 0 [`STATUS_BUSY`]: a row is being rendered; bit 1 [`STATUS_DONE`]: sticky, set when a row finishes. Other bits read 0. Writes ignored. |
+//! | `0x08` | [`Csr::RowY`] | R/W | row to render; only bits 8:0 ([`ROW_Y_MASK`]) are stored and read back. |
+//! | `0x0C` | [`Csr::LightX`] | R/W | light x, Q13.10 in bits 23:0 ([`LIGHT_MASK`]); reads return the stored 24 bits sign-extended to 32. |
+//! | `0x10` | [`Csr::LightY`] | R/W | light y, as light x. |
+//! | `0x14` | [`Csr::LightZ`] | R/W | light z, as light x. |
+//! | `0x18` | [`Csr::Id`] | R | [`ID_VALUE`] `0x5254_0001`: magic `0x5254` ("RT") in bits 31:16, version 1 in bits 15:0. Writes ignored. |
+//!
+//! # Behaviour
+//!
+//! * A start while idle latches `ROW_Y` and `LIGHT_*`, clears done and sets
+//!   busy. Writes to those registers while busy change what they read back,
+//!   not the row in progress.
+//! * When the row is finished the line buffer holds it, busy clears and done
+//!   sets. Done stays set until the next start or a clear_done; busy and done
+//!   are never both set.
+//! * A start while busy is ignored completely: no restart, the row in
+//!   progress is unaffected. A clear_done while busy clears done (already 0)
+//!   and leaves busy alone.
+//! * Any 9-bit row is rendered, including rows `>= 360`: the accelerator
+//!   computes exactly `model::render_row(row_y & 0x1ff, ..)`, extrapolating
+//!   the camera. (The driver itself refuses rows `>= 360`.)
+//! * The line buffer's contents are undefined while busy; after reset, before
+//!   any row, it reads 0. It is read-only from the HPS side.
+
+/// Base address of the lightweight HPS-to-FPGA bridge window in the HPS
+/// address map.
+///
+/// Source: Cyclone V Hard Processor System Technical Reference Manual,
+/// "HPS Address Map" (the `LWFPGASLAVES` region, 0xFF20_0000 - 0xFF3F_FFFF).
+pub const LW_BRIDGE_BASE: usize = 0xFF20_0000;
+
+/// Size of the lightweight bridge window: 2 MiB (same TRM table).
+pub const LW_BRIDGE_SIZE: usize = 2 << 20;
+
+/// Offset of the CSR block inside the lightweight bridge window.
+pub const CSR_OFFSET: usize = 0x0000;
+
+/// Offset of the line-buffer window inside the lightweight bridge window.
+pub const LINE_BUFFER_OFFSET: usize = 0x1000;
+
+/// Words in the line buffer: one per pixel of a row.
+pub const LINE_WORDS: usize = 480;
+
+/// Rows of a frame; the driver refuses `row_y >= ROWS`.
+pub const ROWS: u16 = 360;
+
+/// Bridge offset of line-buffer word `x` (pixel `x` of the row).
+pub const fn line_word_offset(x: usize) -> usize {
+    LINE_BUFFER_OFFSET + 4 * x
+}
+
+// The line buffer is one row of the model's frame.
+const _: () = assert!(LINE_WORDS == model::WIDTH && ROWS as usize == model::HEIGHT);
+const _: () = assert!(line_word_offset(LINE_WORDS) <= LW_BRIDGE_SIZE);
+
+/// The registers of the CSR block.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Hash)]
+pub enum Csr {
+    /// `0x00`, write-only: start pulse and clear_done.
+    Control,
+    /// `0x04`, read-only: busy and sticky done.
+    Status,
+    /// `0x08`, read/write: row to render, 9 bits.
+    RowY,
+    /// `0x0C`, read/write: light x, 24-bit Q13.10.
+    LightX,
+    /// `0x10`, read/write: light y, 24-bit Q13.10.
+    LightY,
+    /// `0x14`, read/write: light z, 24-bit Q13.10.
+    LightZ,
+    /// `0x18`, read-only: magic and version ([`ID_VALUE`]).
+    Id,
+}
+
+impl Csr {
+    /// Every register, in address order.
+    pub const ALL: [Csr; 7] = [
+        Csr::Control,
+        Csr::Status,
+        Csr::RowY,
+        Csr::LightX,
+        Csr::LightY,
+        Csr::LightZ,
+        Csr::Id,
+    ];
+
+    /// Byte offset of the register inside the CSR block.
+    pub const fn offset(self) -> usize {
+        match self {
+            Csr::Control => 0x00,
+            Csr::Status => 0x04,
+            Csr::RowY => 0x08,
+            Csr::LightX => 0x0C,
+            Csr::LightY => 0x10,
+            Csr::LightZ => 0x14,
+            Csr::Id => 0x18,
+        }
+    }
+
+    /// The register at byte offset `offset` of the CSR block (low two bits
+    /// ignored, as on the 32-bit Avalon slave), or `None` if unmapped.
+    pub const fn at_offset(offset: usize) -> Option<Csr> {
+        match offset & !3 {
+            0x00 => Some(Csr::Control),
+            0x04 => Some(Csr::Status),
+            0x08 => Some(Csr::RowY),
+            0x0C => Some(Csr::LightX),
+            0x10 => Some(Csr::LightY),
+            0x14 => Some(Csr::LightZ),
+            0x18 => Some(Csr::Id),
+            _ => None,
+        }
+    }
+}
+
+/// Size of the CSR block's address range (up to the line buffer).
+pub const CSR_WINDOW: usize = LINE_BUFFER_OFFSET - CSR_OFFSET;
+
+/// CONTROL bit 0: start a row (a pulse, not stored; also clears done).
+pub const CONTROL_START: u32 = 1 << 0;
+/// CONTROL bit 1: clear the sticky done bit.
+pub const CONTROL_CLEAR_DONE: u32 = 1 << 1;
+
+/// STATUS bit 0: a row is being rendered.
+pub const STATUS_BUSY: u32 = 1 << 0;
+/// STATUS bit 1: sticky; a row has finished since the last start or clear_done.
+pub const STATUS_DONE: u32 = 1 << 1;
+/// The STATUS bits that can be set; all others read 0.
+pub const STATUS_MASK: u32 = STATUS_BUSY | STATUS_DONE;
+
+/// The bits of ROW_Y that are stored (9-bit row counter).
+pub const ROW_Y_MASK: u32 = model::trace::COORD_MASK as u32;
+
+/// The bits of LIGHT_X/Y/Z that are stored (a 24-bit Q13.10 word).
+pub const LIGHT_MASK: u32 = (1 << model::word::WORD_BITS) - 1;
+
+/// Magic in ID bits 31:16: ASCII "RT".
+pub const ID_MAGIC: u16 = 0x5254;
+/// Register-map version in ID bits 15:0; this document describes version 1.
+pub const ID_VERSION: u16 = 1;
+/// The value the ID register reads on a configured accelerator.
+pub const ID_VALUE: u32 = (ID_MAGIC as u32) << 16 | ID_VERSION as u32;
+
+/// What every read returns when nothing answers (an empty fabric or a
+/// bridge that fails reads): all ones.
+pub const BUS_ALL_ONES: u32 = 0xFFFF_FFFF;
+
+/// Bits 31:24 of a line-buffer word; always 0 in a finished row
+/// (`0x00RRGGBB`).
+pub const PIXEL_RESERVED_MASK: u32 = 0xFF00_0000;
+
+/// A light component as the LIGHT registers store it (bits 23:0).
+pub const fn light_to_register(raw: i32) -> u32 {
+    raw as u32 & LIGHT_MASK
+}
+
+/// A LIGHT register's stored bits as they read back: sign-extended from bit 23.
+pub const fn light_from_register(bits: u32) -> i32 {
+    ((bits << 8) as i32) >> 8
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offsets_round_trip() {
+        for (i, csr) in Csr::ALL.into_iter().enumerate() {
+            assert_eq!(csr.offset(), 4 * i);
+            assert_eq!(Csr::at_offset(csr.offset()), Some(csr));
+            assert_eq!(Csr::at_offset(csr.offset() + 3), Some(csr));
+        }
+        assert_eq!(Csr::at_offset(0x1C), None);
+        assert_eq!(Csr::at_offset(CSR_WINDOW - 4), None);
+    }
+
+    #[test]
+    fn constants_match_the_decided_map() {
+        assert_eq!(ID_VALUE, 0x5254_0001);
+        assert_eq!(ROW_Y_MASK, 0x1ff);
+        assert_eq!(LIGHT_MASK, 0x00ff_ffff);
+        assert_eq!(line_word_offset(0), 0x1000);
+        assert_eq!(line_word_offset(479), 0x177C);
+    }
+
+    #[test]
+    fn light_register_sign_extends() {
+        for raw in [
+            0,
+            1,
+            -1,
+            1024,
+            -2048,
+            model::word::RAW_MIN,
+            model::word::RAW_MAX,
+        ] {
+            assert_eq!(light_from_register(light_to_register(raw)), raw);
+        }
+        assert_eq!(light_to_register(-1), 0x00ff_ffff);
+        assert_eq!(light_from_register(0xff80_0000), model::word::RAW_MIN);
+        assert_eq!(light_from_register(0x1234_5678), 0x0034_5678);
+    }
+}

@@ -1,0 +1,39 @@
+//! The register port: the only way software touches the accelerator.
+//!
+//! The [`crate::Accelerator`] driver is generic over [`RegisterPort`]; on
+//! the board the port is [`crate::mmio::Mmio`], on the host the simulated
+//! device (`sim::SimAccelerator`, feature `sim`).
+
+use crate::map::{Csr, LINE_WORDS};
+
+/// Word access to the CSR block and the line buffer of one accelerator.
+///
+/// The methods take `&mut self` because reads have side effects on real
+/// hardware and in the simulation (polling STATUS advances the simulated
+/// device). Implementations perform at most one bus access per register
+/// access, in program order, and never fail: a bus that does not answer shows
+/// up in the values read (for example all ones), which the driver checks.
+pub trait RegisterPort {
+    /// Read one CSR register.
+    fn read(&mut self, csr: Csr) -> u32;
+
+    /// Write one CSR register.
+    fn write(&mut self, csr: Csr, value: u32);
+
+    /// Read the whole line buffer, word `x` into `out[x]`, in address order.
+    fn read_line(&mut self, out: &mut [u32; LINE_WORDS]);
+}
+
+impl<P: RegisterPort + ?Sized> RegisterPort for &mut P {
+    fn read(&mut self, csr: Csr) -> u32 {
+        (**self).read(csr)
+    }
+
+    fn write(&mut self, csr: Csr, value: u32) {
+        (**self).write(csr, value)
+    }
+
+    fn read_line(&mut self, out: &mut [u32; LINE_WORDS]) {
+        (**self).read_line(out)
+    }
+}

@@ -1,0 +1,307 @@
+//! A simulated accelerator, bit-exact at the register level (feature `sim`).
+//!
+//! [`SimAccelerator`] answers the bridge window the way the RTL does, with
+//! the behaviour documented in [`crate::map`], and renders rows with
+//! [`model::render_row`]. Two deliberate differences from real hardware make
+//! tests sharper, not looser:
+//!
+//! * Time is counted in STATUS reads: a row stays busy for
+//!   [`busy_polls`](SimAccelerator::busy_polls) reads after its start and
+//!   finishes on the next one.
+//! * While busy, line-buffer words read [`LINE_POISON`]` | x` (bits 31:24
+//!   set, which a finished row never has), so a premature read cannot pass
+//!   for a row.
+//!
+//! [`Fault`] injects the failures the driver must survive. No `std`, no
+//! allocation.
+
+use embedded_hal::delay::DelayNs;
+use model::Light;
+
+use crate::map::{
+    light_from_register, Csr, BUS_ALL_ONES, CONTROL_CLEAR_DONE, CONTROL_START, CSR_OFFSET,
+    CSR_WINDOW, ID_VALUE, LIGHT_MASK, LINE_BUFFER_OFFSET, LINE_WORDS, ROW_Y_MASK, STATUS_BUSY,
+    STATUS_DONE,
+};
+use crate::port::RegisterPort;
+
+/// What a line-buffer word `x` reads while a row is in progress:
+/// `LINE_POISON | x`.
+pub const LINE_POISON: u32 = 0xBAD0_0000;
+
+/// STATUS reads a row stays busy for unless configured otherwise.
+pub const DEFAULT_BUSY_POLLS: u32 = 3;
+
+/// An injected failure.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Fault {
+    /// A row in progress never finishes: busy stays set. Clearing the fault
+    /// lets it run on from where it stopped.
+    StuckBusy,
+    /// Nothing answers: every read returns all ones, writes are lost (an
+    /// empty fabric or a bridge that fails reads).
+    Absent,
+    /// Rows finish (busy clears, the line buffer is written) but done is
+    /// never set.
+    DoneNeverSet,
+}
+
+/// The simulated accelerator.
+#[derive(Clone, Debug)]
+pub struct SimAccelerator {
+    /// ROW_Y as stored (9 bits).
+    row_y: u32,
+    /// LIGHT_X/Y/Z as stored (24 bits each).
+    light: [u32; 3],
+    /// ROW_Y and LIGHT_* latched by the last accepted start.
+    latched_row_y: u32,
+    latched_light: [u32; 3],
+    busy: bool,
+    done: bool,
+    /// STATUS reads the row in progress still reports busy for.
+    polls_left: u32,
+    busy_polls: u32,
+    line: [u32; LINE_WORDS],
+    fault: Option<Fault>,
+    status_reads: u32,
+    starts: u32,
+    rows_finished: u32,
+}
+
+impl Default for SimAccelerator {
+    fn default() -> SimAccelerator {
+        SimAccelerator::new()
+    }
+}
+
+impl SimAccelerator {
+    /// A device just out of reset, busy for [`DEFAULT_BUSY_POLLS`] polls per
+    /// row, no fault.
+    pub const fn new() -> SimAccelerator {
+        SimAccelerator::with_busy_polls(DEFAULT_BUSY_POLLS)
+    }
+
+    /// A device just out of reset whose rows stay busy for `busy_polls`
+    /// STATUS reads (0: done on the first read after the start).
+    pub const fn with_busy_polls(busy_polls: u32) -> SimAccelerator {
+        SimAccelerator {
+            row_y: 0,
+            light: [0; 3],
+            latched_row_y: 0,
+            latched_light: [0; 3],
+            busy: false,
+            done: false,
+            polls_left: 0,
+            busy_polls,
+            line: [0; LINE_WORDS],
+            fault: None,
+            status_reads: 0,
+            starts: 0,
+            rows_finished: 0,
+        }
+    }
+
+    /// Reset every register and the line buffer to the power-on state; the
+    /// configuration (busy polls, fault) and the counters are kept.
+    pub fn reset(&mut self) {
+        *self = SimAccelerator {
+            fault: self.fault,
+            status_reads: self.status_reads,
+            starts: self.starts,
+            rows_finished: self.rows_finished,
+            ..SimAccelerator::with_busy_polls(self.busy_polls)
+        };
+    }
+
+    /// STATUS reads a row stays busy for.
+    pub fn busy_polls(&self) -> u32 {
+        self.busy_polls
+    }
+
+    /// Change how many STATUS reads later rows stay busy for (the row in
+    /// progress keeps its count).
+    pub fn set_busy_polls(&mut self, busy_polls: u32) {
+        self.busy_polls = busy_polls;
+    }
+
+    /// The injected fault, if any.
+    pub fn fault(&self) -> Option<Fault> {
+        self.fault
+    }
+
+    /// Inject a fault, or recover with `None`.
+    pub fn set_fault(&mut self, fault: Option<Fault>) {
+        self.fault = fault;
+    }
+
+    /// STATUS reads so far (including unanswered ones).
+    pub fn status_reads(&self) -> u32 {
+        self.status_reads
+    }
+
+    /// Starts accepted so far (a start while busy is not counted).
+    pub fn starts(&self) -> u32 {
+        self.starts
+    }
+
+    /// Rows finished so far.
+    pub fn rows_finished(&self) -> u32 {
+        self.rows_finished
+    }
+
+    /// Whether a row is in progress (without counting as a STATUS poll).
+    pub fn is_busy(&self) -> bool {
+        self.busy
+    }
+
+    /// A 32-bit read at byte offset `offset` of the bridge window (low two
+    /// bits ignored). Offsets outside the seven registers and the 480
+    /// line-buffer words read 0.
+    pub fn bus_read(&mut self, offset: usize) -> u32 {
+        let offset = offset & !3;
+        if offset == CSR_OFFSET + Csr::Status.offset() {
+            self.status_reads = self.status_reads.wrapping_add(1);
+        }
+        if self.fault == Some(Fault::Absent) {
+            return BUS_ALL_ONES;
+        }
+        if let Some(rel) = csr_relative(offset) {
+            return match Csr::at_offset(rel) {
+                Some(csr) => self.read_csr(csr),
+                None => 0,
+            };
+        }
+        match line_word_index(offset) {
+            Some(x) if self.busy => LINE_POISON | x as u32,
+            Some(x) => self.line[x],
+            None => 0,
+        }
+    }
+
+    /// A 32-bit write at byte offset `offset` of the bridge window (low two
+    /// bits ignored). Only CONTROL, ROW_Y and LIGHT_* take writes.
+    pub fn bus_write(&mut self, offset: usize, value: u32) {
+        if self.fault == Some(Fault::Absent) {
+            return;
+        }
+        let Some(csr) = csr_relative(offset & !3).and_then(Csr::at_offset) else {
+            return;
+        };
+        match csr {
+            Csr::Control => self.control(value),
+            Csr::RowY => self.row_y = value & ROW_Y_MASK,
+            Csr::LightX => self.light[0] = value & LIGHT_MASK,
+            Csr::LightY => self.light[1] = value & LIGHT_MASK,
+            Csr::LightZ => self.light[2] = value & LIGHT_MASK,
+            Csr::Status | Csr::Id => {}
+        }
+    }
+
+    fn read_csr(&mut self, csr: Csr) -> u32 {
+        match csr {
+            Csr::Control => 0,
+            Csr::Status => self.poll_status(),
+            Csr::RowY => self.row_y,
+            Csr::LightX => light_from_register(self.light[0]) as u32,
+            Csr::LightY => light_from_register(self.light[1]) as u32,
+            Csr::LightZ => light_from_register(self.light[2]) as u32,
+            Csr::Id => ID_VALUE,
+        }
+    }
+
+    /// A CONTROL write: start wins over clear_done; a start while busy is
+    /// ignored; done is always 0 while busy, so clear_done needs no busy
+    /// check.
+    fn control(&mut self, value: u32) {
+        if value & CONTROL_START != 0 {
+            if !self.busy {
+                self.latched_row_y = self.row_y;
+                self.latched_light = self.light;
+                self.busy = true;
+                self.done = false;
+                self.polls_left = self.busy_polls;
+                self.starts = self.starts.wrapping_add(1);
+            }
+        } else if value & CONTROL_CLEAR_DONE != 0 {
+            self.done = false;
+        }
+    }
+
+    /// One STATUS read: time passes for the row in progress.
+    fn poll_status(&mut self) -> u32 {
+        if self.busy && self.fault != Some(Fault::StuckBusy) {
+            if self.polls_left == 0 {
+                self.finish_row();
+            } else {
+                self.polls_left -= 1;
+            }
+        }
+        (if self.busy { STATUS_BUSY } else { 0 }) | (if self.done { STATUS_DONE } else { 0 })
+    }
+
+    fn finish_row(&mut self) {
+        let [x, y, z] = self.latched_light.map(light_from_register);
+        // A sign-extended 24-bit value is always a valid word, so `from_raw`
+        // cannot fail; should it ever, the row stays poisoned instead of
+        // panicking.
+        match Light::from_raw(x, y, z) {
+            Ok(light) => model::render_row(self.latched_row_y as u16, &light, &mut self.line),
+            Err(_) => {
+                for (x, word) in (0u32..).zip(self.line.iter_mut()) {
+                    *word = LINE_POISON | x;
+                }
+            }
+        }
+        self.busy = false;
+        self.done = self.fault != Some(Fault::DoneNeverSet);
+        self.rows_finished = self.rows_finished.wrapping_add(1);
+    }
+}
+
+/// `offset` relative to the CSR block, if it falls inside it.
+fn csr_relative(offset: usize) -> Option<usize> {
+    offset
+        .checked_sub(CSR_OFFSET)
+        .filter(|rel| *rel < CSR_WINDOW)
+}
+
+/// The line-buffer word at `offset`, if there is one.
+fn line_word_index(offset: usize) -> Option<usize> {
+    offset
+        .checked_sub(LINE_BUFFER_OFFSET)
+        .map(|rel| rel / 4)
+        .filter(|x| *x < LINE_WORDS)
+}
+
+impl RegisterPort for SimAccelerator {
+    fn read(&mut self, csr: Csr) -> u32 {
+        self.bus_read(CSR_OFFSET + csr.offset())
+    }
+
+    fn write(&mut self, csr: Csr, value: u32) {
+        self.bus_write(CSR_OFFSET + csr.offset(), value)
+    }
+
+    fn read_line(&mut self, out: &mut [u32; LINE_WORDS]) {
+        for (x, word) in out.iter_mut().enumerate() {
+            *word = self.bus_read(crate::map::line_word_offset(x));
+        }
+    }
+}
+
+/// A [`DelayNs`] that only adds up the time it was asked to wait, for host
+/// tests and host simulations.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
+pub struct CountingDelay {
+    /// Number of delay calls.
+    pub calls: u32,
+    /// Nanoseconds asked for in total.
+    pub total_ns: u64,
+}
+
+impl DelayNs for CountingDelay {
+    fn delay_ns(&mut self, ns: u32) {
+        self.calls = self.calls.wrapping_add(1);
+        self.total_ns = self.total_ns.saturating_add(u64::from(ns));
+    }
+}
