@@ -1,5 +1,8 @@
-//! Host test shim of the ray tracer workspace.
+//! Host side of the ray tracer workspace: the root package.
 //!
-//! The root package owns the cross-crate integration tests in `tests/` (and,
-//! as the frame server lands, the `hps-sim` host board simulation). It has no
-//! logic of its own.
+//! * [`hps_sim`]: the simulated board (the firmware's frame server on std TCP
+//!   with hal-avalon's simulated accelerator), used by the `hps-sim` binary,
+//!   the integration tests in `tests/` and the client's in-process mode.
+#![warn(missing_docs)]
+
+pub mod hps_sim;
