@@ -1,8 +1,12 @@
 //! `cargo xtask <command>`: project automation in Rust, so it runs wherever
 //! cargo does.
 
+mod bench_fw;
+mod firmware;
 mod model_cmds;
+mod qemu_e2e;
 mod suite;
+mod uimage;
 
 use std::process::ExitCode;
 
@@ -25,6 +29,15 @@ enum Command {
     Golden(model_cmds::GoldenArgs),
     /// Print the quality report: the model against the f64 reference.
     Quality,
+    /// Build the firmware for QEMU's npcm750-evb and boot it, forwarding
+    /// host ports to the firmware's 7878 and 7879.
+    Qemu(firmware::QemuArgs),
+    /// Build the DE1-SoC payload: raw binary and U-Boot legacy image.
+    Image(firmware::ImageArgs),
+    /// Boot the QEMU firmware and run the end-to-end tests against it.
+    QemuTest,
+    /// Guest instructions per frame (QEMU -icount): renderer and network.
+    BenchFw(bench_fw::BenchArgs),
 }
 
 fn main() -> ExitCode {
@@ -34,6 +47,10 @@ fn main() -> ExitCode {
         Command::Render(args) => model_cmds::render(&args),
         Command::Golden(args) => model_cmds::golden(&args),
         Command::Quality => model_cmds::quality(),
+        Command::Qemu(args) => firmware::qemu(&args),
+        Command::Image(args) => firmware::image(&args),
+        Command::QemuTest => suite::qemu_tests(),
+        Command::BenchFw(args) => bench_fw::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

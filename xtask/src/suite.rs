@@ -13,6 +13,8 @@ pub const FIRMWARE_TARGET: &str = "armv7a-none-eabi";
 
 pub fn run() -> Result<()> {
     ensure_rust_target(FIRMWARE_TARGET)?;
+    // QEMU for the firmware tests, mkimage for the U-Boot header test.
+    ensure_qemu()?;
     step("host tests", cargo(&["test", "--workspace"]))?;
     // The workspace run enables the model's `std` feature (fast float paths);
     // this runs the arithmetic properties against the pure-integer paths the
@@ -27,6 +29,10 @@ pub fn run() -> Result<()> {
     let mut doc = cargo(&["doc", "--workspace", "--no-deps"]);
     doc.env("RUSTDOCFLAGS", "-D warnings");
     step("rustdoc without warnings", doc)?;
+    // Firmware: both boards build warning-free, then the QEMU end-to-end
+    // tests boot the QEMU board.
+    crate::firmware::build("de1-soc", &[])?;
+    qemu_tests()?;
     println!("xtask test: all steps passed");
     Ok(())
 }
@@ -106,4 +112,41 @@ fn needs_sudo() -> bool {
         .output()
         .map(|o| String::from_utf8_lossy(&o.stdout).trim() != "0")
         .unwrap_or(true)
+}
+
+/// Debian bookworm's own QEMU (7.2) lacks `npcm-gmac`: take qemu-system-arm
+/// 10 from bookworm-backports (deb822 source as in shared/PLATFORM.md), and
+/// mkimage from u-boot-tools.
+pub fn ensure_qemu() -> Result<()> {
+    const SOURCE: &str = "/etc/apt/sources.list.d/bookworm-backports.sources";
+    if !apt_installed("qemu-system-arm") || !apt_installed("u-boot-tools") {
+        let has_backports = std::fs::read_dir("/etc/apt/sources.list.d")
+            .map(|d| {
+                d.flatten().any(|e| std::fs::read_to_string(e.path()).is_ok_and(|t| t.contains("bookworm-backports")))
+            })
+            .unwrap_or(false)
+            || std::fs::read_to_string("/etc/apt/sources.list").is_ok_and(|t| t.contains("bookworm-backports"));
+        if !has_backports {
+            let text = "Types: deb\nURIs: http://deb.debian.org/debian\nSuites: bookworm-backports\n\
+                        Components: main\nSigned-By: /usr/share/keyrings/debian-archive-keyring.gpg\n";
+            println!("==> add apt source {SOURCE}");
+            if needs_sudo() {
+                let mut c = Command::new("sudo");
+                c.args(["sh", "-c", &format!("cat > {SOURCE} <<'EOF'\n{text}EOF\n")]);
+                step("add bookworm-backports", c)?;
+            } else {
+                std::fs::write(SOURCE, text).map_err(|e| format!("{SOURCE}: {e}"))?;
+            }
+        }
+    }
+    ensure_apt_packages(&["qemu-system-arm", "u-boot-tools"], Some("bookworm-backports"))
+}
+
+/// Build the QEMU firmware (warnings are errors) and run the end-to-end
+/// tests against it.
+pub fn qemu_tests() -> Result<()> {
+    ensure_qemu()?;
+    let elf = crate::firmware::build("qemu-npcm750", &[])?;
+    println!("==> QEMU end-to-end tests ({})", elf.display());
+    crate::qemu_e2e::run(&elf)
 }

@@ -1,0 +1,172 @@
+//! Firmware commands: build for a board, boot in QEMU (`cargo xtask qemu`),
+//! build the DE1-SoC payload (`cargo xtask image`), and the QEMU guest
+//! helper the end-to-end tests and the bench use.
+
+use std::fs::File;
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use clap::Args;
+
+use crate::suite::{cargo, step, FIRMWARE_TARGET};
+use crate::uimage;
+use crate::Result;
+
+/// Workspace root (xtask's parent directory).
+pub fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("xtask sits in the workspace root").to_path_buf()
+}
+
+/// The release ELF of the firmware.
+pub fn elf_path() -> PathBuf {
+    root().join("target").join(FIRMWARE_TARGET).join("release").join("firmware")
+}
+
+/// Build the release firmware for `board` (extra features appended), with
+/// warnings as errors.
+pub fn build(board: &str, extra_features: &[&str]) -> Result<PathBuf> {
+    let features = std::iter::once(board).chain(extra_features.iter().copied()).collect::<Vec<_>>().join(",");
+    let mut c = cargo(&["build", "--release", "-p", "firmware", "--target", FIRMWARE_TARGET, "--features", &features]);
+    c.env("RUSTFLAGS", "-D warnings");
+    step(&format!("build firmware ({features})"), c)?;
+    Ok(elf_path())
+}
+
+/// A free TCP port on 127.0.0.1 (asked from the OS, then released).
+pub fn free_port() -> Result<u16> {
+    let l = TcpListener::bind("127.0.0.1:0").map_err(|e| format!("no free port: {e}"))?;
+    Ok(l.local_addr().map_err(|e| e.to_string())?.port())
+}
+
+/// The QEMU command line for `elf` with host ports forwarded to the
+/// firmware's 7878 and 7879.
+pub fn qemu_command(elf: &Path, port_single: u16, port_persistent: u16) -> Command {
+    let mut c = Command::new("qemu-system-arm");
+    c.args(["-M", "npcm750-evb", "-kernel"]).arg(elf).args([
+        "-nic",
+        &format!(
+            "user,id=n0,model=npcm-gmac,hostfwd=tcp:127.0.0.1:{port_single}-:7878,hostfwd=tcp:127.0.0.1:{port_persistent}-:7879"
+        ),
+    ]);
+    c
+}
+
+/// A running QEMU guest with its UART in a log file; killed on drop.
+pub struct Guest {
+    child: Child,
+    /// UART log file.
+    pub log: PathBuf,
+    /// Host port forwarded to 7878.
+    pub port_single: u16,
+    /// Host port forwarded to 7879.
+    pub port_persistent: u16,
+}
+
+impl Guest {
+    /// Boot `elf` with extra QEMU arguments; wait (at most 60 s) until the
+    /// firmware says it listens.
+    pub fn boot(elf: &Path, extra: &[&str]) -> Result<Guest> {
+        let (port_single, port_persistent) = (free_port()?, free_port()?);
+        let log = std::env::temp_dir().join(format!("rt-firmware-uart-{}-{port_single}.log", std::process::id()));
+        let mut c = qemu_command(elf, port_single, port_persistent);
+        c.args(["-display", "none", "-monitor", "none", "-serial"]).arg(format!("file:{}", log.display()));
+        c.args(extra);
+        c.stdin(Stdio::null()).stdout(Stdio::null()).stderr(Stdio::from(
+            File::create(log.with_extension("stderr")).map_err(|e| e.to_string())?,
+        ));
+        let child = c.spawn().map_err(|e| format!("cannot start qemu-system-arm: {e} (cargo xtask test installs it)"))?;
+        let mut g = Guest { child, log, port_single, port_persistent };
+        g.wait_for_log("listening on TCP", Duration::from_secs(60))?;
+        Ok(g)
+    }
+
+    /// The UART output so far.
+    pub fn uart(&self) -> String {
+        std::fs::read_to_string(&self.log).unwrap_or_default()
+    }
+
+    /// Wait until the UART log contains `needle`.
+    pub fn wait_for_log(&mut self, needle: &str, timeout: Duration) -> Result<()> {
+        let start = Instant::now();
+        loop {
+            if self.uart().contains(needle) {
+                return Ok(());
+            }
+            if let Ok(Some(st)) = self.child.try_wait() {
+                return Err(format!("QEMU exited ({st}) before {needle:?}; UART:\n{}", self.uart()));
+            }
+            if start.elapsed() > timeout {
+                return Err(format!("no {needle:?} on the UART within {timeout:?}; UART:\n{}", self.uart()));
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
+
+impl Drop for Guest {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// `cargo xtask qemu` options.
+#[derive(Args)]
+pub struct QemuArgs {
+    /// Host port forwarded to the firmware's 7878 (the next port goes to 7879).
+    #[arg(long, default_value_t = 7878)]
+    pub port: u16,
+}
+
+/// Build the QEMU firmware and boot it in the foreground (Ctrl-A X quits).
+pub fn qemu(args: &QemuArgs) -> Result<()> {
+    crate::suite::ensure_qemu()?;
+    let elf = build("qemu-npcm750", &[])?;
+    let (p1, p2) = (args.port, args.port.checked_add(1).ok_or("--port too large")?);
+    println!("firmware: {}", elf.display());
+    println!("forwarded: 127.0.0.1:{p1} -> firmware :7878 (one frame per connection)");
+    println!("forwarded: 127.0.0.1:{p2} -> firmware :7879 (persistent)");
+    println!("try: rt-client orbit --server 127.0.0.1:{p1}    (quit QEMU with Ctrl-A X)");
+    let mut c = qemu_command(&elf, p1, p2);
+    c.arg("-nographic");
+    let st = c.status().map_err(|e| format!("cannot start qemu-system-arm: {e}"))?;
+    if st.success() { Ok(()) } else { Err(format!("QEMU exited with {st}")) }
+}
+
+/// `cargo xtask image` options.
+#[derive(Args)]
+pub struct ImageArgs {
+    /// Output directory.
+    #[arg(long, default_value = "target/de1-soc")]
+    pub out: PathBuf,
+}
+
+/// Link (and load/entry) address of the firmware: `memory.x`'s RAM origin.
+pub const LOAD_ADDRESS: u32 = 0x0010_0040;
+
+/// Build the DE1-SoC firmware and write `firmware.bin` (raw) and
+/// `firmware.img` (U-Boot legacy image, load and entry at the link address).
+pub fn image(args: &ImageArgs) -> Result<()> {
+    let elf_path = build("de1-soc", &[])?;
+    let elf = std::fs::read(&elf_path).map_err(|e| format!("{}: {e}", elf_path.display()))?;
+    let (start, bin, entry) = uimage::elf32_to_binary(&elf)?;
+    if start != LOAD_ADDRESS {
+        return Err(format!("the image starts at {start:#010x}, not at the link address {LOAD_ADDRESS:#010x}"));
+    }
+    let out = if args.out.is_absolute() { args.out.clone() } else { root().join(&args.out) };
+    std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let time = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs() as u32)
+        .unwrap_or(0);
+    let img = uimage::legacy_image(&bin, LOAD_ADDRESS, LOAD_ADDRESS, time, "raytracer firmware");
+    let (bin_path, img_path) = (out.join("firmware.bin"), out.join("firmware.img"));
+    std::fs::write(&bin_path, &bin).map_err(|e| e.to_string())?;
+    std::fs::write(&img_path, &img).map_err(|e| e.to_string())?;
+    println!("ELF entry {entry:#010x} (reset vector at {LOAD_ADDRESS:#010x} branches to it)");
+    println!("{}: {} bytes (raw, load at {LOAD_ADDRESS:#010x}; U-Boot: go {LOAD_ADDRESS:#010x})", bin_path.display(), bin.len());
+    println!("{}: {} bytes (U-Boot legacy image, load = entry = {LOAD_ADDRESS:#010x})", img_path.display(), img.len());
+    Ok(())
+}

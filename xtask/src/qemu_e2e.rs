@@ -1,0 +1,207 @@
+//! End-to-end tests of the firmware on QEMU's npcm750-evb with `npcm-gmac`:
+//! real TCP clients through slirp's host forwarding, frames compared with
+//! `model` byte for byte, the UART log checked.
+
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::time::Duration;
+
+use model::{row_to_rgb888, Light, HEIGHT, WIDTH};
+
+use crate::firmware::Guest;
+use crate::Result;
+
+const FRAME_BYTES: usize = WIDTH * HEIGHT * 3;
+const IO_TIMEOUT: Duration = Duration::from_secs(120);
+
+/// Lights (raw Q13.10) used by the tests.
+const LIGHTS: [[i32; 3]; 4] = [[3 << 10, 4 << 10, -(2 << 10)], [-(5 << 10), 6 << 10, 1 << 10], [0, 8 << 10, -(7 << 10)], [1500, 2500, 700]];
+
+fn wire(light: [i32; 3]) -> [u8; 12] {
+    let mut w = [0u8; 12];
+    for (c, v) in w.chunks_exact_mut(4).zip(light) {
+        c.copy_from_slice(&v.to_be_bytes());
+    }
+    w
+}
+
+/// The model's frame for a raw light, as RGB888 rows.
+pub fn expected_frame(light: [i32; 3]) -> Vec<u8> {
+    let l = Light::from_raw(light[0], light[1], light[2]).expect("test lights are in range");
+    let mut out = Vec::with_capacity(FRAME_BYTES);
+    let mut row = [0u32; WIDTH];
+    let mut rgb = [0u8; WIDTH * 3];
+    for y in 0..HEIGHT as u16 {
+        model::render_row(y, &l, &mut row);
+        row_to_rgb888(&row, &mut rgb);
+        out.extend_from_slice(&rgb);
+    }
+    out
+}
+
+fn connect(port: u16) -> Result<TcpStream> {
+    let s = TcpStream::connect(("127.0.0.1", port)).map_err(|e| format!("connect {port}: {e}"))?;
+    s.set_read_timeout(Some(IO_TIMEOUT)).map_err(|e| e.to_string())?;
+    s.set_nodelay(true).map_err(|e| e.to_string())?;
+    Ok(s)
+}
+
+/// Read until EOF (or a reset, which counts as EOF); error on time-out.
+fn read_to_eof(s: &mut TcpStream) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    let mut buf = vec![0u8; 65536];
+    loop {
+        match s.read(&mut buf) {
+            Ok(0) => return Ok(out),
+            Ok(n) => out.extend_from_slice(&buf[..n]),
+            Err(e) if e.kind() == std::io::ErrorKind::ConnectionReset => return Ok(out),
+            Err(e) => return Err(format!("read after {} bytes: {e}", out.len())),
+        }
+    }
+}
+
+fn check_frame(got: &[u8], light: [i32; 3]) -> Result<()> {
+    if got.len() != FRAME_BYTES {
+        return Err(format!("light {light:?}: {} bytes, expected {FRAME_BYTES}", got.len()));
+    }
+    let want = expected_frame(light);
+    if let Some(i) = got.iter().zip(&want).position(|(a, b)| a != b) {
+        return Err(format!("light {light:?}: first difference at byte {i} (pixel {}, row {})", i / 3 % WIDTH, i / 3 / WIDTH));
+    }
+    Ok(())
+}
+
+/// One frame on the seed port: 12 bytes in, 518,400 out, then EOF.
+fn single_frame(port: u16, light: [i32; 3]) -> Result<()> {
+    let mut s = connect(port)?;
+    s.write_all(&wire(light)).map_err(|e| e.to_string())?;
+    let got = read_to_eof(&mut s)?;
+    check_frame(&got, light)
+}
+
+fn t_seed_port_frames(g: &mut Guest) -> Result<()> {
+    for light in &LIGHTS[..3] {
+        single_frame(g.port_single, *light)?;
+    }
+    Ok(())
+}
+
+fn t_persistent_port_pipelined(g: &mut Guest) -> Result<()> {
+    let mut s = connect(g.port_persistent)?;
+    let lights = [LIGHTS[1], LIGHTS[3], LIGHTS[0]];
+    let mut req = Vec::new();
+    for l in lights {
+        req.extend_from_slice(&wire(l));
+    }
+    s.write_all(&req).map_err(|e| e.to_string())?;
+    for l in lights {
+        let mut frame = vec![0u8; FRAME_BYTES];
+        s.read_exact(&mut frame).map_err(|e| format!("persistent frame {l:?}: {e}"))?;
+        check_frame(&frame, l)?;
+    }
+    s.shutdown(std::net::Shutdown::Write).map_err(|e| e.to_string())?;
+    let rest = read_to_eof(&mut s)?;
+    if !rest.is_empty() {
+        return Err(format!("{} unexpected bytes after the last frame", rest.len()));
+    }
+    Ok(())
+}
+
+fn t_out_of_range_then_next_client(g: &mut Guest) -> Result<()> {
+    let mut s = connect(g.port_single)?;
+    s.write_all(&wire([1 << 23, 0, 0])).map_err(|e| e.to_string())?;
+    let got = read_to_eof(&mut s)?;
+    if !got.is_empty() {
+        return Err(format!("out-of-range light answered with {} bytes", got.len()));
+    }
+    single_frame(g.port_single, LIGHTS[2])
+}
+
+fn t_close_mid_frame_then_next_client(g: &mut Guest) -> Result<()> {
+    {
+        let mut s = connect(g.port_single)?;
+        s.write_all(&wire(LIGHTS[0])).map_err(|e| e.to_string())?;
+        let mut part = vec![0u8; 100_000];
+        s.read_exact(&mut part).map_err(|e| format!("first 100,000 bytes: {e}"))?;
+        // Dropping the socket closes it mid-frame.
+    }
+    single_frame(g.port_single, LIGHTS[1])
+}
+
+fn t_two_clients_at_once(g: &mut Guest) -> Result<()> {
+    let (p1, p2) = (g.port_single, g.port_persistent);
+    let a = std::thread::spawn(move || single_frame(p1, LIGHTS[3]));
+    let b = std::thread::spawn(move || -> Result<()> {
+        let mut s = connect(p2)?;
+        s.write_all(&wire(LIGHTS[2])).map_err(|e| e.to_string())?;
+        let mut frame = vec![0u8; FRAME_BYTES];
+        s.read_exact(&mut frame).map_err(|e| format!("second client: {e}"))?;
+        check_frame(&frame, LIGHTS[2])
+    });
+    let c = std::thread::spawn(move || single_frame(p1, LIGHTS[0]));
+    for (name, h) in [("7878 client", a), ("7879 client", b), ("second 7878 client", c)] {
+        h.join().map_err(|_| format!("{name} panicked"))??;
+    }
+    Ok(())
+}
+
+fn t_uart_log(g: &mut Guest) -> Result<()> {
+    // Let the last "done" lines reach the log.
+    std::thread::sleep(Duration::from_millis(300));
+    let uart = g.uart();
+    for needle in ["link up:", "listening on TCP 7878 and 7879", "core 1 parked"] {
+        if !uart.contains(needle) {
+            return Err(format!("UART log lacks {needle:?}:\n{uart}"));
+        }
+    }
+    // Every light requested above appears in a request line.
+    for l in LIGHTS {
+        let text = format!("({}, {}, {})", l[0], l[1], l[2]);
+        if !uart.lines().any(|line| line.contains("request") && line.contains(&text)) {
+            return Err(format!("no request line for {text} in the UART log:\n{uart}"));
+        }
+    }
+    let requests = uart.lines().filter(|l| l.contains("request")).count();
+    // 3 seed + 3 pipelined + 1 after the bad one + 2 (mid-frame) + 3 concurrent.
+    if requests < 12 {
+        return Err(format!("{requests} request lines, expected at least 12:\n{uart}"));
+    }
+    if !uart.lines().any(|l| l.contains("closing") || l.contains("out of range") || l.contains("range")) {
+        return Err(format!("the out-of-range request left no log line:\n{uart}"));
+    }
+    Ok(())
+}
+
+/// Run every test against one booted guest; print a summary line.
+pub fn run(elf: &std::path::Path) -> Result<()> {
+    let mut g = Guest::boot(elf, &[])?;
+    type Test = fn(&mut Guest) -> Result<()>;
+    let tests: [(&str, Test); 6] = [
+        ("frames on 7878 equal the model", t_seed_port_frames),
+        ("pipelined frames on 7879 equal the model", t_persistent_port_pipelined),
+        ("out-of-range request: no frame, next client served", t_out_of_range_then_next_client),
+        ("client closing mid-frame: next client served", t_close_mid_frame_then_next_client),
+        ("two clients at once both served", t_two_clients_at_once),
+        ("UART log shows link up and each request", t_uart_log),
+    ];
+    let (mut passed, mut failed) = (0, 0);
+    for (name, t) in tests {
+        let start = std::time::Instant::now();
+        match t(&mut g) {
+            Ok(()) => {
+                passed += 1;
+                println!("qemu e2e: {name} ... ok ({:.1} s)", start.elapsed().as_secs_f64());
+            }
+            Err(e) => {
+                failed += 1;
+                println!("qemu e2e: {name} ... FAILED: {e}");
+            }
+        }
+    }
+    println!("qemu-e2e: {passed} passed, {failed} failed");
+    if failed > 0 {
+        println!("--- UART log ---\n{}", g.uart());
+        return Err(format!("{failed} QEMU end-to-end test(s) failed"));
+    }
+    Ok(())
+}
