@@ -5,6 +5,7 @@ mod bench_fw;
 mod firmware;
 mod model_cmds;
 mod qemu_e2e;
+mod rtl;
 mod suite;
 mod uimage;
 
@@ -38,6 +39,9 @@ enum Command {
     QemuTest,
     /// Guest instructions per frame (QEMU -icount): renderer and network.
     BenchFw(bench_fw::BenchArgs),
+    /// FPGA checks: Verilator lint, whole-frame co-simulation against the
+    /// model, Yosys resource estimate.
+    Rtl(rtl::RtlArgs),
 }
 
 fn main() -> ExitCode {
@@ -51,6 +55,7 @@ fn main() -> ExitCode {
         Command::Image(args) => firmware::image(&args),
         Command::QemuTest => suite::qemu_tests(),
         Command::BenchFw(args) => bench_fw::run(&args),
+        Command::Rtl(args) => rtl::run_cli(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

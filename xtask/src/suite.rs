@@ -33,6 +33,8 @@ pub fn run() -> Result<()> {
     // tests boot the QEMU board.
     crate::firmware::build("de1-soc", &[])?;
     qemu_tests()?;
+    // FPGA: lint, whole-frame co-simulation, resource estimate.
+    crate::rtl::run()?;
     println!("xtask test: all steps passed");
     Ok(())
 }

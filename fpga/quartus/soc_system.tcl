@@ -1,0 +1,107 @@
+# Platform Designer system for the DE1-SoC: Cyclone V HPS (DDR3, EMAC1, SD,
+# UART0, lightweight HPS-to-FPGA bridge) and the ray-tracer accelerator.
+# Run with qsys-script (see build.sh); it writes soc_system.qsys.
+#
+# The accelerator's slave sits at base 0x0 of the lightweight bridge, so the
+# CPU sees CSRs at 0xFF20_0000 and the line buffer at 0xFF20_1000
+# (hal-avalon src/map.rs).
+#
+# The DDR3 settings describe the DE1-SoC's two MT41K256M16 (1 GiB, 32 bits)
+# at 400 MHz. They were written from the data sheet, not exported from a
+# calibrated board design: if calibration fails, take the hps_0 memory
+# parameters from Terasic's DE1-SoC GHRD (System CD) instead.
+package require -exact qsys 16.1
+
+create_system soc_system
+set_project_property DEVICE_FAMILY {Cyclone V}
+set_project_property DEVICE {5CSEMA5F31C6}
+
+# ---- 50 MHz fabric clock (CLOCK_50) -------------------------------------------
+add_instance clk_0 clock_source
+set_instance_parameter_value clk_0 clockFrequency {50000000.0}
+set_instance_parameter_value clk_0 clockFrequencyKnown {1}
+set_instance_parameter_value clk_0 resetSynchronousEdges {NONE}
+
+# ---- HPS ----------------------------------------------------------------------
+add_instance hps_0 altera_hps
+# Bridges: only the lightweight HPS-to-FPGA bridge is used.
+set_instance_parameter_value hps_0 LWH2F_Enable {true}
+set_instance_parameter_value hps_0 S2F_Width {0}
+set_instance_parameter_value hps_0 F2S_Width {0}
+set_instance_parameter_value hps_0 F2SDRAM_Type {}
+set_instance_parameter_value hps_0 F2SDRAM_Width {}
+set_instance_parameter_value hps_0 F2SINTERRUPT_Enable {0}
+set_instance_parameter_value hps_0 S2FINTERRUPT_UART0_Enable {0}
+# Peripherals the firmware uses (PLATFORM.md): EMAC1 RGMII, SD card, UART0.
+set_instance_parameter_value hps_0 EMAC1_PinMuxing {HPS I/O Set 0}
+set_instance_parameter_value hps_0 EMAC1_Mode {RGMII}
+set_instance_parameter_value hps_0 SDIO_PinMuxing {HPS I/O Set 0}
+set_instance_parameter_value hps_0 SDIO_Mode {4-bit Data}
+set_instance_parameter_value hps_0 UART0_PinMuxing {HPS I/O Set 0}
+set_instance_parameter_value hps_0 UART0_Mode {No Flow Control}
+# DDR3: 2 x MT41K256M16 (x16, 15 row / 10 column / 3 bank bits), 32-bit bus.
+set_instance_parameter_value hps_0 HPS_PROTOCOL {DDR3}
+set_instance_parameter_value hps_0 MEM_VENDOR {Micron}
+set_instance_parameter_value hps_0 MEM_CLK_FREQ {400.0}
+set_instance_parameter_value hps_0 MEM_CLK_FREQ_MAX {800.0}
+set_instance_parameter_value hps_0 MEM_DQ_WIDTH {32}
+set_instance_parameter_value hps_0 MEM_DQ_PER_DQS {8}
+set_instance_parameter_value hps_0 MEM_ROW_ADDR_WIDTH {15}
+set_instance_parameter_value hps_0 MEM_COL_ADDR_WIDTH {10}
+set_instance_parameter_value hps_0 MEM_BANKADDR_WIDTH {3}
+set_instance_parameter_value hps_0 MEM_CS_WIDTH {1}
+set_instance_parameter_value hps_0 MEM_IF_DM_PINS_EN {1}
+set_instance_parameter_value hps_0 MEM_TCL {7}
+set_instance_parameter_value hps_0 MEM_WTCL {7}
+set_instance_parameter_value hps_0 MEM_DRV_STR {RZQ/7}
+set_instance_parameter_value hps_0 MEM_RTT_NOM {RZQ/4}
+set_instance_parameter_value hps_0 MEM_RTT_WR {Dynamic ODT off}
+set_instance_parameter_value hps_0 MEM_TIS {180}
+set_instance_parameter_value hps_0 MEM_TIH {140}
+set_instance_parameter_value hps_0 MEM_TDS {30}
+set_instance_parameter_value hps_0 MEM_TDH {65}
+set_instance_parameter_value hps_0 MEM_TDQSQ {125}
+set_instance_parameter_value hps_0 MEM_TQH {0.38}
+set_instance_parameter_value hps_0 MEM_TDQSCK {255}
+set_instance_parameter_value hps_0 MEM_TDQSS {0.25}
+set_instance_parameter_value hps_0 MEM_TQSH {0.4}
+set_instance_parameter_value hps_0 MEM_TDSH {0.2}
+set_instance_parameter_value hps_0 MEM_TDSS {0.2}
+set_instance_parameter_value hps_0 MEM_TINIT_US {500}
+set_instance_parameter_value hps_0 MEM_TMRD_CK {4}
+set_instance_parameter_value hps_0 MEM_TRAS_NS {35.0}
+set_instance_parameter_value hps_0 MEM_TRCD_NS {13.75}
+set_instance_parameter_value hps_0 MEM_TRP_NS {13.75}
+set_instance_parameter_value hps_0 MEM_TREFI_US {7.8}
+set_instance_parameter_value hps_0 MEM_TRFC_NS {260.0}
+set_instance_parameter_value hps_0 MEM_TWR_NS {15.0}
+set_instance_parameter_value hps_0 MEM_TWTR {4}
+set_instance_parameter_value hps_0 MEM_TFAW_NS {30.0}
+set_instance_parameter_value hps_0 MEM_TRRD_NS {7.5}
+set_instance_parameter_value hps_0 MEM_TRTP_NS {7.5}
+
+# ---- Ray-tracer accelerator (rt_accel_hw.tcl) ---------------------------------
+add_instance rt_accel_0 rt_accel
+set_instance_parameter_value rt_accel_0 LANES {2}
+
+# ---- Connections --------------------------------------------------------------
+add_connection clk_0.clk hps_0.h2f_lw_axi_clock
+add_connection clk_0.clk rt_accel_0.clock
+add_connection clk_0.clk_reset rt_accel_0.reset
+add_connection hps_0.h2f_reset rt_accel_0.reset
+add_connection hps_0.h2f_lw_axi_master rt_accel_0.s0
+set_connection_parameter_value hps_0.h2f_lw_axi_master/rt_accel_0.s0 baseAddress {0x0000}
+
+# ---- Exports ------------------------------------------------------------------
+add_interface clk clock sink
+set_interface_property clk EXPORT_OF clk_0.clk_in
+add_interface reset reset sink
+set_interface_property reset EXPORT_OF clk_0.clk_in_reset
+add_interface memory conduit end
+set_interface_property memory EXPORT_OF hps_0.memory
+add_interface hps_io conduit end
+set_interface_property hps_io EXPORT_OF hps_0.hps_io
+add_interface hps_0_h2f_reset reset source
+set_interface_property hps_0_h2f_reset EXPORT_OF hps_0.h2f_reset
+
+save_system soc_system.qsys
