@@ -33,15 +33,24 @@ fn camera_ray_is_exact_integer_basis() {
     assert_eq!((l.x.raw(), l.y, l.z), (-r.x.raw(), r.y, r.z));
 }
 
+/// `render_row` (which reuses light-independent work and batches the light
+/// vectors on the host) equals `trace_pixel` (computed directly) everywhere.
 #[test]
 fn render_row_is_trace_pixel_packed() {
-    let l = light(3.0, 4.0, -2.0);
-    for y in [0u16, 120, 180, 359] {
-        let mut row = [0u32; WIDTH];
-        render_row(y, &l, &mut row);
-        for (x, word) in row.iter().enumerate() {
-            assert_eq!(*word, trace_pixel(x as u16, y, &l).to_word(), "pixel ({x}, {y})");
-            assert_eq!(word >> 24, 0, "bits 31:24 are zero");
+    let lights = [
+        light(3.0, 4.0, -2.0),
+        light(-2.5, 1.5, 1.5),
+        light(2.5, 0.5, 0.0),
+        Light::from_raw(0, model::word::RAW_MIN, 0).unwrap(),
+    ];
+    for l in &lights {
+        for y in 0..HEIGHT as u16 {
+            let mut row = [0u32; WIDTH];
+            render_row(y, l, &mut row);
+            for (x, word) in row.iter().enumerate() {
+                assert_eq!(*word, trace_pixel(x as u16, y, l).to_word(), "pixel ({x}, {y}) for {l:?}");
+                assert_eq!(word >> 24, 0, "bits 31:24 are zero");
+            }
         }
     }
 }
@@ -163,4 +172,21 @@ fn far_light_matches_nearer_light_in_same_direction() {
     // And both differ clearly from a light in another direction.
     let other = frame(&light(-8000.0, 2000.0, 6000.0));
     assert!(model::quality::compare(&far, &other).within_tolerance < 0.9);
+}
+
+/// The shadow ray counts the sphere only if it is nearer than the light: a
+/// light between a plane point and the sphere lights that point.
+#[test]
+fn sphere_beyond_the_light_casts_no_shadow() {
+    use model::trace::{light_vector, shade_lit, Primary};
+    let l = light(2.5, 0.5, 0.0);
+    let lit = |x: f64| {
+        let hit = Primary::Plane { x: Q::checked_from_f64(x).unwrap(), z: Q::ZERO };
+        let colour = shade_lit(&hit, &light_vector(&hit, &l));
+        ![shade(CHECKER_EVEN, AMBIENT), shade(CHECKER_ODD, AMBIENT)].contains(&colour)
+    };
+    // Light, then sphere, behind the point at x = 4: lit.
+    assert!(lit(4.0), "the sphere beyond the light must not shadow");
+    // The sphere between the point at x = -2.5 and the light: shadowed.
+    assert!(!lit(-2.5), "the sphere between point and light shadows");
 }
