@@ -87,7 +87,13 @@ pub fn apt_installed(package: &str) -> bool {
 /// optionally from a suite such as `bookworm-backports`.
 pub fn ensure_apt_packages(packages: &[&str], suite: Option<&str>) -> Result<()> {
     let missing: Vec<&str> = packages.iter().copied().filter(|p| !apt_installed(p)).collect();
-    if missing.is_empty() {
+    apt_install(&missing, suite)
+}
+
+/// `apt-get install` `packages` (installed or not: from a newer `suite`
+/// this upgrades them).
+fn apt_install(packages: &[&str], suite: Option<&str>) -> Result<()> {
+    if packages.is_empty() {
         return Ok(());
     }
     let sudo = needs_sudo();
@@ -104,8 +110,8 @@ pub fn ensure_apt_packages(packages: &[&str], suite: Option<&str>) -> Result<()>
     if let Some(s) = suite {
         args.extend(["-t", s]);
     }
-    args.extend(&missing);
-    step(&format!("install {}", missing.join(" ")), apt(&args))
+    args.extend(packages);
+    step(&format!("install {}", packages.join(" ")), apt(&args))
 }
 
 fn needs_sudo() -> bool {
@@ -116,32 +122,63 @@ fn needs_sudo() -> bool {
         .unwrap_or(true)
 }
 
+/// The first QEMU with the `npcm-gmac` NIC (shared/PLATFORM.md, QEMU recipe).
+const QEMU_MIN: (u32, u32) = (9, 1);
+
 /// Debian bookworm's own QEMU (7.2) lacks `npcm-gmac`: take qemu-system-arm
-/// 10 from bookworm-backports (deb822 source as in shared/PLATFORM.md), and
-/// mkimage from u-boot-tools.
+/// 10 from bookworm-backports (deb822 source as in shared/PLATFORM.md), also
+/// when an older one is installed, and mkimage from u-boot-tools.
 pub fn ensure_qemu() -> Result<()> {
-    const SOURCE: &str = "/etc/apt/sources.list.d/bookworm-backports.sources";
-    if !apt_installed("qemu-system-arm") || !apt_installed("u-boot-tools") {
-        let has_backports = std::fs::read_dir("/etc/apt/sources.list.d")
-            .map(|d| {
-                d.flatten().any(|e| std::fs::read_to_string(e.path()).is_ok_and(|t| t.contains("bookworm-backports")))
-            })
-            .unwrap_or(false)
-            || std::fs::read_to_string("/etc/apt/sources.list").is_ok_and(|t| t.contains("bookworm-backports"));
-        if !has_backports {
-            let text = "Types: deb\nURIs: http://deb.debian.org/debian\nSuites: bookworm-backports\n\
-                        Components: main\nSigned-By: /usr/share/keyrings/debian-archive-keyring.gpg\n";
-            println!("==> add apt source {SOURCE}");
-            if needs_sudo() {
-                let mut c = Command::new("sudo");
-                c.args(["sh", "-c", &format!("cat > {SOURCE} <<'EOF'\n{text}EOF\n")]);
-                step("add bookworm-backports", c)?;
-            } else {
-                std::fs::write(SOURCE, text).map_err(|e| format!("{SOURCE}: {e}"))?;
-            }
-        }
+    let qemu_ok = qemu_version().is_some_and(|v| v >= QEMU_MIN);
+    let mut wanted = Vec::new();
+    if !qemu_ok {
+        wanted.push("qemu-system-arm");
     }
-    ensure_apt_packages(&["qemu-system-arm", "u-boot-tools"], Some("bookworm-backports"))
+    if !apt_installed("u-boot-tools") {
+        wanted.push("u-boot-tools");
+    }
+    if wanted.is_empty() {
+        return Ok(());
+    }
+    ensure_backports_source()?;
+    apt_install(&wanted, Some("bookworm-backports"))?;
+    match qemu_version() {
+        Some(v) if v >= QEMU_MIN => Ok(()),
+        v => Err(format!(
+            "qemu-system-arm {v:?} has no npcm-gmac: need {}.{} or newer (bookworm-backports)",
+            QEMU_MIN.0, QEMU_MIN.1
+        )),
+    }
+}
+
+/// `(major, minor)` of the installed `qemu-system-arm`.
+fn qemu_version() -> Option<(u32, u32)> {
+    let out = Command::new("qemu-system-arm").arg("--version").output().ok()?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    let version = text.split("version ").nth(1)?.split_whitespace().next()?;
+    let mut parts = version.split('.').map(|p| p.parse::<u32>().ok());
+    Some((parts.next()??, parts.next()??))
+}
+
+fn ensure_backports_source() -> Result<()> {
+    const SOURCE: &str = "/etc/apt/sources.list.d/bookworm-backports.sources";
+    let has_backports = std::fs::read_dir("/etc/apt/sources.list.d")
+        .map(|d| d.flatten().any(|e| std::fs::read_to_string(e.path()).is_ok_and(|t| t.contains("bookworm-backports"))))
+        .unwrap_or(false)
+        || std::fs::read_to_string("/etc/apt/sources.list").is_ok_and(|t| t.contains("bookworm-backports"));
+    if has_backports {
+        return Ok(());
+    }
+    let text = "Types: deb\nURIs: http://deb.debian.org/debian\nSuites: bookworm-backports\n\
+                Components: main\nSigned-By: /usr/share/keyrings/debian-archive-keyring.gpg\n";
+    println!("==> add apt source {SOURCE}");
+    if needs_sudo() {
+        let mut c = Command::new("sudo");
+        c.args(["sh", "-c", &format!("cat > {SOURCE} <<'EOF'\n{text}EOF\n")]);
+        step("add bookworm-backports", c)
+    } else {
+        std::fs::write(SOURCE, text).map_err(|e| format!("{SOURCE}: {e}"))
+    }
 }
 
 /// Build the QEMU firmware (warnings are errors) and run the end-to-end
