@@ -176,9 +176,11 @@ pub fn primary(x: u16, y: u16) -> Primary {
 /// the sky, which ignores it).
 #[inline(always)]
 pub fn light_vector(hit: &Primary, light: &Light) -> Normalized {
-    match hit.point() {
-        Some(p) => normalize(WideVec3::sub(light.position(), p)),
-        None => Normalized::default(),
+    let l = light.position();
+    match *hit {
+        Primary::Sky(_) => Normalized::default(),
+        Primary::Plane { x, z } => normalize(WideVec3 { x: l.x.raw() - x.raw(), y: l.y.raw(), z: l.z.raw() - z.raw() }),
+        Primary::Sphere { p, .. } => normalize(WideVec3::sub(l, p)),
     }
 }
 
