@@ -6,7 +6,7 @@ use std::net::{Shutdown, SocketAddr, TcpStream};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use model::{render_frame_rgb888, Light, FRAME_BYTES};
+use model::{render_frame, Light, FRAME_BYTES};
 use raytracer::hps_sim::HpsSim;
 
 fn sim() -> HpsSim {
@@ -18,9 +18,7 @@ fn light(x: f64, y: f64, z: f64) -> Light {
 }
 
 fn model_frame(l: &Light) -> Vec<u8> {
-    let mut f = vec![0u8; FRAME_BYTES];
-    render_frame_rgb888(l, f.as_mut_slice().try_into().expect("sized"));
-    f
+    render_frame(l)
 }
 
 fn connect(addr: SocketAddr) -> TcpStream {

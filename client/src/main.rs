@@ -36,7 +36,7 @@ enum Command {
         #[arg(long)]
         server: String,
         /// Light position in world units: X,Y,Z.
-        #[arg(long, value_parser = parse_light, allow_hyphen_values = true)]
+        #[arg(long, allow_hyphen_values = true)]
         light: Light,
         /// Output PNG.
         #[arg(long, default_value = "frame.png")]
@@ -75,17 +75,6 @@ struct RunArgs {
     /// Light height in world units.
     #[arg(long, default_value_t = 4.0, allow_hyphen_values = true)]
     height: f64,
-}
-
-fn parse_light(s: &str) -> Result<Light, String> {
-    let parts = s
-        .split(',')
-        .map(|p| p.trim().parse::<f64>().map_err(|e| format!("{p:?}: {e}")))
-        .collect::<Result<Vec<_>, _>>()?;
-    let [x, y, z] = parts[..] else {
-        return Err("expected three numbers X,Y,Z".into());
-    };
-    Light::from_world(x, y, z).map_err(|e| e.to_string())
 }
 
 fn main() -> ExitCode {

@@ -10,7 +10,7 @@ use std::thread;
 use image::AnimationDecoder;
 use model::colour::shade;
 use model::scene::{AMBIENT, CHECKER_EVEN, CHECKER_ODD};
-use model::{render_frame_rgb888, Light, FRAME_BYTES, HEIGHT, WIDTH};
+use model::{render_frame, Light, HEIGHT, WIDTH};
 use raytracer::hps_sim::HpsSim;
 
 fn rt_client(args: &[&str]) -> Output {
@@ -25,9 +25,7 @@ fn scratch(name: &str) -> PathBuf {
 }
 
 fn model_frame(l: &Light) -> Vec<u8> {
-    let mut f = vec![0u8; FRAME_BYTES];
-    render_frame_rgb888(l, f.as_mut_slice().try_into().expect("sized"));
-    f
+    render_frame(l)
 }
 
 fn png(path: &PathBuf) -> Vec<u8> {

@@ -254,12 +254,10 @@ impl Session {
     /// The row asked for by the last [`Action::Render`] is in `row`.
     pub fn row_rendered(&mut self, row: &[u32; WIDTH]) {
         if let Some((_, y)) = &mut self.frame {
-            if let Ok(out) = <&mut [u8; ROW_BYTES]>::try_from(&mut self.out[..]) {
-                row_to_rgb888(row, out);
-                self.out_start = 0;
-                self.out_end = ROW_BYTES;
-                *y += 1;
-            }
+            row_to_rgb888(row, &mut self.out);
+            self.out_start = 0;
+            self.out_end = ROW_BYTES;
+            *y += 1;
         }
     }
 
@@ -360,7 +358,7 @@ pub fn drive<R: RowSource>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use model::{render_frame_rgb888, FRAME_BYTES};
+    use model::FRAME_BYTES;
 
     fn request(x: i32, y: i32, z: i32) -> [u8; 12] {
         let mut r = [0u8; 12];
@@ -371,10 +369,7 @@ mod tests {
     }
 
     fn expected(x: i32, y: i32, z: i32) -> Vec<u8> {
-        let mut f = vec![0u8; FRAME_BYTES];
-        let l = Light::from_raw(x, y, z).unwrap();
-        render_frame_rgb888(&l, f.as_mut_slice().try_into().unwrap());
-        f
+        model::render_frame(&Light::from_raw(x, y, z).expect("test light in range"))
     }
 
     /// Run a session to its close, collecting output; `chunk` limits how much

@@ -69,15 +69,14 @@ impl<const N: usize> FrameService<N> {
     /// Add `N` TCP sockets to `sockets`: the first half (rounded up) listens
     /// on [`FRAME_PORT`], the rest on [`PERSISTENT_PORT`].
     pub fn new<'a>(sockets: &mut SocketSet<'a>, buffers: &'a mut [SocketBuffers; N]) -> Self {
-        let mut iter = buffers.iter_mut().enumerate();
-        let slots = core::array::from_fn(|_| {
-            // `from_fn` calls this closure exactly N times, once per buffer.
-            let (i, b) = iter.next().unwrap_or_else(|| unreachable!());
+        let mut i = 0;
+        let slots = buffers.each_mut().map(|b| {
             let socket = tcp::Socket::new(
                 tcp::SocketBuffer::new(&mut b.rx[..]),
                 tcp::SocketBuffer::new(&mut b.tx[..]),
             );
             let mode = if i < N.div_ceil(2) { Mode::Single } else { Mode::Persistent };
+            i += 1;
             Slot { handle: sockets.add(socket), mode, session: None }
         });
         FrameService { slots, row: [0; WIDTH] }

@@ -7,7 +7,7 @@ use std::rc::Rc;
 
 use firmware::server::SoftwareRenderer;
 use firmware::service::{FrameService, SocketBuffers, FRAME_PORT, PERSISTENT_PORT};
-use model::{render_frame_rgb888, Light, FRAME_BYTES};
+use model::{render_frame, Light, FRAME_BYTES};
 use smoltcp::iface::{Config, Interface, SocketHandle, SocketSet};
 use smoltcp::phy::{self, Device, DeviceCapabilities, Medium};
 use smoltcp::socket::tcp;
@@ -78,9 +78,7 @@ fn interface(device: &mut CableEnd, last_octet: u8) -> Interface {
 const SERVER: Ipv4Address = Ipv4Address::new(10, 0, 0, 1);
 
 fn frame(light: &Light) -> Vec<u8> {
-    let mut f = vec![0u8; FRAME_BYTES];
-    render_frame_rgb888(light, f.as_mut_slice().try_into().expect("sized"));
-    f
+    render_frame(light)
 }
 
 fn request(light: &Light) -> [u8; 12] {

@@ -21,11 +21,20 @@ pub fn row_to_rgb888(row: &[u32; WIDTH], out: &mut [u8; ROW_BYTES]) {
 /// Render a whole frame into its 518,400-byte wire format.
 pub fn render_frame_rgb888(light: &Light, out: &mut [u8; FRAME_BYTES]) {
     let mut row = [0u32; WIDTH];
-    for (y, bytes) in (0u16..).zip(out.chunks_exact_mut(ROW_BYTES)) {
+    let (rows, _) = out.as_chunks_mut::<ROW_BYTES>();
+    for (y, bytes) in (0u16..).zip(rows) {
         render_row(y, light, &mut row);
-        // `chunks_exact_mut(ROW_BYTES)` yields exactly ROW_BYTES-long slices.
-        if let Ok(bytes) = <&mut [u8; ROW_BYTES]>::try_from(bytes) {
-            row_to_rgb888(&row, bytes);
-        }
+        row_to_rgb888(&row, bytes);
     }
+}
+
+/// A whole frame in its wire format, in a new vector (host builds).
+#[cfg(feature = "std")]
+pub fn render_frame(light: &Light) -> Vec<u8> {
+    let mut frame = vec![0u8; FRAME_BYTES];
+    let (whole, _) = frame.as_chunks_mut::<FRAME_BYTES>();
+    for f in whole {
+        render_frame_rgb888(light, f);
+    }
+    frame
 }

@@ -47,6 +47,49 @@ impl fmt::Display for LightError {
 #[cfg(feature = "std")]
 impl std::error::Error for LightError {}
 
+/// Why a text `"X,Y,Z"` is not a light.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum ParseLightError {
+    /// Not exactly three comma-separated components.
+    ComponentCount,
+    /// A component is not a number.
+    NotANumber,
+    /// The position is outside the word range.
+    Range(LightError),
+}
+
+impl fmt::Display for ParseLightError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParseLightError::ComponentCount => f.write_str("expected three numbers X,Y,Z"),
+            ParseLightError::NotANumber => f.write_str("a component of X,Y,Z is not a number"),
+            ParseLightError::Range(e) => fmt::Display::fmt(e, f),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for ParseLightError {}
+
+impl core::str::FromStr for Light {
+    type Err = ParseLightError;
+
+    /// A light from `"X,Y,Z"` in world units (`"3,4,-2"`), as
+    /// [`Light::from_world`].
+    fn from_str(s: &str) -> Result<Light, ParseLightError> {
+        let mut xyz = [0f64; 3];
+        let mut parts = s.split(',');
+        for c in &mut xyz {
+            let part = parts.next().ok_or(ParseLightError::ComponentCount)?;
+            *c = part.trim().parse().map_err(|_| ParseLightError::NotANumber)?;
+        }
+        if parts.next().is_some() {
+            return Err(ParseLightError::ComponentCount);
+        }
+        Light::from_world(xyz[0], xyz[1], xyz[2]).map_err(ParseLightError::Range)
+    }
+}
+
 fn component(axis: Axis, r: Result<Q, OutOfRange>) -> Result<Q, LightError> {
     r.map_err(|source| LightError { axis, source })
 }
@@ -114,6 +157,15 @@ mod tests {
         assert_eq!(Light::from_raw(i32::MIN, 0, 0).unwrap_err().axis, Axis::X);
         assert!(Light::from_world(8192.0, 0.0, 0.0).is_err());
         assert!(Light::from_world(0.0, f64::INFINITY, 0.0).is_err());
+    }
+
+    #[test]
+    fn parses_world_units() {
+        assert_eq!("3, 4,-2".parse::<Light>().map(|l| l.raw()), Ok([3072, 4096, -2048]));
+        assert_eq!("1,2".parse::<Light>(), Err(ParseLightError::ComponentCount));
+        assert_eq!("1,2,3,4".parse::<Light>(), Err(ParseLightError::ComponentCount));
+        assert_eq!("1,x,3".parse::<Light>(), Err(ParseLightError::NotANumber));
+        assert!(matches!("9000,0,0".parse::<Light>(), Err(ParseLightError::Range(_))));
     }
 
     #[test]

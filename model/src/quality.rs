@@ -1,6 +1,5 @@
 //! How close the fixed-point model comes to the `f64` reference.
 
-use crate::frame::FRAME_BYTES;
 use crate::light::Light;
 use crate::reference::render_frame_f64;
 
@@ -59,10 +58,7 @@ pub const REPORT_LIGHTS: [(&str, [f64; 3]); 10] = [
 /// Render `light` with the model and the reference and compare them.
 pub fn measure(light: [f64; 3]) -> Result<Quality, crate::light::LightError> {
     let l = Light::from_world(light[0], light[1], light[2])?;
-    let mut fixed = vec![0u8; FRAME_BYTES];
-    let fixed_frame: &mut [u8; FRAME_BYTES] =
-        fixed.as_mut_slice().try_into().expect("vector has FRAME_BYTES bytes"); // ok: sized above
-    crate::frame::render_frame_rgb888(&l, fixed_frame);
+    let fixed = crate::frame::render_frame(&l);
     // The reference sees the light exactly where the model does (rounded to Q13.10).
     let p = l.position();
     let reference = render_frame_f64([p.x.to_f64(), p.y.to_f64(), p.z.to_f64()]);

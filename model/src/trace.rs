@@ -136,18 +136,6 @@ pub enum Primary {
     },
 }
 
-impl Primary {
-    /// The lit surface point, if the ray hit a surface.
-    #[inline(always)]
-    pub const fn point(&self) -> Option<Vec3> {
-        match *self {
-            Primary::Sky(_) => None,
-            Primary::Plane { x, z } => Some(Vec3::new(x, Q::ZERO, z)),
-            Primary::Sphere { p, .. } => Some(p),
-        }
-    }
-}
-
 /// The light-independent work for pixel `(x, y)` (9-bit coordinates, see
 /// [`camera_ray`]): stages 1 and 2, and the sphere's mirror ray.
 #[inline(always)]

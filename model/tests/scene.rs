@@ -12,9 +12,7 @@ fn light(x: f64, y: f64, z: f64) -> Light {
 }
 
 fn frame(l: &Light) -> Vec<u8> {
-    let mut f = vec![0u8; FRAME_BYTES];
-    render_frame_rgb888(l, f.as_mut_slice().try_into().expect("frame sized"));
-    f
+    render_frame(l)
 }
 
 fn px(f: &[u8], x: usize, y: usize) -> Rgb {

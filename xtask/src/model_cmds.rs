@@ -5,26 +5,14 @@ use std::io::{BufWriter, Write};
 use std::path::PathBuf;
 
 use clap::Args;
-use model::{render_frame_rgb888, render_row, Light, FRAME_BYTES, HEIGHT, WIDTH};
+use model::{render_row, Light, HEIGHT, WIDTH};
 
 use crate::Result;
-
-/// Parse "X,Y,Z" in world units into a validated light.
-pub fn parse_light(s: &str) -> Result<Light> {
-    let parts: Vec<f64> = s
-        .split(',')
-        .map(|p| p.trim().parse::<f64>().map_err(|e| format!("light component {p:?}: {e}")))
-        .collect::<Result<_>>()?;
-    let [x, y, z] = parts[..] else {
-        return Err(format!("light {s:?}: expected three numbers X,Y,Z"));
-    };
-    Light::from_world(x, y, z).map_err(|e| e.to_string())
-}
 
 #[derive(Args)]
 pub struct RenderArgs {
     /// Light position in world units, e.g. 3,4,-2.
-    #[arg(long, value_parser = parse_light, allow_hyphen_values = true, default_value = "3,4,-2")]
+    #[arg(long, allow_hyphen_values = true, default_value = "3,4,-2")]
     light: Light,
     /// Output PNG path.
     #[arg(long, default_value = "frame.png")]
@@ -32,9 +20,7 @@ pub struct RenderArgs {
 }
 
 pub fn render(args: &RenderArgs) -> Result<()> {
-    let mut frame = vec![0u8; FRAME_BYTES];
-    let buf: &mut [u8; FRAME_BYTES] = frame.as_mut_slice().try_into().map_err(|_| "frame size")?;
-    render_frame_rgb888(&args.light, buf);
+    let frame = model::render_frame(&args.light);
     image::save_buffer(&args.out, &frame, WIDTH as u32, HEIGHT as u32, image::ExtendedColorType::Rgb8)
         .map_err(|e| format!("writing {}: {e}", args.out.display()))?;
     println!("wrote {} ({}x{})", args.out.display(), WIDTH, HEIGHT);
@@ -44,7 +30,7 @@ pub fn render(args: &RenderArgs) -> Result<()> {
 #[derive(Args)]
 pub struct GoldenArgs {
     /// Light position in world units, e.g. 3,4,-2.
-    #[arg(long, value_parser = parse_light, allow_hyphen_values = true)]
+    #[arg(long, allow_hyphen_values = true)]
     light: Light,
     /// Output file: a header comment, then 360 x 480 lines of 8 hex digits.
     #[arg(long)]
