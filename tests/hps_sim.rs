@@ -6,8 +6,9 @@ use std::net::{Shutdown, SocketAddr, TcpStream};
 use std::thread;
 use std::time::{Duration, Instant};
 
+use hps_sim::HpsSim;
 use model::{render_frame, Light, FRAME_BYTES};
-use raytracer::hps_sim::HpsSim;
+use rt_protocol::{encode_raw_request, encode_request};
 
 fn sim() -> HpsSim {
     HpsSim::start("127.0.0.1:0".parse().expect("address")).expect("hps-sim starts")
@@ -35,11 +36,7 @@ fn read_all(mut s: TcpStream) -> Vec<u8> {
 }
 
 fn raw_request(x: i32, y: i32, z: i32) -> [u8; 12] {
-    let mut r = [0u8; 12];
-    for (chunk, v) in r.chunks_exact_mut(4).zip([x, y, z]) {
-        chunk.copy_from_slice(&v.to_be_bytes());
-    }
-    r
+    encode_raw_request([x, y, z])
 }
 
 #[test]
@@ -47,7 +44,7 @@ fn seed_port_is_byte_exact_for_several_lights() {
     let sim = sim();
     for l in [light(3.0, 4.0, -2.0), light(-2.5, 1.5, 1.5), light(1500.0, 2000.0, -1000.0)] {
         let mut s = connect(sim.frame_addr());
-        s.write_all(&l.to_wire()).expect("send request");
+        s.write_all(&encode_request(&l)).expect("send request");
         let got = read_all(s);
         assert_eq!(got.len(), 518_400, "12 bytes in, 518,400 out, then EOF");
         assert!(got == model_frame(&l), "frame equals the model for {l:?}");
@@ -59,7 +56,7 @@ fn seed_port_takes_the_request_in_pieces() {
     let sim = sim();
     let l = light(0.0, 3.0, 3.0);
     let mut s = connect(sim.frame_addr());
-    for piece in l.to_wire().chunks(5) {
+    for piece in encode_request(&l).chunks(5) {
         s.write_all(piece).expect("send");
         thread::sleep(Duration::from_millis(20));
     }
@@ -72,7 +69,7 @@ fn persistent_port_answers_pipelined_requests_in_order() {
     let lights = [light(3.0, 3.0, 0.0), light(0.0, 3.0, 3.0), light(-3.0, 3.0, 0.0)];
     let mut s = connect(sim.persistent_addr());
     for l in &lights {
-        s.write_all(&l.to_wire()).expect("send");
+        s.write_all(&encode_request(l)).expect("send");
     }
     s.shutdown(Shutdown::Write).expect("half close");
     let got = read_all(s);
@@ -128,12 +125,12 @@ fn client_vanishing_mid_frame_does_not_disturb_the_next() {
     let sim = sim();
     let l = light(3.0, 4.0, -2.0);
     let mut quitter = connect(sim.frame_addr());
-    quitter.write_all(&l.to_wire()).expect("send");
+    quitter.write_all(&encode_request(&l)).expect("send");
     let mut some = vec![0u8; 50_000];
     quitter.read_exact(&mut some).expect("first rows");
     drop(quitter);
     let mut next = connect(sim.frame_addr());
-    next.write_all(&l.to_wire()).expect("send");
+    next.write_all(&encode_request(&l)).expect("send");
     assert!(read_all(next) == model_frame(&l));
 }
 
@@ -144,8 +141,8 @@ fn two_clients_at_once_are_both_served() {
     // Both connect and ask before either reads.
     let mut sa = connect(sim.frame_addr());
     let mut sb = connect(sim.persistent_addr());
-    sa.write_all(&a.to_wire()).expect("send a");
-    sb.write_all(&b.to_wire()).expect("send b");
+    sa.write_all(&encode_request(&a)).expect("send a");
+    sb.write_all(&encode_request(&b)).expect("send b");
     sb.shutdown(Shutdown::Write).expect("half close b");
     let ta = thread::spawn(move || read_all(sa));
     let tb = thread::spawn(move || read_all(sb));

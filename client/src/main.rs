@@ -13,9 +13,9 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
+use hps_sim::HpsSim;
 use indicatif::{ProgressBar, ProgressStyle};
 use model::Light;
-use raytracer::hps_sim::HpsSim;
 
 use crate::orbit::OrbitPath;
 use crate::output::FrameSink;
@@ -93,7 +93,7 @@ fn main() -> ExitCode {
     }
 }
 
-fn frame(server: &str, light: &Light, out: &PathBuf) -> Result<(), String> {
+fn frame(server: &str, light: &Light, out: &std::path::Path) -> Result<(), String> {
     let addr = net::resolve(server).map_err(|e| e.to_string())?;
     let start = Instant::now();
     let rgb = net::fetch_frame(addr, light).map_err(|e| e.to_string())?;
@@ -123,7 +123,8 @@ fn orbit(args: &RunArgs, out: Option<PathBuf>, show: bool) -> Result<(), String>
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let mut sink_error = None;
-    let stats: RunStats = orbit::run(net::persistent_addr(addr), &lights, |_, rgb| {
+    let persistent = net::persistent_addr(addr).map_err(|e| e.to_string())?;
+    let stats: RunStats = orbit::run(persistent, &lights, |_, rgb| {
         bar.inc(1);
         if let Err(e) = sink.push(rgb) {
             sink_error = Some(e);

@@ -6,6 +6,7 @@ use std::net::{Shutdown, SocketAddr, TcpStream, ToSocketAddrs};
 use std::time::Duration;
 
 use model::{Light, FRAME_BYTES};
+use rt_protocol::{encode_request, persistent_port};
 
 /// How long a read may stall before the client gives up on the server.
 const READ_TIMEOUT: Duration = Duration::from_secs(30);
@@ -26,6 +27,8 @@ pub enum ClientError {
     },
     /// The server sent more than it was asked for.
     ExtraBytes,
+    /// The frame port has no port above it for the persistent protocol.
+    NoPersistentPort(SocketAddr),
     /// Reading or writing failed.
     Io(&'static str, io::Error),
 }
@@ -44,6 +47,9 @@ impl fmt::Display for ClientError {
                  (light out of range, or the server failed)"
             ),
             ClientError::ExtraBytes => f.write_str("the server sent bytes after the last frame"),
+            ClientError::NoPersistentPort(a) => {
+                write!(f, "{a}: the persistent port is the frame port + 1, and port 65535 has none")
+            }
             ClientError::Io(what, e) if e.kind() == io::ErrorKind::WouldBlock => {
                 write!(f, "{what}: no data from the server for {} s", READ_TIMEOUT.as_secs())
             }
@@ -52,7 +58,14 @@ impl fmt::Display for ClientError {
     }
 }
 
-impl std::error::Error for ClientError {}
+impl std::error::Error for ClientError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            ClientError::Resolve(_, e) | ClientError::Connect(_, e) | ClientError::Io(_, e) => Some(e),
+            _ => None,
+        }
+    }
+}
 
 /// Resolve `HOST:PORT` to its first address.
 pub fn resolve(server: &str) -> Result<SocketAddr, ClientError> {
@@ -63,15 +76,17 @@ pub fn resolve(server: &str) -> Result<SocketAddr, ClientError> {
         .ok_or_else(|| ClientError::Resolve(server.into(), io::ErrorKind::NotFound.into()))
 }
 
-/// The persistent port: the frame port + 1.
-pub fn persistent_addr(frame_addr: SocketAddr) -> SocketAddr {
-    SocketAddr::new(frame_addr.ip(), frame_addr.port().wrapping_add(1))
+/// The persistent port's address: the frame port + 1 (a frame port of
+/// 65535 has none).
+pub fn persistent_addr(frame_addr: SocketAddr) -> Result<SocketAddr, ClientError> {
+    persistent_port(frame_addr.port())
+        .map(|p| SocketAddr::new(frame_addr.ip(), p))
+        .ok_or(ClientError::NoPersistentPort(frame_addr))
 }
 
 /// Connect with the client's timeouts.
 pub fn connect(addr: SocketAddr) -> Result<TcpStream, ClientError> {
-    let s = TcpStream::connect_timeout(&addr, Duration::from_secs(10))
-        .map_err(|e| ClientError::Connect(addr, e))?;
+    let s = TcpStream::connect_timeout(&addr, Duration::from_secs(10)).map_err(|e| ClientError::Connect(addr, e))?;
     s.set_read_timeout(Some(READ_TIMEOUT)).map_err(|e| ClientError::Io("socket setup", e))?;
     let _ = s.set_nodelay(true);
     Ok(s)
@@ -108,7 +123,7 @@ pub fn expect_eof(stream: &mut TcpStream) -> Result<(), ClientError> {
 /// One frame over the seed protocol (the frame port).
 pub fn fetch_frame(addr: SocketAddr, light: &Light) -> Result<Vec<u8>, ClientError> {
     let mut s = connect(addr)?;
-    s.write_all(&light.to_wire()).map_err(|e| ClientError::Io("sending the request", e))?;
+    s.write_all(&encode_request(light)).map_err(|e| ClientError::Io("sending the request", e))?;
     let mut frame = vec![0u8; FRAME_BYTES];
     read_frame(&mut s, 0, &mut frame)?;
     expect_eof(&mut s)?;
@@ -117,7 +132,7 @@ pub fn fetch_frame(addr: SocketAddr, light: &Light) -> Result<Vec<u8>, ClientErr
 
 /// Send a request on a persistent connection.
 pub fn send_request(stream: &mut TcpStream, light: &Light) -> Result<(), ClientError> {
-    stream.write_all(&light.to_wire()).map_err(|e| ClientError::Io("sending a request", e))
+    stream.write_all(&encode_request(light)).map_err(|e| ClientError::Io("sending a request", e))
 }
 
 /// Tell the server no more requests will come.

@@ -7,11 +7,11 @@ use std::path::PathBuf;
 use std::process::{Command, Output};
 use std::thread;
 
+use hps_sim::HpsSim;
 use image::AnimationDecoder;
 use model::colour::shade;
 use model::scene::{AMBIENT, CHECKER_EVEN, CHECKER_ODD};
 use model::{render_frame, Light, HEIGHT, WIDTH};
-use raytracer::hps_sim::HpsSim;
 
 fn rt_client(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_rt-client")).args(args).output().expect("rt-client runs")
@@ -41,7 +41,13 @@ fn frame_command_saves_the_model_frame() {
     let sim = board();
     let out = scratch("frame").join("f.png");
     let r = rt_client(&[
-        "frame", "--server", &sim.frame_addr().to_string(), "--light", "3,4,-2", "--out", out.to_str().unwrap(),
+        "frame",
+        "--server",
+        &sim.frame_addr().to_string(),
+        "--light",
+        "3,4,-2",
+        "--out",
+        out.to_str().unwrap(),
     ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
     assert!(png(&out) == model_frame(&Light::from_world(3.0, 4.0, -2.0).unwrap()));

@@ -1,23 +1,97 @@
-//! The UART log: a zero-sized writer usable anywhere, exception handlers
-//! and the panic handler included.
+//! The UART log: [`Log`] queues text in a ring buffer that the main loop
+//! drains as the UART's FIFO takes it ([`drain`]), so a log line costs the
+//! A9 a copy, not milliseconds at 115,200 baud. Start-up, which waits
+//! anyway, flushes after each step ([`flush`]); fault handlers write through
+//! [`Fault`], which empties the ring first and then writes directly.
 
+use core::cell::UnsafeCell;
 use core::fmt;
+use core::sync::atomic::{AtomicBool, Ordering};
 
-use firmware::drivers::mmio::Mmio;
-use firmware::drivers::uart16550::Uart16550;
+use soc::log::LogRing;
+use soc::uart16550::Uart16550;
 
-use crate::boards::board;
+use crate::boards::{Active, Board};
 
-/// Writes to the board's UART0.
+/// Bytes the ring holds (about a hundred log lines).
+const RING_BYTES: usize = 8192;
+
+/// The ring, with a flag that makes a re-entrant use (a fault while the
+/// main loop is inside the ring) skip instead of aliasing it.
+struct Shared {
+    ring: UnsafeCell<LogRing<RING_BYTES>>,
+    busy: AtomicBool,
+}
+
+// SAFETY: one core, no interrupt handlers; exception handlers that may
+// interrupt a ring access find `busy` set and leave the ring alone.
+unsafe impl Sync for Shared {}
+
+static SHARED: Shared = Shared { ring: UnsafeCell::new(LogRing::new()), busy: AtomicBool::new(false) };
+
+/// Run `f` on the ring unless it is already in use.
+fn with_ring<R>(f: impl FnOnce(&mut LogRing<RING_BYTES>) -> R) -> Option<R> {
+    if SHARED.busy.swap(true, Ordering::Acquire) {
+        return None;
+    }
+    // SAFETY: `busy` was clear and is now set: this is the only reference.
+    let r = f(unsafe { &mut *SHARED.ring.get() });
+    SHARED.busy.store(false, Ordering::Release);
+    Some(r)
+}
+
+fn uart() -> Uart16550 {
+    // SAFETY: the board's UART0, mapped Device (or the MMU is off); writers
+    // of the same UART only interleave bytes.
+    unsafe { Uart16550::new(crate::register_block(Active::UART0)) }
+}
+
+/// Queue text for the UART.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Log;
 
 impl fmt::Write for Log {
     fn write_str(&mut self, s: &str) -> fmt::Result {
-        // SAFETY: UART0_BASE is the board's 16550 register block, mapped as
-        // device memory (or the MMU is off); only transmit registers are
-        // touched, and a byte interleaved with another writer is harmless.
-        let mut uart = Uart16550::new(unsafe { Mmio::new(board::UART0_BASE) });
-        uart.write_str(s)
+        // Text written while the ring is busy (only from a fault) is lost.
+        let _ = with_ring(|r| r.write_str(s));
+        Ok(())
+    }
+}
+
+/// Move what the UART's FIFO takes now; never waits.
+pub fn drain() {
+    let mut u = uart();
+    let _ = with_ring(|r| r.drain(&mut u));
+}
+
+/// Switch the UART's FIFOs on, so that a drain moves 16 bytes at a time.
+/// First thing at start-up (it empties the transmit FIFO).
+pub fn init() {
+    uart().enable_fifos();
+}
+
+/// Send everything queued, waiting for the UART (start-up only).
+pub fn flush() {
+    let mut u = uart();
+    let _ = with_ring(|r| {
+        // Bounded: each round either moves bytes or finds the FIFO full;
+        // a UART that never drains costs about 2 s, then the rest waits.
+        for _ in 0..200_000 {
+            if r.is_empty() {
+                break;
+            }
+            r.drain(&mut u);
+        }
+    });
+}
+
+/// Blocking output for fault and panic handlers: empties the ring first.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Fault;
+
+impl fmt::Write for Fault {
+    fn write_str(&mut self, s: &str) -> fmt::Result {
+        flush();
+        uart().write_str(s)
     }
 }

@@ -1,21 +1,28 @@
-//! Network bring-up and the main loop: MAC, PHY and link, the smoltcp
-//! interface with a static IPv4 address (ARP and ICMP echo come with it),
-//! and the frame service on ports 7878 / 7879.
+//! Network bring-up and the main loop: MAC and PHY, the smoltcp interface
+//! with a static IPv4 address (ARP and ICMP echo come with it), the frame
+//! service on the protocol's two ports, the link monitor and the log drain.
 
-use core::fmt::Write;
+use core::cell::UnsafeCell;
+use core::fmt::{self, Write};
 use core::mem::MaybeUninit;
 use core::net::Ipv4Addr;
+use core::sync::atomic::{AtomicBool, Ordering};
 
-use firmware::drivers::dwmac::{DmaArea, Dwmac};
-use firmware::drivers::global_timer::GlobalTimer;
-use firmware::drivers::mmio::Mmio;
-use firmware::drivers::phy;
-use firmware::service::{FrameService, SocketBuffers, FRAME_PORT, PERSISTENT_PORT};
+use dwmac::phy::LinkMonitor;
+use dwmac::regs::Regs;
+use dwmac::{DmaArea, Dwmac};
+use rt_protocol::service::{FrameService, SocketBuffers};
+use rt_protocol::{FRAME_PORT, PERSISTENT_PORT};
 use smoltcp::iface::{Config, Interface, SocketSet, SocketStorage};
+use smoltcp::time::Instant;
 use smoltcp::wire::{EthernetAddress, HardwareAddress, IpCidr, Ipv4Cidr};
+use soc::global_timer::{GlobalTimer, TimerDelay};
+use soc::l2c310::L2c310;
+use static_cell::ConstStaticCell;
 
-use crate::boards::board;
-use crate::log::Log;
+use crate::boards::Board;
+use crate::cpu::Barriers;
+use crate::log::{self, Log};
 use crate::render::Renderer;
 
 /// TCP sockets of the frame service: half on each port, so while one client
@@ -23,15 +30,36 @@ use crate::render::Renderer;
 /// instead of refused.
 pub const SOCKETS: usize = 8;
 
+/// Why the network did not start.
+#[derive(Clone, Copy, Debug)]
+pub enum NetError {
+    /// The MAC or the PHY could not be brought up.
+    Mac(dwmac::Error),
+    /// The network's static memory was already handed out: `run` was
+    /// called a second time.
+    AlreadyRunning,
+}
+
+impl fmt::Display for NetError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            NetError::Mac(e) => write!(f, "Ethernet bring-up failed: {e}"),
+            NetError::AlreadyRunning => f.write_str("the network is already running"),
+        }
+    }
+}
+
+impl core::error::Error for NetError {}
+
 /// The interface's address: `FW_IPV4` at build time, else the board's.
-pub fn ipv4() -> Ipv4Cidr {
-    let text = option_env!("FW_IPV4").unwrap_or(board::DEFAULT_IPV4);
-    parse_cidr(text).or_else(|| parse_cidr(board::DEFAULT_IPV4)).unwrap_or(Ipv4Cidr::new(Ipv4Addr::UNSPECIFIED, 0))
+fn ipv4<B: Board>() -> Ipv4Cidr {
+    let text = option_env!("FW_IPV4").unwrap_or(B::DEFAULT_IPV4);
+    parse_cidr(text).or_else(|| parse_cidr(B::DEFAULT_IPV4)).unwrap_or(Ipv4Cidr::new(Ipv4Addr::UNSPECIFIED, 0))
 }
 
 /// The default gateway: `FW_GATEWAY` at build time, else the board's.
-pub fn gateway() -> Option<Ipv4Addr> {
-    option_env!("FW_GATEWAY").unwrap_or(board::DEFAULT_GATEWAY).parse().ok()
+fn gateway<B: Board>() -> Option<Ipv4Addr> {
+    option_env!("FW_GATEWAY").unwrap_or(B::DEFAULT_GATEWAY).parse().ok()
 }
 
 fn parse_cidr(s: &str) -> Option<Ipv4Cidr> {
@@ -40,80 +68,89 @@ fn parse_cidr(s: &str) -> Option<Ipv4Cidr> {
     Some(Ipv4Cidr::new(addr.parse().ok()?, len))
 }
 
-/// The MAC's rings and buffers, in the non-cacheable `.dma` section (not
-/// zeroed by the start-up code: `run` zeroes it).
+fn instant(timer: &GlobalTimer) -> Instant {
+    Instant::from_micros(i64::try_from(timer.now_us()).unwrap_or(i64::MAX))
+}
+
+/// The MAC's rings and buffers, in the non-cacheable `.dma` section, which
+/// the start-up code neither loads nor zeroes: [`take_dma_area`] zeroes it
+/// the one time it hands it out (`DMA_TAKEN` lives in `.bss`, not in the
+/// uninitialised section).
+#[repr(transparent)]
+struct DmaStatic(UnsafeCell<MaybeUninit<DmaArea>>);
+
+// SAFETY: only `take_dma_area` touches the contents, once (`DMA_TAKEN`).
+unsafe impl Sync for DmaStatic {}
+
 #[unsafe(link_section = ".dma")]
-static mut DMA: MaybeUninit<DmaArea> = MaybeUninit::uninit();
+static DMA: DmaStatic = DmaStatic(UnsafeCell::new(MaybeUninit::uninit()));
+static DMA_TAKEN: AtomicBool = AtomicBool::new(false);
+
+/// The DMA area, zeroed, the first time; `None` after.
+fn take_dma_area() -> Option<&'static DmaArea> {
+    if DMA_TAKEN.swap(true, Ordering::AcqRel) {
+        return None;
+    }
+    let area = DMA.0.get();
+    // SAFETY: first and only call (`DMA_TAKEN`): nothing else references the
+    // area. All bytes zero is a valid `DmaArea` (every field is an integer in
+    // a cell), so after the zeroing a shared reference to it is sound; the
+    // area's fields are interior-mutable, as the MAC writes them.
+    unsafe {
+        core::ptr::write_bytes(area, 0, 1);
+        Some((*area).assume_init_ref())
+    }
+}
+
+/// Why the DMA area or the sockets were already taken: `run` was called twice.
+const TAKEN_TWICE: NetError = NetError::AlreadyRunning;
 
 /// Bring the network up and serve forever. Returns only if the MAC or the
-/// PHY cannot be brought up (the caller reports and halts).
-pub fn run(timer: &'static GlobalTimer, rows: &mut Renderer) -> Result<core::convert::Infallible, &'static str> {
-    static mut SOCKET_BUFFERS: [SocketBuffers; SOCKETS] = [const { SocketBuffers::new() }; SOCKETS];
-    static mut SOCKET_STORAGE: [SocketStorage<'static>; SOCKETS] = [SocketStorage::EMPTY; SOCKETS];
+/// PHY cannot be brought up (the caller reports and halts). A missing cable
+/// is not an error: the link monitor brings the MAC up when it arrives.
+pub fn run<B: Board>(
+    timer: &'static GlobalTimer,
+    l2: &L2c310,
+    rows: &mut Renderer,
+) -> Result<core::convert::Infallible, NetError> {
+    static SOCKET_BUFFERS: ConstStaticCell<[SocketBuffers; SOCKETS]> =
+        ConstStaticCell::new([const { SocketBuffers::new() }; SOCKETS]);
+    static SOCKET_STORAGE: ConstStaticCell<[SocketStorage<'static>; SOCKETS]> =
+        ConstStaticCell::new([SocketStorage::EMPTY; SOCKETS]);
     let mut log = Log;
+    let dma = take_dma_area().ok_or(TAKEN_TWICE)?;
+    let socket_buffers = SOCKET_BUFFERS.try_take().ok_or(TAKEN_TWICE)?;
+    let socket_storage = SOCKET_STORAGE.try_take().ok_or(TAKEN_TWICE)?;
 
-    // SAFETY: `run` is called once, from kmain on core 0; nothing else names
-    // these statics, so each `&mut` is the only reference for the rest of
-    // the program. DMA is zeroed before it is viewed as a `DmaArea` (all
-    // bytes zero is a valid `DmaArea`).
-    let (dma, socket_buffers, socket_storage) = unsafe {
-        let dma = &mut *(&raw mut DMA);
-        core::ptr::write_bytes(dma.as_mut_ptr(), 0, 1);
-        (dma.assume_init_mut(), &mut *(&raw mut SOCKET_BUFFERS), &mut *(&raw mut SOCKET_STORAGE))
-    };
-
-    // SAFETY: EMAC_BASE is the board's DesignWare MAC, mapped as device
-    // memory; only this driver uses it.
-    let regs = unsafe { Mmio::new(board::EMAC_BASE) };
-    let mut mac = match Dwmac::new(regs, dma, board::MAC_ADDR, timer) {
-        Ok(m) => m,
-        Err(e) => {
-            let _ = writeln!(log, "eth: {e}");
-            return Err("MAC bring-up failed");
-        }
-    };
+    // SAFETY: the board's DesignWare MAC, mapped Device; only this driver
+    // uses it.
+    let regs = unsafe { Regs::new(crate::register_block(B::EMAC)) };
+    let mut mac = Dwmac::new(regs, dma, Barriers { l2 }, TimerDelay(timer));
     let _ = writeln!(
         log,
-        "eth: DWMAC at {:#010x}, version {:#06x}, {:?} descriptors",
-        board::EMAC_BASE,
+        "eth: DWMAC at {:#010x}, version {:#06x}, {:?} descriptors, checksum insertion {:?}",
+        B::EMAC,
         mac.version() & 0xffff,
-        mac.format()
+        mac.format(),
+        mac.checksum_insertion()
     );
+    let phy = mac.bring_up(B::MAC_ADDR, &B::PHY).map_err(NetError::Mac)?;
+    let _ = writeln!(
+        log,
+        "phy: {phy}{}; PHY reset, then DMA reset: done",
+        if phy.is_ksz9021() { " (KSZ9021)" } else { "" }
+    );
+    let mut link = LinkMonitor::new(phy);
+    log::flush();
 
-    let link = {
-        let mut mdio = mac.mdio(timer);
-        let phy = match phy::scan(&mut mdio) {
-            Ok(p) => p,
-            Err(e) => {
-                let _ = writeln!(log, "phy: {e}");
-                return Err("no PHY");
-            }
-        };
-        let _ = writeln!(log, "phy: {phy}{}", if phy.is_ksz9021() { " (KSZ9021)" } else { "" });
-        if let Err(e) = phy::configure(&mut mdio, phy, &board::PHY, timer) {
-            let _ = writeln!(log, "phy: {e}");
-            return Err("PHY set-up failed");
-        }
-        let _ = writeln!(log, "phy: waiting for link (at most {} s)", board::LINK_TIMEOUT_US / 1_000_000);
-        match phy::wait_link(&mut mdio, phy, timer, board::LINK_TIMEOUT_US) {
-            Ok(link) => link,
-            Err(e) => {
-                let _ = writeln!(log, "phy: {e}");
-                return Err("no link");
-            }
-        }
-    };
-    mac.set_link(link);
-    let _ = writeln!(log, "link up: {link}");
-
-    let mut config = Config::new(HardwareAddress::Ethernet(EthernetAddress(board::MAC_ADDR)));
+    let mut config = Config::new(HardwareAddress::Ethernet(EthernetAddress(B::MAC_ADDR)));
     config.random_seed = timer.ticks();
-    let mut iface = Interface::new(config, &mut mac, timer.instant());
-    let cidr = ipv4();
+    let mut iface = Interface::new(config, &mut mac, instant(timer));
+    let cidr = ipv4::<B>();
     iface.update_ip_addrs(|addrs| {
         let _ = addrs.push(IpCidr::Ipv4(cidr));
     });
-    let gw = gateway();
+    let gw = gateway::<B>();
     if let Some(gw) = gw {
         if iface.routes_mut().add_default_ipv4_route(gw).is_err() {
             let _ = writeln!(log, "net: no room for the default route");
@@ -125,13 +162,26 @@ pub fn run(timer: &'static GlobalTimer, rows: &mut Renderer) -> Result<core::con
         log,
         "net: {cidr} via {}, MAC {}, listening on TCP {FRAME_PORT} and {PERSISTENT_PORT} ({SOCKETS} sockets)",
         gw.unwrap_or(Ipv4Addr::UNSPECIFIED),
-        EthernetAddress(board::MAC_ADDR),
+        EthernetAddress(B::MAC_ADDR),
     );
+    log::flush();
 
     loop {
-        let now = timer.instant();
+        if let Some(change) = link.poll(timer.now_us(), &mut mac) {
+            mac.set_link(change);
+            match change {
+                Some(l) => {
+                    let _ = writeln!(log, "link up: {l}");
+                }
+                None => {
+                    let _ = writeln!(log, "link down (waiting for the cable or the partner)");
+                }
+            }
+        }
+        let now = instant(timer);
         iface.poll(now, &mut mac, &mut sockets);
         service.poll(now, &mut sockets, rows, &mut log);
         rows.report(&mut log);
+        log::drain();
     }
 }

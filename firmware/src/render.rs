@@ -1,96 +1,58 @@
-//! The row source the frame server renders with: the model on the A9, or on
-//! the DE1-SoC the FPGA accelerator through hal-avalon, falling back to the
-//! model for any row the accelerator fails.
+//! The row source the frame server renders with: on the DE1-SoC the FPGA
+//! accelerator through hal-avalon, falling back to the model on the A9 for
+//! any row it fails and for good once it is wedged; elsewhere the model.
 
-#[cfg(feature = "de1-soc")]
-use firmware::drivers::global_timer::GlobalTimer;
-use firmware::server::{RowSource, SoftwareRenderer};
-use model::Light;
+use core::fmt::Write;
 
-/// The FPGA row driver on the board.
-#[cfg(feature = "de1-soc")]
-pub type FpgaRows = hal_avalon::Accelerator<hal_avalon::Mmio, TimerDelay>;
+use hal_avalon::{Accelerator, MmioPort};
+use model::{Light, WIDTH};
+use rt_protocol::fallback::{Fallback, FallbackEvent, WEDGED_AFTER};
+use rt_protocol::{RowSource, SoftwareRenderer};
+use soc::global_timer::TimerDelay;
 
-/// Where rows come from.
-pub struct Renderer {
-    #[cfg(feature = "de1-soc")]
-    fpga: Option<FpgaRows>,
-    /// Rows the accelerator failed (rendered in software instead).
-    fpga_failures: u32,
-    /// The last accelerator error not yet reported.
-    #[cfg(feature = "de1-soc")]
-    fault: Option<hal_avalon::Error>,
+/// The FPGA row driver on the board, as a row source.
+pub struct FpgaRows(pub Accelerator<MmioPort, TimerDelay<'static>>);
+
+impl RowSource for FpgaRows {
+    type Error = hal_avalon::Error;
+
+    fn render_row(&mut self, y: u16, light: &Light, out: &mut [u32; WIDTH]) -> Result<(), Self::Error> {
+        self.0.run_row(y, light, out)
+    }
 }
 
+/// Where rows come from.
+pub struct Renderer(Fallback<FpgaRows, SoftwareRenderer>);
+
 impl Renderer {
-    /// The software renderer: `model::render_row` on the CPU.
-    pub fn software() -> Renderer {
-        Renderer {
-            #[cfg(feature = "de1-soc")]
-            fpga: None,
-            fpga_failures: 0,
-            #[cfg(feature = "de1-soc")]
-            fault: None,
-        }
+    /// The FPGA accelerator if there is one, with the software renderer
+    /// (`model::render_row` on the CPU) as fallback.
+    pub fn new(fpga: Option<FpgaRows>) -> Renderer {
+        Renderer(Fallback::new(fpga, SoftwareRenderer))
     }
 
-    /// The FPGA accelerator, with the software renderer as fallback.
-    #[cfg(feature = "de1-soc")]
-    pub fn fpga(accel: FpgaRows) -> Renderer {
-        Renderer { fpga: Some(accel), fpga_failures: 0, fault: None }
-    }
-
-    /// Report (once) an accelerator failure since the last call.
-    pub fn report(&mut self, log: &mut impl core::fmt::Write) {
-        #[cfg(feature = "de1-soc")]
-        if let Some(e) = self.fault.take() {
-            let _ = writeln!(log, "FPGA: {e}; row rendered in software ({} so far)", self.fpga_failures);
+    /// Report what the accelerator did since the last call.
+    pub fn report(&mut self, log: &mut impl Write) {
+        match self.0.take_event() {
+            Some(FallbackEvent::RowsFailed { error, total }) => {
+                let _ = writeln!(log, "FPGA: {error}; row rendered in software ({total} so far)");
+            }
+            Some(FallbackEvent::SwitchedOff { error }) => {
+                let _ = writeln!(log, "FPGA: {error}; {WEDGED_AFTER} rows failed in a row: accelerator switched off, software from now on");
+            }
+            None => {}
         }
-        let _ = log;
     }
 }
 
 impl RowSource for Renderer {
     type Error = core::convert::Infallible;
 
-    fn render_row(&mut self, y: u16, light: &Light, out: &mut [u32; model::WIDTH]) -> Result<(), Self::Error> {
+    fn render_row(&mut self, y: u16, light: &Light, out: &mut [u32; WIDTH]) -> Result<(), Self::Error> {
         #[cfg(feature = "bench")]
-        return bench::timed(y, || self.render_row_untimed(y, light, out));
+        return bench::timed(y, || self.0.render_row(y, light, out));
         #[cfg(not(feature = "bench"))]
-        self.render_row_untimed(y, light, out)
-    }
-}
-
-impl Renderer {
-    fn render_row_untimed(&mut self, y: u16, light: &Light, out: &mut [u32; model::WIDTH]) -> Result<(), core::convert::Infallible> {
-        #[cfg(feature = "de1-soc")]
-        if let Some(accel) = &mut self.fpga {
-            match accel.run_row(y, light, out) {
-                Ok(()) => return Ok(()),
-                Err(e) => {
-                    self.fpga_failures = self.fpga_failures.saturating_add(1);
-                    self.fault = Some(e);
-                }
-            }
-        }
-        let _ = self.fpga_failures;
-        SoftwareRenderer.render_row(y, light, out)
-    }
-}
-
-/// `embedded-hal` delay on the global timer (for hal-avalon's polling).
-#[cfg(feature = "de1-soc")]
-pub struct TimerDelay(pub &'static GlobalTimer);
-
-#[cfg(feature = "de1-soc")]
-impl embedded_hal::delay::DelayNs for TimerDelay {
-    fn delay_ns(&mut self, ns: u32) {
-        let start = self.0.ticks();
-        // ticks = ns * hz / 1e9, rounded up, at least 1.
-        let ticks = (u64::from(ns) * u64::from(self.0.hz())).div_ceil(1_000_000_000).max(1);
-        while self.0.ticks().wrapping_sub(start) < ticks {
-            core::hint::spin_loop();
-        }
+        self.0.render_row(y, light, out)
     }
 }
 
@@ -102,21 +64,19 @@ mod bench {
     use core::fmt::Write;
     use core::sync::atomic::{AtomicU64, Ordering};
 
-
     use crate::log::Log;
 
     static RENDER_NS: AtomicU64 = AtomicU64::new(0);
 
     /// Run `f` (rendering row `y`), adding its duration to the frame's.
     pub fn timed<R>(y: u16, f: impl FnOnce() -> R) -> R {
-        let timer = &crate::kmain::TIMER;
-        let t0 = timer.now_ns();
+        let t0 = crate::TIMER.now_ns();
         if y == 0 {
             RENDER_NS.store(0, Ordering::Relaxed);
             let _ = writeln!(Log, "bench: frame start {t0}");
         }
         let r = f();
-        let dt = timer.now_ns().saturating_sub(t0);
+        let dt = crate::TIMER.now_ns().saturating_sub(t0);
         let total = RENDER_NS.fetch_add(dt, Ordering::Relaxed) + dt;
         if usize::from(y) == model::HEIGHT - 1 {
             let _ = writeln!(Log, "bench: frame rendered {total}");

@@ -1,27 +1,35 @@
 //! Start-up pieces around aarch32-rt: the reset entry, parking the second
 //! core, exception handlers that report on the UART, the panic handler.
 //!
-//! Why aarch32-rt 0.5: its reset code already sets VBAR, initialises `.data`
-//! and `.bss`, sets one stack per mode and (feature `eabi-fpu`) turns VFP on,
-//! and its exception trampolines save state before calling Rust. Two things
-//! it leaves to the board, done here:
+//! aarch32-rt 0.5's reset code sets VBAR, initialises `.data` and `.bss`,
+//! sets one stack per mode, turns VFP on (`eabi-fpu`) and calls `main`; its
+//! exception trampolines save state before calling Rust. What it leaves to
+//! the board is done here:
 //!
-//! * `_start`: QEMU (and a ROM) enter with SCTLR.V = 1, which makes the CPU
-//!   use the high vectors at 0xffff_0000 and ignore VBAR. The reset entry
-//!   clears SCTLR.V before branching to aarch32-rt's `_default_start`.
-//! * `_asm_secondary_core_park`: QEMU starts both cores at the ELF entry; the
-//!   second one must never touch memory the first initialises. It sleeps in
-//!   `wfe` forever (on the DE1-SoC the preloader keeps core 1 in reset, so
-//!   this only runs under QEMU).
+//! * `_start`, the reset entry: registers only, no stack, because it may
+//!   follow a boot loader that left the MMU and caches on (U-Boot's `go`
+//!   does; docs/board-bring-up.md#u-boot). With the D-cache on, the
+//!   start-up code's `.bss` zeroing would land in dirty lines that a later
+//!   cache disable throws away, so the caches are turned off first, in
+//!   assembly: D-cache off, clean and invalidate L1 by set/way, clean and
+//!   invalidate the L2C-310 by way and sync, L2 off, MMU and I-cache off.
+//!   Then, on every entry, the I-cache and branch predictor are invalidated
+//!   and SCTLR.V is cleared (QEMU and the boot ROM enter with high vectors,
+//!   which would make the CPU ignore VBAR). The sequence is ARM's
+//!   (Cortex-A9 TRM DDI 0388, "Cache operations"; L2C-310 TRM DDI 0246
+//!   3.3.10) and what U-Boot's `cleanup_before_linux` does in C.
+//! * `_asm_secondary_core_park`: QEMU starts both cores at the ELF entry;
+//!   the second one sleeps in `wfe` forever (on the DE1-SoC the preloader
+//!   keeps core 1 in reset).
 
 use core::fmt::Write;
 
+use aarch32_cpu::register::{Dfar, Dfsr, Ifar, Ifsr};
 use aarch32_rt::exception;
 
-use crate::log::Log;
+use crate::boards::{Active, Board};
+use crate::log;
 
-// The reset entry. Runs on every core before any stack exists: registers
-// only. SCTLR bit 13 (V): ARM ARM (DDI 0406C) B4.1.130.
 core::arch::global_asm!(
     r#"
     .pushsection .text._start, "ax", %progbits
@@ -30,11 +38,65 @@ core::arch::global_asm!(
     .type _start, %function
     .p2align 2
 _start:
+    mrc     p15, 0, r0, c1, c0, 0       @ SCTLR
+    tst     r0, #((1 << 2) | (1 << 0))  @ D-cache (C) or MMU (M) on?
+    beq     5f
+    @ 1. D-cache off: no new line is allocated from here on.
+    bic     r1, r0, #(1 << 2)
+    mcr     p15, 0, r1, c1, c0, 0
+    isb
+    @ 2. Clean and invalidate L1 D by set/way: way in bits 31:30 (4 ways),
+    @    set in bits 12:5 (256 sets of 32-byte lines).
+    mov     r5, #0
+1:  mov     r3, #0
+2:  lsl     r4, r5, #30
+    orr     r4, r4, r3, lsl #5
+    mcr     p15, 0, r4, c7, c14, 2      @ DCCISW
+    add     r3, r3, #1
+    cmp     r3, #256
+    blo     2b
+    add     r5, r5, #1
+    cmp     r5, #4
+    blo     1b
+    dsb
+    @ 3. L2C-310 on? Clean and invalidate every way (0x7fc), bounded wait,
+    @    cache sync (0x730), L2 off (control 0x100).
+    ldr     r6, ={l2c}
+    ldr     r1, [r6, #0x100]
+    tst     r1, #1
+    beq     4f
+    ldr     r1, [r6, #0x104]            @ aux control bit 16: 16 ways
+    mov     r2, #0xff
+    tst     r1, #(1 << 16)
+    orrne   r2, r2, #0xff00
+    str     r2, [r6, #0x7fc]
+    ldr     r7, =0x1000000
+3:  ldr     r1, [r6, #0x7fc]
+    tst     r1, r2
+    beq     6f
+    subs    r7, r7, #1
+    bne     3b
+6:  mov     r1, #0
+    str     r1, [r6, #0x730]
+    str     r1, [r6, #0x100]
+    dsb
+4:  @ 4. MMU, D-cache and I-cache off.
+    bic     r0, r0, #((1 << 0) | (1 << 2))
+    bic     r0, r0, #(1 << 12)
+    mcr     p15, 0, r0, c1, c0, 0
+    isb
+5:  @ Every entry: invalidate the I-cache and branch predictor, clear SCTLR.V.
+    mov     r0, #0
+    mcr     p15, 0, r0, c7, c5, 0       @ ICIALLU
+    mcr     p15, 0, r0, c7, c5, 6       @ BPIALL
+    dsb
+    isb
     mrc     p15, 0, r0, c1, c0, 0
     bic     r0, r0, #(1 << 13)
     mcr     p15, 0, r0, c1, c0, 0
     isb
     b       _default_start
+    .ltorg
     .size _start, . - _start
     .popsection
 
@@ -58,85 +120,73 @@ _asm_fiq_handler:
     b       fiq_fault
     .size _asm_fiq_handler, . - _asm_fiq_handler
     .popsection
-    "#
+    "#,
+    l2c = const Active::L2C,
 );
 
 /// Mask interrupts and stop for good (after the reason went to the UART).
 pub fn halt() -> ! {
-    let _ = writeln!(Log, "halted.");
+    let _ = writeln!(log::Fault, "halted.");
     loop {
-        // SAFETY: masking IRQ/FIQ and waiting for an interrupt have no
-        // memory effects.
-        unsafe { core::arch::asm!("cpsid if", "wfi", options(nomem, nostack)) };
+        aarch32_cpu::asm::irq_disable();
+        aarch32_cpu::asm::wfi();
     }
-}
-
-fn cp15_fault_registers() -> (u32, u32, u32, u32) {
-    let (dfsr, dfar, ifsr, ifar): (u32, u32, u32, u32);
-    // SAFETY: reads of the fault status/address registers (DDI 0406C
-    // B4.1.52 DFSR, B4.1.51 DFAR, B4.1.96 IFSR, B4.1.95 IFAR) have no side
-    // effects.
-    unsafe {
-        core::arch::asm!(
-            "mrc p15, 0, {0}, c5, c0, 0",
-            "mrc p15, 0, {1}, c6, c0, 0",
-            "mrc p15, 0, {2}, c5, c0, 1",
-            "mrc p15, 0, {3}, c6, c0, 2",
-            out(reg) dfsr, out(reg) dfar, out(reg) ifsr, out(reg) ifar,
-            options(nomem, nostack, preserves_flags)
-        );
-    }
-    (dfsr, dfar, ifsr, ifar)
 }
 
 #[exception(Undefined)]
 fn undefined(addr: usize) -> ! {
-    let _ = writeln!(Log, "\nFAULT: undefined instruction at {addr:#010x}");
+    let _ = writeln!(log::Fault, "\nFAULT: undefined instruction at {addr:#010x}");
     halt()
 }
 
 #[exception(PrefetchAbort)]
 fn prefetch_abort(addr: usize) -> ! {
-    let (_, _, ifsr, ifar) = cp15_fault_registers();
-    let _ = writeln!(Log, "\nFAULT: prefetch abort at {addr:#010x}: IFSR {ifsr:#010x} IFAR {ifar:#010x}");
+    let (ifsr, ifar) = (Ifsr::read().raw_value(), Ifar::read().0);
+    let _ = writeln!(log::Fault, "\nFAULT: prefetch abort at {addr:#010x}: IFSR {ifsr:#010x} IFAR {ifar:#010x}");
     halt()
 }
 
+/// A data abort: during the accelerator probe an external abort means "no
+/// accelerator" and execution resumes (soc::abort); anything else is fatal.
 #[exception(DataAbort)]
-fn data_abort(addr: usize) -> ! {
-    let (dfsr, dfar, _, _) = cp15_fault_registers();
-    let _ = writeln!(Log, "\nFAULT: data abort at pc {addr:#010x}: DFSR {dfsr:#010x} DFAR {dfar:#010x}");
+unsafe fn data_abort(addr: usize) -> usize {
+    let dfsr = Dfsr::read().raw_value();
+    if let Some(resume) = crate::PROBE.on_data_abort(dfsr, addr) {
+        return resume;
+    }
+    let dfar = Dfar::read().0;
+    let _ = writeln!(log::Fault, "\nFAULT: data abort at pc {addr:#010x}: DFSR {dfsr:#010x} DFAR {dfar:#010x}");
     halt()
 }
 
 #[exception(SupervisorCall)]
 fn supervisor_call(arg: u32, _frame: &aarch32_rt::Frame) -> u32 {
-    let _ = writeln!(Log, "\nFAULT: unexpected SVC #{arg}");
+    let _ = writeln!(log::Fault, "\nFAULT: unexpected SVC #{arg}");
     halt()
 }
 
 #[exception(HypervisorCall)]
 fn hypervisor_call(hsr: u32, _frame: &aarch32_rt::Frame) -> u32 {
-    let _ = writeln!(Log, "\nFAULT: unexpected HVC (HSR {hsr:#010x})");
+    let _ = writeln!(log::Fault, "\nFAULT: unexpected HVC (HSR {hsr:#010x})");
     halt()
 }
 
 #[aarch32_rt::irq]
 fn irq() {
     // Interrupts stay masked; getting here means something unmasked them.
-    let _ = writeln!(Log, "\nFAULT: unexpected IRQ");
+    let _ = writeln!(log::Fault, "\nFAULT: unexpected IRQ");
     halt()
 }
 
 /// FIQ entry (FIQs stay masked): report and stop, on the FIQ stack.
 #[unsafe(no_mangle)]
 extern "C" fn fiq_fault() -> ! {
-    let _ = writeln!(Log, "\nFAULT: unexpected FIQ");
+    let _ = writeln!(log::Fault, "\nFAULT: unexpected FIQ");
     halt()
 }
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
-    let _ = writeln!(Log, "\nPANIC: {info}");
+    let _ = writeln!(log::Fault, "\nPANIC: {info}");
     halt()
 }

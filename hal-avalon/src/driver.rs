@@ -6,8 +6,8 @@ use embedded_hal::delay::DelayNs;
 use model::{Light, LightError};
 
 use crate::map::{
-    light_to_register, line_word_offset, Csr, CONTROL_CLEAR_DONE, CONTROL_START, CSR_OFFSET,
-    ID_VALUE, LINE_WORDS, PIXEL_RESERVED_MASK, ROWS, STATUS_BUSY, STATUS_DONE, STATUS_MASK,
+    light_to_register, line_word_offset, Csr, CONTROL_CLEAR_DONE, CONTROL_START, CSR_OFFSET, ID_VALUE, LINE_WORDS,
+    PIXEL_RESERVED_MASK, ROWS, STATUS_BUSY, STATUS_DONE, STATUS_MASK,
 };
 use crate::port::RegisterPort;
 
@@ -33,10 +33,7 @@ impl PollTimeout {
     /// At most `max_polls` STATUS reads per wait (at least 1),
     /// `poll_interval_ns` apart (0: back to back).
     pub const fn new(max_polls: u32, poll_interval_ns: u32) -> PollTimeout {
-        PollTimeout {
-            max_polls: if max_polls == 0 { 1 } else { max_polls },
-            poll_interval_ns,
-        }
+        PollTimeout { max_polls: if max_polls == 0 { 1 } else { max_polls }, poll_interval_ns }
     }
 
     /// STATUS reads allowed per wait.
@@ -99,10 +96,9 @@ impl fmt::Display for Error {
                 write!(f, "row {row_y} is out of range (0..{ROWS})")
             }
             Error::LightOutOfRange(e) => write!(f, "{e}"),
-            Error::NotPresent { id } => write!(
-                f,
-                "accelerator not present: ID reads {id:#010x}, expected {ID_VALUE:#010x}"
-            ),
+            Error::NotPresent { id } => {
+                write!(f, "accelerator not present: ID reads {id:#010x}, expected {ID_VALUE:#010x}")
+            }
             Error::Timeout { status } => {
                 write!(f, "accelerator timed out (STATUS {status:#x})")
             }
@@ -132,11 +128,7 @@ pub struct Accelerator<P, D> {
 impl<P: RegisterPort, D: DelayNs> Accelerator<P, D> {
     /// A driver for the accelerator behind `port`. Touches nothing yet.
     pub fn new(port: P, delay: D, timeout: PollTimeout) -> Accelerator<P, D> {
-        Accelerator {
-            port,
-            delay,
-            timeout,
-        }
+        Accelerator { port, delay, timeout }
     }
 
     /// Check that a ray tracer of the supported version answers: the ID
@@ -155,12 +147,7 @@ impl<P: RegisterPort, D: DelayNs> Accelerator<P, D> {
     /// ROW_Y and LIGHT_X/Y/Z; clear a stale done; start; poll STATUS until
     /// done; copy the line buffer and check its reserved bits. Every wait
     /// is bounded by the [`PollTimeout`]. On error `out` is unspecified.
-    pub fn run_row(
-        &mut self,
-        row_y: u16,
-        light: &Light,
-        out: &mut [u32; LINE_WORDS],
-    ) -> Result<(), Error> {
+    pub fn run_row(&mut self, row_y: u16, light: &Light, out: &mut [u32; LINE_WORDS]) -> Result<(), Error> {
         if row_y >= ROWS {
             return Err(Error::RowOutOfRange { row_y });
         }
@@ -181,14 +168,8 @@ impl<P: RegisterPort, D: DelayNs> Accelerator<P, D> {
         self.poll_status(|s| s & STATUS_DONE != 0)?;
 
         self.port.read_line(out);
-        match (0..)
-            .zip(out.iter())
-            .find(|(_, w)| **w & PIXEL_RESERVED_MASK != 0)
-        {
-            Some((x, &value)) => Err(Error::BusFault {
-                offset: line_word_offset(x),
-                value,
-            }),
+        match (0..).zip(out.iter()).find(|(_, w)| **w & PIXEL_RESERVED_MASK != 0) {
+            Some((x, &value)) => Err(Error::BusFault { offset: line_word_offset(x), value }),
             None => Ok(()),
         }
     }
@@ -196,12 +177,7 @@ impl<P: RegisterPort, D: DelayNs> Accelerator<P, D> {
     /// [`run_row`](Self::run_row) with the light as raw Q13.10 components
     /// `[x, y, z]`, as they arrive on the wire; a component outside
     /// `[-2^23, 2^23)` is [`Error::LightOutOfRange`].
-    pub fn run_row_raw(
-        &mut self,
-        row_y: u16,
-        light: [i32; 3],
-        out: &mut [u32; LINE_WORDS],
-    ) -> Result<(), Error> {
+    pub fn run_row_raw(&mut self, row_y: u16, light: [i32; 3], out: &mut [u32; LINE_WORDS]) -> Result<(), Error> {
         if row_y >= ROWS {
             return Err(Error::RowOutOfRange { row_y });
         }
@@ -216,10 +192,7 @@ impl<P: RegisterPort, D: DelayNs> Accelerator<P, D> {
             let status = self.port.read(Csr::Status);
             if status & !STATUS_MASK != 0 {
                 let offset = CSR_OFFSET + Csr::Status.offset();
-                return Err(Error::BusFault {
-                    offset,
-                    value: status,
-                });
+                return Err(Error::BusFault { offset, value: status });
             }
             if ready(status) {
                 return Ok(());

@@ -7,8 +7,8 @@
 //!   address and bit (`fpga/` implements the same numbers).
 //! * [`port`]: [`RegisterPort`], the one trait through which software touches
 //!   the accelerator.
-//! * [`mmio`]: [`Mmio`], the memory-mapped port on the board (the crate's only
-//!   raw-pointer code).
+//! * [`mmio`]: [`MmioPort`], the memory-mapped port on the board (the crate's
+//!   only raw-pointer code).
 //! * [`driver`]: [`Accelerator`], the row driver generic over the port, with
 //!   bounded polling ([`PollTimeout`], an `embedded-hal` [`DelayNs`]) and
 //!   [`Error`]s instead of hangs or panics.
@@ -45,5 +45,5 @@ pub mod sim;
 
 pub use driver::{Accelerator, Error, PollTimeout};
 pub use map::Csr;
-pub use mmio::Mmio;
+pub use mmio::MmioPort;
 pub use port::RegisterPort;

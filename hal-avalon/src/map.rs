@@ -95,15 +95,7 @@ pub enum Csr {
 
 impl Csr {
     /// Every register, in address order.
-    pub const ALL: [Csr; 7] = [
-        Csr::Control,
-        Csr::Status,
-        Csr::RowY,
-        Csr::LightX,
-        Csr::LightY,
-        Csr::LightZ,
-        Csr::Id,
-    ];
+    pub const ALL: [Csr; 7] = [Csr::Control, Csr::Status, Csr::RowY, Csr::LightX, Csr::LightY, Csr::LightZ, Csr::Id];
 
     /// Byte offset of the register inside the CSR block.
     pub const fn offset(self) -> usize {
@@ -206,15 +198,7 @@ mod tests {
 
     #[test]
     fn light_register_sign_extends() {
-        for raw in [
-            0,
-            1,
-            -1,
-            1024,
-            -2048,
-            model::word::RAW_MIN,
-            model::word::RAW_MAX,
-        ] {
+        for raw in [0, 1, -1, 1024, -2048, model::word::RAW_MIN, model::word::RAW_MAX] {
             assert_eq!(light_from_register(light_to_register(raw)), raw);
         }
         assert_eq!(light_to_register(-1), 0x00ff_ffff);

@@ -1,8 +1,21 @@
 //! Memory-mapped access to the accelerator on the board.
 //!
 //! [`RegisterBlock`] lays the CSR block and the line buffer out at the
-//! offsets of [`crate::map`]; [`Mmio`] is the [`RegisterPort`] over it. This
-//! module holds the crate's only raw-pointer code: [`Mmio::new`].
+//! offsets of [`crate::map`]; [`MmioPort`] is the [`RegisterPort`] over it.
+//! This module holds the crate's only raw-pointer code.
+//!
+//! # Ordering
+//!
+//! The driver writes ROW_Y, LIGHT_* and CONTROL, then polls STATUS. Reads
+//! and writes travel separate AXI channels through the bridge, so on a
+//! Device mapping a STATUS read could overtake the CONTROL write before it
+//! and see a stale done. The firmware maps the bridge window
+//! Strongly-ordered instead (its MMU table; ARM ARM DDI 0406C A3.5.7:
+//! an access to Strongly-ordered memory completes, write response
+//! included, before the next one starts), which orders every access in
+//! program order without a barrier per write.
+
+use core::ptr::NonNull;
 
 use volatile_register::{RO, RW, WO};
 
@@ -57,27 +70,30 @@ const _: () = {
 };
 
 /// The accelerator's registers through memory-mapped I/O: the board's
-/// [`RegisterPort`].
-pub struct Mmio {
-    regs: &'static RegisterBlock,
+/// [`RegisterPort`]. Holds a raw pointer, never a reference to device
+/// memory.
+pub struct MmioPort {
+    regs: NonNull<RegisterBlock>,
 }
 
-// SAFETY: `Mmio` owns its register block exclusively (the contract of
-// `Mmio::new`); moving that ownership to another execution context is sound.
-unsafe impl Send for Mmio {}
+// SAFETY: `MmioPort` owns its register block exclusively (the contract of
+// `MmioPort::new`); moving that ownership to another execution context is
+// sound.
+unsafe impl Send for MmioPort {}
 
-impl Mmio {
+impl MmioPort {
     /// The accelerator at the address the FPGA design places it: the
     /// lightweight bridge base plus [`CSR_OFFSET`].
     ///
     /// # Safety
     ///
-    /// As [`Mmio::new`]; in particular the FPGA must be configured with the
-    /// ray tracer and the lightweight bridge out of reset and visible, since a
-    /// read from an unconfigured fabric or a bridge in reset can hang or abort.
-    pub unsafe fn lightweight_bridge() -> Mmio {
+    /// As [`MmioPort::new`]; in particular the FPGA must be configured with
+    /// the ray tracer and the lightweight bridge out of reset and visible,
+    /// since a read from an unconfigured fabric or a bridge in reset can hang
+    /// or abort.
+    pub unsafe fn lightweight_bridge() -> MmioPort {
         // SAFETY: forwarded to the caller (same contract).
-        unsafe { Mmio::new(LW_BRIDGE_BASE + CSR_OFFSET) }
+        unsafe { MmioPort::new(LW_BRIDGE_BASE + CSR_OFFSET) }
     }
 
     /// The accelerator whose CSR block starts at `base`.
@@ -87,44 +103,29 @@ impl Mmio {
     /// * `base` is 4-byte aligned and the `size_of::<RegisterBlock>()` bytes
     ///   from it are device registers (or memory) readable and writable with
     ///   32-bit accesses for the rest of the program;
-    /// * no other `Mmio` or other code accesses that range while this one
-    ///   exists;
-    /// * the range is mapped Strongly-ordered or Device, so that accesses
-    ///   reach the bridge in program order and are not cached.
-    pub unsafe fn new(base: usize) -> Mmio {
-        // SAFETY: the caller guarantees an aligned, live, exclusively owned
-        // register range for `'static`; all fields are volatile cells.
-        let regs = unsafe { &*(base as *const RegisterBlock) };
-        Mmio { regs }
+    /// * no other `MmioPort` or other code accesses that range while this
+    ///   one exists;
+    /// * the range is mapped Strongly-ordered, so that accesses reach the
+    ///   bridge in program order, each complete before the next (see the
+    ///   module documentation), and are not cached.
+    pub unsafe fn new(base: usize) -> MmioPort {
+        // A null base cannot satisfy the contract; keep the constructor
+        // total anyway.
+        let regs = NonNull::new(base as *mut RegisterBlock).unwrap_or(NonNull::dangling());
+        MmioPort { regs }
     }
 
     /// The register block, for accesses this port does not offer.
     pub fn registers(&self) -> &RegisterBlock {
-        self.regs
+        // SAFETY: `new`'s contract: an aligned, live, exclusively owned
+        // register range; every field is a volatile cell.
+        unsafe { self.regs.as_ref() }
     }
 }
 
-/// Wait until earlier register writes have completed.
-///
-/// Reads and writes travel separate AXI channels through the bridge, so a
-/// STATUS read could overtake the CONTROL write just before it and see a
-/// stale done. A `dsb` waits for the write's response; with the window mapped
-/// Strongly-ordered that response comes from the accelerator itself.
-#[inline(always)]
-fn write_barrier() {
-    #[cfg(target_arch = "arm")]
-    // SAFETY: `dsb` only waits for outstanding memory accesses; it touches no
-    // registers, stack or flags.
-    unsafe {
-        core::arch::asm!("dsb sy", options(nostack, preserves_flags));
-    }
-    #[cfg(not(target_arch = "arm"))]
-    core::sync::atomic::fence(core::sync::atomic::Ordering::SeqCst);
-}
-
-impl RegisterPort for Mmio {
+impl RegisterPort for MmioPort {
     fn read(&mut self, csr: Csr) -> u32 {
-        let c = &self.regs.csr;
+        let c = &self.registers().csr;
         match csr {
             // CONTROL is write-only and reads 0: no bus access needed.
             Csr::Control => 0,
@@ -138,9 +139,9 @@ impl RegisterPort for Mmio {
     }
 
     fn write(&mut self, csr: Csr, value: u32) {
-        let c = &self.regs.csr;
+        let c = &self.registers().csr;
         // SAFETY: each is a single volatile 32-bit store to a register of the
-        // block `Mmio::new` was given; its side effects on the accelerator
+        // block `MmioPort::new` was given; its side effects on the accelerator
         // are the ones the register map documents.
         unsafe {
             match csr {
@@ -150,14 +151,13 @@ impl RegisterPort for Mmio {
                 Csr::LightY => c.light_y.write(value),
                 Csr::LightZ => c.light_z.write(value),
                 // Read-only registers ignore writes: skip the bus access.
-                Csr::Status | Csr::Id => return,
+                Csr::Status | Csr::Id => {}
             }
         }
-        write_barrier();
     }
 
     fn read_line(&mut self, out: &mut [u32; LINE_WORDS]) {
-        for (word, reg) in out.iter_mut().zip(self.regs.line.iter()) {
+        for (word, reg) in out.iter_mut().zip(self.registers().line.iter()) {
             *word = reg.read();
         }
     }

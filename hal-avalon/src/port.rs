@@ -1,7 +1,7 @@
 //! The register port: the only way software touches the accelerator.
 //!
 //! The [`crate::Accelerator`] driver is generic over [`RegisterPort`]; on
-//! the board the port is [`crate::mmio::Mmio`], on the host the simulated
+//! the board the port is [`crate::mmio::MmioPort`], on the host the simulated
 //! device (`sim::SimAccelerator`, feature `sim`).
 
 use crate::map::{Csr, LINE_WORDS};

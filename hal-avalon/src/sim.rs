@@ -19,9 +19,8 @@ use embedded_hal::delay::DelayNs;
 use model::Light;
 
 use crate::map::{
-    light_from_register, Csr, BUS_ALL_ONES, CONTROL_CLEAR_DONE, CONTROL_START, CSR_OFFSET,
-    CSR_WINDOW, ID_VALUE, LIGHT_MASK, LINE_BUFFER_OFFSET, LINE_WORDS, ROW_Y_MASK, STATUS_BUSY,
-    STATUS_DONE,
+    light_from_register, Csr, BUS_ALL_ONES, CONTROL_CLEAR_DONE, CONTROL_START, CSR_OFFSET, CSR_WINDOW, ID_VALUE,
+    LIGHT_MASK, LINE_BUFFER_OFFSET, LINE_WORDS, ROW_Y_MASK, STATUS_BUSY, STATUS_DONE,
 };
 use crate::port::RegisterPort;
 
@@ -260,17 +259,12 @@ impl SimAccelerator {
 
 /// `offset` relative to the CSR block, if it falls inside it.
 fn csr_relative(offset: usize) -> Option<usize> {
-    offset
-        .checked_sub(CSR_OFFSET)
-        .filter(|rel| *rel < CSR_WINDOW)
+    offset.checked_sub(CSR_OFFSET).filter(|rel| *rel < CSR_WINDOW)
 }
 
 /// The line-buffer word at `offset`, if there is one.
 fn line_word_index(offset: usize) -> Option<usize> {
-    offset
-        .checked_sub(LINE_BUFFER_OFFSET)
-        .map(|rel| rel / 4)
-        .filter(|x| *x < LINE_WORDS)
+    offset.checked_sub(LINE_BUFFER_OFFSET).map(|rel| rel / 4).filter(|x| *x < LINE_WORDS)
 }
 
 impl RegisterPort for SimAccelerator {

@@ -1,9 +1,7 @@
 //! The row driver over the simulated accelerator: whole frames against the
 //! model, the protocol on the bus, every error path and its bound.
 
-use hal_avalon::map::{
-    line_word_offset, Csr, CONTROL_CLEAR_DONE, CONTROL_START, LINE_WORDS, ROWS, STATUS_BUSY,
-};
+use hal_avalon::map::{line_word_offset, Csr, CONTROL_CLEAR_DONE, CONTROL_START, LINE_WORDS, ROWS, STATUS_BUSY};
 use hal_avalon::sim::{CountingDelay, Fault, SimAccelerator, LINE_POISON};
 use hal_avalon::{Accelerator, Error, PollTimeout, RegisterPort};
 use model::light::Axis;
@@ -49,17 +47,10 @@ fn every_row_of_several_frames_matches_the_model() {
     for (i, l) in lights().iter().enumerate() {
         for y in 0..ROWS {
             // Vary how long the device stays busy: 0..=4 polls.
-            accel
-                .port_mut()
-                .set_busy_polls((u32::from(y) + i as u32) % 5);
+            accel.port_mut().set_busy_polls((u32::from(y) + i as u32) % 5);
             row.fill(0x5A5A_5A5A);
-            accel
-                .run_row(y, l, &mut row)
-                .unwrap_or_else(|e| panic!("row {y}: {e}"));
-            assert!(
-                row == model_row(y, l),
-                "light {i} row {y} differs from the model"
-            );
+            accel.run_row(y, l, &mut row).unwrap_or_else(|e| panic!("row {y}: {e}"));
+            assert!(row == model_row(y, l), "light {i} row {y} differs from the model");
             rows_run += 1;
         }
     }
@@ -96,14 +87,8 @@ fn rows_past_the_frame_are_refused_before_any_access() {
     let mut accel = driver(2);
     let mut row = [7; LINE_WORDS];
     for y in [ROWS, 361, 511, 512, u16::MAX] {
-        assert_eq!(
-            accel.run_row(y, &lights()[0], &mut row),
-            Err(Error::RowOutOfRange { row_y: y })
-        );
-        assert_eq!(
-            accel.run_row_raw(y, [1 << 30, 0, 0], &mut row),
-            Err(Error::RowOutOfRange { row_y: y })
-        );
+        assert_eq!(accel.run_row(y, &lights()[0], &mut row), Err(Error::RowOutOfRange { row_y: y }));
+        assert_eq!(accel.run_row_raw(y, [1 << 30, 0, 0], &mut row), Err(Error::RowOutOfRange { row_y: y }));
     }
     assert_eq!(row, [7; LINE_WORDS]);
     assert_eq!((accel.port().status_reads(), accel.port().starts()), (0, 0));
@@ -116,10 +101,7 @@ fn absent_device_is_not_present_without_writes_or_polls() {
     accel.port_mut().set_fault(Some(Fault::Absent));
     let mut row = [0; LINE_WORDS];
     assert_eq!(accel.probe(), Err(Error::NotPresent { id: 0xFFFF_FFFF }));
-    assert_eq!(
-        accel.run_row(5, &lights()[1], &mut row),
-        Err(Error::NotPresent { id: 0xFFFF_FFFF })
-    );
+    assert_eq!(accel.run_row(5, &lights()[1], &mut row), Err(Error::NotPresent { id: 0xFFFF_FFFF }));
     assert_eq!(accel.port().status_reads(), 0);
     assert_eq!(accel.delay().calls, 0);
     // Once the fabric is configured, the same driver works.
@@ -150,16 +132,10 @@ impl RegisterPort for OtherId {
 #[test]
 fn id_mismatch_is_not_present() {
     for id in [0, 0x5254_0000, 0x5254_0002, 0x5255_0001, 0x0001_5254] {
-        let mut accel = Accelerator::new(
-            OtherId(SimAccelerator::new(), id),
-            CountingDelay::default(),
-            PollTimeout::DEFAULT,
-        );
+        let mut accel =
+            Accelerator::new(OtherId(SimAccelerator::new(), id), CountingDelay::default(), PollTimeout::DEFAULT);
         let mut row = [0; LINE_WORDS];
-        assert_eq!(
-            accel.run_row(0, &lights()[0], &mut row),
-            Err(Error::NotPresent { id })
-        );
+        assert_eq!(accel.run_row(0, &lights()[0], &mut row), Err(Error::NotPresent { id }));
         assert_eq!(accel.port().0.status_reads(), 0);
         assert_eq!(accel.port_mut().0.read(Csr::RowY), 0, "nothing written");
     }
@@ -173,28 +149,15 @@ fn stuck_busy_times_out_within_the_bound_and_recovers() {
 
     // One idle check, then MAX_POLLS polls for done, MAX_POLLS - 1 delays between them.
     let l = lights()[0];
-    assert_eq!(
-        accel.run_row(100, &l, &mut row),
-        Err(Error::Timeout {
-            status: STATUS_BUSY
-        })
-    );
+    assert_eq!(accel.run_row(100, &l, &mut row), Err(Error::Timeout { status: STATUS_BUSY }));
     assert_eq!(accel.port().status_reads(), 1 + MAX_POLLS);
     assert_eq!(accel.delay().calls, MAX_POLLS - 1);
-    assert_eq!(
-        accel.delay().total_ns,
-        u64::from((MAX_POLLS - 1) * INTERVAL_NS)
-    );
+    assert_eq!(accel.delay().total_ns, u64::from((MAX_POLLS - 1) * INTERVAL_NS));
     assert_eq!(accel.port().starts(), 1);
 
     // Still stuck: the driver waits for the old row, bounded, and does not
     // start over it.
-    assert_eq!(
-        accel.run_row(200, &l, &mut row),
-        Err(Error::Timeout {
-            status: STATUS_BUSY
-        })
-    );
+    assert_eq!(accel.run_row(200, &l, &mut row), Err(Error::Timeout { status: STATUS_BUSY }));
     assert_eq!(accel.port().status_reads(), 1 + 2 * MAX_POLLS);
     assert_eq!(accel.port().starts(), 1);
 
@@ -212,12 +175,7 @@ fn slow_device_times_out_then_the_next_call_works() {
     let mut accel = driver(MAX_POLLS + 10);
     let mut row = [0; LINE_WORDS];
     let l = lights()[2];
-    assert_eq!(
-        accel.run_row(7, &l, &mut row),
-        Err(Error::Timeout {
-            status: STATUS_BUSY
-        })
-    );
+    assert_eq!(accel.run_row(7, &l, &mut row), Err(Error::Timeout { status: STATUS_BUSY }));
     accel.port_mut().set_busy_polls(3);
     accel.run_row(8, &l, &mut row).unwrap();
     assert_eq!(row, model_row(8, &l));
@@ -230,10 +188,7 @@ fn done_never_set_times_out_within_the_bound_and_recovers() {
     let l = lights()[1];
     accel.port_mut().set_fault(Some(Fault::DoneNeverSet));
     // Busy clears after 4 polls but done never comes.
-    assert_eq!(
-        accel.run_row(50, &l, &mut row),
-        Err(Error::Timeout { status: 0 })
-    );
+    assert_eq!(accel.run_row(50, &l, &mut row), Err(Error::Timeout { status: 0 }));
     assert_eq!(accel.port().status_reads(), 1 + MAX_POLLS);
     assert_eq!(accel.delay().calls, MAX_POLLS - 1);
     assert_eq!(accel.port().rows_finished(), 1);
@@ -246,18 +201,10 @@ fn done_never_set_times_out_within_the_bound_and_recovers() {
 #[test]
 fn smallest_timeout_is_one_poll() {
     assert_eq!(PollTimeout::new(0, 5).max_polls(), 1);
-    let mut accel = Accelerator::new(
-        SimAccelerator::with_busy_polls(1),
-        CountingDelay::default(),
-        PollTimeout::new(0, 5),
-    );
+    let mut accel =
+        Accelerator::new(SimAccelerator::with_busy_polls(1), CountingDelay::default(), PollTimeout::new(0, 5));
     let mut row = [0; LINE_WORDS];
-    assert_eq!(
-        accel.run_row(1, &lights()[0], &mut row),
-        Err(Error::Timeout {
-            status: STATUS_BUSY
-        })
-    );
+    assert_eq!(accel.run_row(1, &lights()[0], &mut row), Err(Error::Timeout { status: STATUS_BUSY }));
     assert_eq!(accel.port().status_reads(), 2);
     assert_eq!(accel.delay().calls, 0);
     // A device that is done on its first poll fits in one poll.
@@ -277,12 +224,7 @@ struct Probe {
 
 impl Probe {
     fn new(sim: SimAccelerator) -> Probe {
-        Probe {
-            sim,
-            log: Vec::new(),
-            vanish_after_start: false,
-            corrupt_word: None,
-        }
+        Probe { sim, log: Vec::new(), vanish_after_start: false, corrupt_word: None }
     }
 }
 
@@ -339,10 +281,7 @@ fn protocol_on_the_bus() {
     // before the start, and the new row (not the stale one) comes back.
     accel.port_mut().log.clear();
     accel.run_row(0, &l, &mut row).unwrap();
-    assert_eq!(
-        accel.port().log[1],
-        ('R', Status, hal_avalon::map::STATUS_DONE)
-    );
+    assert_eq!(accel.port().log[1], ('R', Status, hal_avalon::map::STATUS_DONE));
     assert_eq!(accel.port().log[6], ('W', Control, CONTROL_CLEAR_DONE));
     assert_eq!(row, model_row(0, &l));
 }
@@ -353,13 +292,7 @@ fn device_vanishing_mid_row_is_a_bus_fault() {
     probe.vanish_after_start = true;
     let mut accel = Accelerator::new(probe, CountingDelay::default(), PollTimeout::DEFAULT);
     let mut row = [0; LINE_WORDS];
-    assert_eq!(
-        accel.run_row(3, &lights()[0], &mut row),
-        Err(Error::BusFault {
-            offset: 0x04,
-            value: 0xFFFF_FFFF
-        })
-    );
+    assert_eq!(accel.run_row(3, &lights()[0], &mut row), Err(Error::BusFault { offset: 0x04, value: 0xFFFF_FFFF }));
     // It stopped at the first bad STATUS: no polling on garbage.
     assert_eq!(accel.port().sim.status_reads(), 2);
     assert_eq!(accel.delay().calls, 0);
@@ -373,10 +306,7 @@ fn corrupt_line_word_is_a_bus_fault() {
     let mut row = [0; LINE_WORDS];
     assert_eq!(
         accel.run_row(3, &lights()[0], &mut row),
-        Err(Error::BusFault {
-            offset: line_word_offset(17),
-            value: 0xFFFF_FFFF
-        })
+        Err(Error::BusFault { offset: line_word_offset(17), value: 0xFFFF_FFFF })
     );
 }
 
@@ -426,10 +356,7 @@ fn premature_line_buffer_read_is_caught_by_the_poison() {
     let mut row = [0; LINE_WORDS];
     assert_eq!(
         accel.run_row(150, &l, &mut row),
-        Err(Error::BusFault {
-            offset: line_word_offset(0),
-            value: LINE_POISON
-        })
+        Err(Error::BusFault { offset: line_word_offset(0), value: LINE_POISON })
     );
 }
 
@@ -437,10 +364,6 @@ fn premature_line_buffer_read_is_caught_by_the_poison() {
 fn errors_display() {
     let e = Error::NotPresent { id: 0xFFFF_FFFF };
     assert!(e.to_string().contains("0xffffffff"), "{e}");
-    assert!(Error::RowOutOfRange { row_y: 360 }
-        .to_string()
-        .contains("360"));
-    assert!(Error::Timeout { status: 1 }
-        .to_string()
-        .contains("timed out"));
+    assert!(Error::RowOutOfRange { row_y: 360 }.to_string().contains("360"));
+    assert!(Error::Timeout { status: 1 }.to_string().contains("timed out"));
 }

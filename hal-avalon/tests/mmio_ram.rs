@@ -4,7 +4,7 @@
 
 use hal_avalon::map::{line_word_offset, Csr, ID_VALUE, LINE_WORDS, STATUS_DONE};
 use hal_avalon::mmio::RegisterBlock;
-use hal_avalon::{Accelerator, Mmio, PollTimeout, RegisterPort};
+use hal_avalon::{Accelerator, MmioPort, PollTimeout, RegisterPort};
 
 /// Words covering the whole register block.
 const WORDS: usize = core::mem::size_of::<RegisterBlock>() / 4;
@@ -16,13 +16,13 @@ impl embedded_hal::delay::DelayNs for NoDelay {
 }
 
 /// A leaked, zeroed memory range standing in for the bridge window.
-fn fake_window() -> (*mut u32, Mmio) {
+fn fake_window() -> (*mut u32, MmioPort) {
     let mem: &'static mut [u32] = Vec::leak(vec![0u32; WORDS]);
     let base = mem.as_mut_ptr();
     // SAFETY: `base` is 4-byte aligned, `WORDS` words long and leaked (lives
     // for the rest of the test); the test touches it only through volatile
-    // accesses via `Mmio` and `word`/`set_word`.
-    let mmio = unsafe { Mmio::new(base as usize) };
+    // accesses via `MmioPort` and `word`/`set_word`.
+    let mmio = unsafe { MmioPort::new(base as usize) };
     (base, mmio)
 }
 
@@ -46,16 +46,7 @@ fn register_block_size_ends_with_the_line_buffer() {
 #[test]
 fn writes_land_at_their_offsets() {
     let (base, mut mmio) = fake_window();
-    for (i, csr) in [
-        Csr::Control,
-        Csr::RowY,
-        Csr::LightX,
-        Csr::LightY,
-        Csr::LightZ,
-    ]
-    .into_iter()
-    .enumerate()
-    {
+    for (i, csr) in [Csr::Control, Csr::RowY, Csr::LightX, Csr::LightY, Csr::LightZ].into_iter().enumerate() {
         let value = 0x1111_0000 + i as u32;
         mmio.write(csr, value);
         assert_eq!(word(base, csr.offset()), value, "{csr:?}");
@@ -74,11 +65,7 @@ fn reads_come_from_their_offsets() {
         set_word(base, csr.offset(), 0xA000_0000 | csr.offset() as u32);
     }
     for csr in Csr::ALL {
-        let expected = if csr == Csr::Control {
-            0
-        } else {
-            0xA000_0000 | csr.offset() as u32
-        };
+        let expected = if csr == Csr::Control { 0 } else { 0xA000_0000 | csr.offset() as u32 };
         assert_eq!(mmio.read(csr), expected, "{csr:?}");
     }
     for x in 0..LINE_WORDS {

@@ -77,11 +77,7 @@ fn reset_state() {
 fn unmapped_offsets_read_zero_and_ignore_writes() {
     let mut sim = device_with_done();
     let line_before = read_line(&mut sim);
-    for off in
-        (0x1C..CSR_WINDOW)
-            .step_by(4)
-            .chain([line_word_offset(LINE_WORDS), 0x1FFC, 0x10_0000])
-    {
+    for off in (0x1C..CSR_WINDOW).step_by(4).chain([line_word_offset(LINE_WORDS), 0x1FFC, 0x10_0000]) {
         sim.bus_write(off, 0xFFFF_FFFF);
         assert_eq!(sim.bus_read(off), 0, "offset {off:#x}");
     }
@@ -123,11 +119,7 @@ fn start_sets_busy_for_exactly_the_configured_polls_then_done() {
         let mut sim = SimAccelerator::with_busy_polls(polls);
         sim.bus_write(CONTROL, CONTROL_START);
         assert!(sim.is_busy());
-        assert_eq!(
-            run_to_idle(&mut sim),
-            (polls, STATUS_DONE),
-            "busy polls {polls}"
-        );
+        assert_eq!(run_to_idle(&mut sim), (polls, STATUS_DONE), "busy polls {polls}");
         assert_eq!((sim.starts(), sim.rows_finished()), (1, 1));
     }
 }
@@ -303,11 +295,7 @@ fn rows_past_the_frame_extrapolate_the_nine_bit_row() {
         sim.bus_write(CONTROL, CONTROL_START);
         run_to_idle(&mut sim);
         let row = (written & 0x1FF) as u16;
-        assert_eq!(
-            read_line(&mut sim),
-            model_row(row, &l),
-            "ROW_Y written {written:#x}"
-        );
+        assert_eq!(read_line(&mut sim), model_row(row, &l), "ROW_Y written {written:#x}");
     }
 }
 
@@ -348,15 +336,7 @@ fn line_buffer_ignores_writes() {
 fn absent_device_reads_all_ones_and_loses_writes() {
     let mut sim = SimAccelerator::new();
     sim.set_fault(Some(Fault::Absent));
-    for off in [
-        CONTROL,
-        STATUS,
-        ROW_Y,
-        ID,
-        0x1C,
-        line_word_offset(0),
-        line_word_offset(479),
-    ] {
+    for off in [CONTROL, STATUS, ROW_Y, ID, 0x1C, line_word_offset(0), line_word_offset(479)] {
         assert_eq!(sim.bus_read(off), 0xFFFF_FFFF, "offset {off:#x}");
     }
     sim.bus_write(ROW_Y, 5);

@@ -14,7 +14,7 @@
 //! * Division truncates toward zero; square roots floor. Both have a defined
 //!   result for every input (division by zero, negative radicands).
 
-use crate::word::{Q, FRAC_BITS};
+use crate::word::{FRAC_BITS, Q};
 
 /// `2^9`: half an LSB of a Q13.10 word at Q26.20 scale, the rounding bias.
 const HALF_LSB_WIDE: i64 = 1 << (FRAC_BITS - 1);
@@ -150,11 +150,7 @@ impl Vec3 {
 
     /// A vector from three raw words (saturated into range).
     pub const fn from_raw(x: i32, y: i32, z: i32) -> Vec3 {
-        Vec3::new(
-            Q::from_raw_unchecked(x),
-            Q::from_raw_unchecked(y),
-            Q::from_raw_unchecked(z),
-        )
+        Vec3::new(Q::from_raw_unchecked(x), Q::from_raw_unchecked(y), Q::from_raw_unchecked(z))
     }
 }
 
@@ -184,9 +180,7 @@ pub const fn vec3_scale(v: Vec3, s: Q) -> Vec3 {
 #[inline(always)]
 pub const fn vec3_dot(a: Vec3, b: Vec3) -> Q {
     round_wide(
-        a.x.raw() as i64 * b.x.raw() as i64
-            + a.y.raw() as i64 * b.y.raw() as i64
-            + a.z.raw() as i64 * b.z.raw() as i64,
+        a.x.raw() as i64 * b.x.raw() as i64 + a.y.raw() as i64 * b.y.raw() as i64 + a.z.raw() as i64 * b.z.raw() as i64,
     )
 }
 
@@ -196,11 +190,7 @@ pub const fn vec3_dot(a: Vec3, b: Vec3) -> Q {
 pub const fn vec3_cross(a: Vec3, b: Vec3) -> Vec3 {
     let (ax, ay, az) = (a.x.raw() as i64, a.y.raw() as i64, a.z.raw() as i64);
     let (bx, by, bz) = (b.x.raw() as i64, b.y.raw() as i64, b.z.raw() as i64);
-    Vec3::new(
-        round_wide(ay * bz - az * by),
-        round_wide(az * bx - ax * bz),
-        round_wide(ax * by - ay * bx),
-    )
+    Vec3::new(round_wide(ay * bz - az * by), round_wide(az * bx - ax * bz), round_wide(ax * by - ay * bx))
 }
 
 /// A vector of raw Q13.10 values too wide for a word: the exact difference of
@@ -219,11 +209,7 @@ impl WideVec3 {
     /// The exact difference `a - b` (25 bits per component, no saturation).
     #[inline(always)]
     pub const fn sub(a: Vec3, b: Vec3) -> WideVec3 {
-        WideVec3 {
-            x: a.x.raw() - b.x.raw(),
-            y: a.y.raw() - b.y.raw(),
-            z: a.z.raw() - b.z.raw(),
-        }
+        WideVec3 { x: a.x.raw() - b.x.raw(), y: a.y.raw() - b.y.raw(), z: a.z.raw() - b.z.raw() }
     }
 
     /// A word vector, widened (exact).
@@ -297,11 +283,7 @@ pub fn normalize(v: WideVec3) -> Normalized {
         Q::saturate((wy * recip + round) >> NORMALIZE_RECIP_SHIFT),
         Q::saturate((wz * recip + round) >> NORMALIZE_RECIP_SHIFT),
     );
-    let len = if s >= 0 {
-        Q::saturate((len_w as i64) << s)
-    } else {
-        Q::saturate((len_w >> -s) as i64)
-    };
+    let len = if s >= 0 { Q::saturate((len_w as i64) << s) } else { Q::saturate((len_w >> -s) as i64) };
     Normalized { dir, len }
 }
 

@@ -1,6 +1,6 @@
 //! 8-bit colours and the integer colour arithmetic of the shading stage.
 
-use crate::word::{Q, FRAC_BITS};
+use crate::word::{FRAC_BITS, Q};
 
 /// An RGB888 colour.
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Default, Hash)]

@@ -32,7 +32,7 @@ pub use colour::Rgb;
 #[cfg(feature = "std")]
 pub use frame::render_frame;
 pub use frame::{render_frame_rgb888, row_to_rgb888, FRAME_BYTES, ROW_BYTES};
-pub use light::{Light, LightError, ParseLightError, LIGHT_WIRE_BYTES};
+pub use light::{Light, LightError, ParseLightError};
 pub use scene::{HEIGHT, WIDTH};
 pub use trace::{render_row, trace_pixel};
 pub use word::Q;

@@ -5,9 +5,6 @@ use core::fmt;
 use crate::arith::Vec3;
 use crate::word::{OutOfRange, Q};
 
-/// Size of a light request on the wire: three big-endian `i32`.
-pub const LIGHT_WIRE_BYTES: usize = 12;
-
 /// A point light position in world units, every component a valid Q13.10 word.
 ///
 /// Any position in the word range is accepted, up to +-8191 units: the tracer
@@ -44,8 +41,11 @@ impl fmt::Display for LightError {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for LightError {}
+impl core::error::Error for LightError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        Some(&self.source)
+    }
+}
 
 /// Why a text `"X,Y,Z"` is not a light.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -68,8 +68,14 @@ impl fmt::Display for ParseLightError {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for ParseLightError {}
+impl core::error::Error for ParseLightError {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            ParseLightError::Range(e) => Some(e),
+            _ => None,
+        }
+    }
+}
 
 impl core::str::FromStr for Light {
     type Err = ParseLightError;
@@ -118,21 +124,6 @@ impl Light {
         })
     }
 
-    /// A light from the 12-byte wire request (x, y, z as big-endian `i32`).
-    pub fn from_wire(bytes: &[u8; LIGHT_WIRE_BYTES]) -> Result<Light, LightError> {
-        let word = |i: usize| i32::from_be_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
-        Light::from_raw(word(0), word(4), word(8))
-    }
-
-    /// The 12-byte wire request for this light.
-    pub fn to_wire(&self) -> [u8; LIGHT_WIRE_BYTES] {
-        let mut out = [0u8; LIGHT_WIRE_BYTES];
-        for (chunk, q) in out.chunks_exact_mut(4).zip([self.pos.x, self.pos.y, self.pos.z]) {
-            chunk.copy_from_slice(&q.raw().to_be_bytes());
-        }
-        out
-    }
-
     /// The position as words.
     pub const fn position(&self) -> Vec3 {
         self.pos
@@ -166,16 +157,5 @@ mod tests {
         assert_eq!("1,2,3,4".parse::<Light>(), Err(ParseLightError::ComponentCount));
         assert_eq!("1,x,3".parse::<Light>(), Err(ParseLightError::NotANumber));
         assert!(matches!("9000,0,0".parse::<Light>(), Err(ParseLightError::Range(_))));
-    }
-
-    #[test]
-    fn wire_round_trip() {
-        let l = Light::from_world(3.0, 4.0, -2.0).unwrap();
-        let w = l.to_wire();
-        assert_eq!(&w[..4], &[0, 0, 0x0c, 0x00]);
-        assert_eq!(&w[8..], &(-2048i32).to_be_bytes());
-        assert_eq!(Light::from_wire(&w), Ok(l));
-        let bad = [0x00, 0x80, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0];
-        assert_eq!(Light::from_wire(&bad).unwrap_err().axis, Axis::X);
     }
 }

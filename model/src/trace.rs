@@ -18,13 +18,13 @@
 //!    unlit checker colour) or the sky, blended in by `REFLECTANCE`.
 
 use crate::arith::{
-    clamp_unit, fp_add, fp_div, fp_mul, fp_neg, fp_sqrt, fp_sub, normalize, vec3_add,
-    vec3_cross, vec3_dot, vec3_scale, vec3_sub, Normalized, Vec3, WideVec3,
+    clamp_unit, fp_add, fp_div, fp_mul, fp_neg, fp_sqrt, fp_sub, normalize, vec3_add, vec3_cross, vec3_dot, vec3_scale,
+    vec3_sub, Normalized, Vec3, WideVec3,
 };
 use crate::colour::{lerp, shade, Rgb};
 use crate::light::Light;
 use crate::scene::*;
-use crate::word::{Q, FRAC_BITS};
+use crate::word::{FRAC_BITS, Q};
 
 /// Mask of the 9-bit pixel coordinates the hardware registers hold.
 pub const COORD_MASK: u16 = 0x1ff;
@@ -247,11 +247,8 @@ mod primary_cache {
         if y >= HEIGHT {
             return None;
         }
-        let hits = HITS.get_or_init(|| {
-            (0..HEIGHT as u16)
-                .flat_map(|y| (0..WIDTH as u16).map(move |x| primary(x, y)))
-                .collect()
-        });
+        let hits = HITS
+            .get_or_init(|| (0..HEIGHT as u16).flat_map(|y| (0..WIDTH as u16).map(move |x| primary(x, y))).collect());
         hits.get(y * WIDTH..(y + 1) * WIDTH)
     }
 }

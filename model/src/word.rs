@@ -34,13 +34,11 @@ pub struct OutOfRange {
 
 impl fmt::Display for OutOfRange {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "raw value {} is outside the Q13.10 word range [{}, {}]",
-            self.raw, RAW_MIN, RAW_MAX
-        )
+        write!(f, "raw value {} is outside the Q13.10 word range [{}, {}]", self.raw, RAW_MIN, RAW_MAX)
     }
 }
+
+impl core::error::Error for OutOfRange {}
 
 impl Q {
     /// 0.0
@@ -105,9 +103,7 @@ impl Q {
         match I22F10::checked_from_num(value) {
             Some(v) => Q::from_raw(v.to_bits() as i64),
             // Beyond i32 raw: report a representative raw value.
-            None => Err(OutOfRange {
-                raw: if value < 0.0 { i64::MIN } else { i64::MAX },
-            }),
+            None => Err(OutOfRange { raw: if value < 0.0 { i64::MIN } else { i64::MAX } }),
         }
     }
 

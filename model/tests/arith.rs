@@ -85,10 +85,8 @@ fn ref_normalize(c: [i32; 3]) -> ([i32; 3], i32) {
         bit_len += 1;
     }
     let s = bit_len - 14;
-    let w: Vec<i128> = c
-        .iter()
-        .map(|&x| if s >= 0 { (x as i128).div_euclid(1 << s) } else { x as i128 * (1 << -s) })
-        .collect();
+    let w: Vec<i128> =
+        c.iter().map(|&x| if s >= 0 { (x as i128).div_euclid(1 << s) } else { x as i128 * (1 << -s) }).collect();
     let len_w = ref_isqrt(w.iter().map(|x| (x * x) as u128).sum());
     let recip = (1u128 << 33) / len_w;
     let dir = [0, 1, 2].map(|i| sat((w[i] * recip as i128 + (1 << 22)).div_euclid(1 << 23)));

@@ -121,7 +121,8 @@ fn acceptance_picture_content() {
     // and nowhere right of it.
     let ambient = [shade(CHECKER_EVEN, AMBIENT), shade(CHECKER_ODD, AMBIENT)];
     let shadowed = |xs: std::ops::Range<usize>| {
-        (190..260).flat_map(|y| xs.clone().map(move |x| (x, y)))
+        (190..260)
+            .flat_map(|y| xs.clone().map(move |x| (x, y)))
             .filter(|&(x, y)| ambient.contains(&px(&f, x, y)))
             .count()
     };

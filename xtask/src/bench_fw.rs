@@ -32,13 +32,13 @@ fn parse(uart: &str, tag: &str) -> Vec<u64> {
 
 /// Run the bench and print the two figures.
 pub fn run(args: &BenchArgs) -> Result<()> {
-    crate::suite::ensure_qemu()?;
+    crate::tools::ensure_qemu()?;
     let frames = args.frames.max(3);
     let elf = build("qemu-npcm750", &["bench"])?;
     let mut g = Guest::boot(&elf, &["-icount", "shift=0"])?;
     let mut s = TcpStream::connect(("127.0.0.1", g.port_persistent)).map_err(|e| e.to_string())?;
     s.set_read_timeout(Some(Duration::from_secs(600))).map_err(|e| e.to_string())?;
-    let light: [u8; 12] = [0, 0, 0x0c, 0, 0, 0, 0x10, 0, 0xff, 0xff, 0xf8, 0];
+    let light = rt_protocol::encode_raw_request([3 << 10, 4 << 10, -(2 << 10)]);
     let wall = Instant::now();
     s.write_all(&light.repeat(frames)).map_err(|e| e.to_string())?;
     let mut frame = vec![0u8; model::WIDTH * model::HEIGHT * 3];
@@ -53,7 +53,11 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     let starts = parse(&uart, "bench: frame start");
     let renders = parse(&uart, "bench: frame rendered");
     if starts.len() < frames || renders.len() < frames {
-        return Err(format!("expected {frames} bench lines, got {} starts / {} renders:\n{uart}", starts.len(), renders.len()));
+        return Err(format!(
+            "expected {frames} bench lines, got {} starts / {} renders:\n{uart}",
+            starts.len(),
+            renders.len()
+        ));
     }
     // Frames 1..frames-1: start-to-next-start periods (frame 0 warms up).
     let mut per_frame = Vec::new();
@@ -65,10 +69,19 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     let avg = |v: &[u64]| v.iter().sum::<u64>() / v.len() as u64;
     let (total, rend) = (avg(&per_frame), avg(&render));
     let net = total.saturating_sub(rend);
-    println!("bench-fw: QEMU npcm750-evb, -icount shift=0, {frames} pipelined frames on 7879 ({} counted)", per_frame.len());
+    println!(
+        "bench-fw: QEMU npcm750-evb, -icount shift=0, {frames} pipelined frames on the persistent port ({} counted)",
+        per_frame.len()
+    );
     println!("bench-fw: whole frame              {total:>13} guest instructions/frame");
-    println!("bench-fw: software renderer        {rend:>13} guest instructions/frame ({:.0} per pixel)", rend as f64 / (model::WIDTH * model::HEIGHT) as f64);
-    println!("bench-fw: network streaming alone  {net:>13} guest instructions/frame ({:.1} per payload byte)", net as f64 / frame.len() as f64);
+    println!(
+        "bench-fw: software renderer        {rend:>13} guest instructions/frame ({:.0} per pixel)",
+        rend as f64 / (model::WIDTH * model::HEIGHT) as f64
+    );
+    println!(
+        "bench-fw: network streaming alone  {net:>13} guest instructions/frame ({:.1} per payload byte)",
+        net as f64 / frame.len() as f64
+    );
     println!("bench-fw: (host wall clock {:.2} s for {frames} frames under icount)", wall.as_secs_f64());
     Ok(())
 }

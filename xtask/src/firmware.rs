@@ -9,15 +9,11 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use clap::Args;
+use rt_protocol::{persistent_port, FRAME_PORT, PERSISTENT_PORT};
 
-use crate::suite::{cargo, step, FIRMWARE_TARGET};
+use crate::tools::{cargo, ensure_qemu, root, step, FIRMWARE_TARGET};
 use crate::uimage;
 use crate::Result;
-
-/// Workspace root (xtask's parent directory).
-pub fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("xtask sits in the workspace root").to_path_buf()
-}
 
 /// The release ELF of the firmware.
 pub fn elf_path() -> PathBuf {
@@ -41,13 +37,13 @@ pub fn free_port() -> Result<u16> {
 }
 
 /// The QEMU command line for `elf` with host ports forwarded to the
-/// firmware's 7878 and 7879.
+/// firmware's frame and persistent ports.
 pub fn qemu_command(elf: &Path, port_single: u16, port_persistent: u16) -> Command {
     let mut c = Command::new("qemu-system-arm");
     c.args(["-M", "npcm750-evb", "-kernel"]).arg(elf).args([
         "-nic",
         &format!(
-            "user,id=n0,model=npcm-gmac,hostfwd=tcp:127.0.0.1:{port_single}-:7878,hostfwd=tcp:127.0.0.1:{port_persistent}-:7879"
+            "user,id=n0,model=npcm-gmac,hostfwd=tcp:127.0.0.1:{port_single}-:{FRAME_PORT},hostfwd=tcp:127.0.0.1:{port_persistent}-:{PERSISTENT_PORT}"
         ),
     ]);
     c
@@ -58,9 +54,9 @@ pub struct Guest {
     child: Child,
     /// UART log file.
     pub log: PathBuf,
-    /// Host port forwarded to 7878.
+    /// Host port forwarded to the frame port.
     pub port_single: u16,
-    /// Host port forwarded to 7879.
+    /// Host port forwarded to the persistent port.
     pub port_persistent: u16,
 }
 
@@ -73,10 +69,11 @@ impl Guest {
         let mut c = qemu_command(elf, port_single, port_persistent);
         c.args(["-display", "none", "-monitor", "none", "-serial"]).arg(format!("file:{}", log.display()));
         c.args(extra);
-        c.stdin(Stdio::null()).stdout(Stdio::null()).stderr(Stdio::from(
-            File::create(log.with_extension("stderr")).map_err(|e| e.to_string())?,
-        ));
-        let child = c.spawn().map_err(|e| format!("cannot start qemu-system-arm: {e} (cargo xtask test installs it)"))?;
+        c.stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::from(File::create(log.with_extension("stderr")).map_err(|e| e.to_string())?));
+        let child =
+            c.spawn().map_err(|e| format!("cannot start qemu-system-arm: {e} (cargo xtask test installs it)"))?;
         let mut g = Guest { child, log, port_single, port_persistent };
         g.wait_for_log("listening on TCP", Duration::from_secs(60))?;
         Ok(g)
@@ -115,24 +112,29 @@ impl Drop for Guest {
 /// `cargo xtask qemu` options.
 #[derive(Args)]
 pub struct QemuArgs {
-    /// Host port forwarded to the firmware's 7878 (the next port goes to 7879).
-    #[arg(long, default_value_t = 7878)]
+    /// Host port forwarded to the firmware's frame port (the next port goes
+    /// to its persistent port).
+    #[arg(long, default_value_t = FRAME_PORT)]
     pub port: u16,
 }
 
 /// Build the QEMU firmware and boot it in the foreground (Ctrl-A X quits).
 pub fn qemu(args: &QemuArgs) -> Result<()> {
-    crate::suite::ensure_qemu()?;
+    ensure_qemu()?;
     let elf = build("qemu-npcm750", &[])?;
-    let (p1, p2) = (args.port, args.port.checked_add(1).ok_or("--port too large")?);
+    let (p1, p2) = (args.port, persistent_port(args.port).ok_or("--port has no port above it")?);
     println!("firmware: {}", elf.display());
-    println!("forwarded: 127.0.0.1:{p1} -> firmware :7878 (one frame per connection)");
-    println!("forwarded: 127.0.0.1:{p2} -> firmware :7879 (persistent)");
+    println!("forwarded: 127.0.0.1:{p1} -> firmware :{FRAME_PORT} (one frame per connection)");
+    println!("forwarded: 127.0.0.1:{p2} -> firmware :{PERSISTENT_PORT} (persistent)");
     println!("try: rt-client orbit --server 127.0.0.1:{p1}    (quit QEMU with Ctrl-A X)");
     let mut c = qemu_command(&elf, p1, p2);
     c.arg("-nographic");
     let st = c.status().map_err(|e| format!("cannot start qemu-system-arm: {e}"))?;
-    if st.success() { Ok(()) } else { Err(format!("QEMU exited with {st}")) }
+    if st.success() {
+        Ok(())
+    } else {
+        Err(format!("QEMU exited with {st}"))
+    }
 }
 
 /// `cargo xtask image` options.
@@ -157,16 +159,18 @@ pub fn image(args: &ImageArgs) -> Result<()> {
     }
     let out = if args.out.is_absolute() { args.out.clone() } else { root().join(&args.out) };
     std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
-    let time = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map(|d| d.as_secs() as u32)
-        .unwrap_or(0);
+    let time =
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs() as u32).unwrap_or(0);
     let img = uimage::legacy_image(&bin, LOAD_ADDRESS, LOAD_ADDRESS, time, "raytracer firmware");
     let (bin_path, img_path) = (out.join("firmware.bin"), out.join("firmware.img"));
     std::fs::write(&bin_path, &bin).map_err(|e| e.to_string())?;
     std::fs::write(&img_path, &img).map_err(|e| e.to_string())?;
     println!("ELF entry {entry:#010x} (reset vector at {LOAD_ADDRESS:#010x} branches to it)");
-    println!("{}: {} bytes (raw, load at {LOAD_ADDRESS:#010x}; U-Boot: go {LOAD_ADDRESS:#010x})", bin_path.display(), bin.len());
+    println!(
+        "{}: {} bytes (raw, load at {LOAD_ADDRESS:#010x}; U-Boot: go {LOAD_ADDRESS:#010x})",
+        bin_path.display(),
+        bin.len()
+    );
     println!("{}: {} bytes (U-Boot legacy image, load = entry = {LOAD_ADDRESS:#010x})", img_path.display(), img.len());
     Ok(())
 }

@@ -7,6 +7,7 @@ mod model_cmds;
 mod qemu_e2e;
 mod rtl;
 mod suite;
+mod tools;
 mod uimage;
 
 use std::process::ExitCode;
@@ -31,7 +32,7 @@ enum Command {
     /// Print the quality report: the model against the f64 reference.
     Quality,
     /// Build the firmware for QEMU's npcm750-evb and boot it, forwarding
-    /// host ports to the firmware's 7878 and 7879.
+    /// host ports to the firmware's frame and persistent ports.
     Qemu(firmware::QemuArgs),
     /// Build the DE1-SoC payload: raw binary and U-Boot legacy image.
     Image(firmware::ImageArgs),

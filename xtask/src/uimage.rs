@@ -87,7 +87,10 @@ pub fn elf32_to_binary(elf: &[u8]) -> Result<(u32, Vec<u8>, u32)> {
     let start = segments.iter().map(|s| s.0).min().ok_or("ELF has no loadable bytes")?;
     let end = segments.iter().map(|s| s.0 as usize + s.1.len()).max().unwrap_or(start as usize);
     if end - start as usize > 64 << 20 {
-        return Err(format!("loadable bytes span {} MiB: a NOLOAD section is being loaded?", (end - start as usize) >> 20));
+        return Err(format!(
+            "loadable bytes span {} MiB: a NOLOAD section is being loaded?",
+            (end - start as usize) >> 20
+        ));
     }
     let mut out = vec![0u8; end - start as usize];
     for (addr, bytes) in segments {
@@ -153,7 +156,23 @@ mod tests {
         std::fs::write(&bin, &data).unwrap();
         let theirs = tmp("theirs.img");
         let st = Command::new("mkimage")
-            .args(["-A", "arm", "-O", "u-boot", "-T", "standalone", "-C", "none", "-a", "0x00100040", "-e", "0x00100040", "-n", "raytracer test", "-d"])
+            .args([
+                "-A",
+                "arm",
+                "-O",
+                "u-boot",
+                "-T",
+                "standalone",
+                "-C",
+                "none",
+                "-a",
+                "0x00100040",
+                "-e",
+                "0x00100040",
+                "-n",
+                "raytracer test",
+                "-d",
+            ])
             .arg(&bin)
             .arg(&theirs)
             .output()

@@ -1,0 +1,190 @@
+//! smoltcp [`Device`] for [`Dwmac`]: receive and transmit tokens that each
+//! borrow one descriptor.
+//!
+//! * `transmit` returns `None` while every TX descriptor belongs to the MAC:
+//!   smoltcp then keeps the segment and tries again on the next poll, where a
+//!   silent drop would cost a TCP retransmission time-out.
+//! * `receive` returns `None` unless a received frame *and* a free TX
+//!   descriptor exist, so an answer (an ACK) never finds the ring full.
+//! * Checksums: with the MAC inserting them (CIC = 3, [`crate::desc`]),
+//!   smoltcp computes IPv4, TCP and UDP checksums only on receive and
+//!   writes 0 into the fields it leaves to the MAC (smoltcp 0.14
+//!   `src/wire/tcp.rs`, `ipv4.rs`: `set_checksum(0)`); ICMP stays in
+//!   software because QEMU's model does not insert it.
+
+use embedded_hal::delay::DelayNs;
+use smoltcp::phy::{Checksum, ChecksumCapabilities, Device, DeviceCapabilities, Medium};
+use smoltcp::time::Instant;
+
+use crate::desc::{self, ChecksumInsertion, RxStatus, OWN};
+use crate::mac::{Dwmac, RxState, Shared, TxState, MAX_FRAME};
+use crate::regs::DmaStatus;
+use crate::ring::{BUFFER_SIZE, RX_RING, TX_RING};
+use crate::sync::DmaSync;
+
+impl RxState {
+    /// Length of the complete good frame at `next`, dropping bad or split
+    /// frames on the way; `None` while the DMA has nothing new.
+    fn ready<S: DmaSync>(&mut self, shared: &Shared<'_, S>) -> Option<usize> {
+        // Each pass either returns or recycles one descriptor: bounded.
+        for _ in 0..RX_RING {
+            // One snapshot of the status word per look.
+            let status = desc::rx_status(shared.area.rx_descriptor(self.next).word(0));
+            match status {
+                RxStatus::Dma => return None,
+                RxStatus::Frame { len } if len <= MAX_FRAME => {
+                    // OWN seen clear: order the buffer reads after it.
+                    shared.sync.dmb();
+                    return Some(len);
+                }
+                RxStatus::Incomplete => {
+                    // QEMU clears OWN before it sets LS: wait, unless the DMA
+                    // has moved on to the next descriptor (a frame split
+                    // over several descriptors, which the driver drops).
+                    let after = (self.next + 1) % RX_RING;
+                    if shared.area.rx_descriptor(after).word(0) & OWN != 0 {
+                        return None;
+                    }
+                    self.dropped = self.dropped.saturating_add(1);
+                    self.recycle(shared);
+                }
+                RxStatus::Frame { .. } | RxStatus::Bad => {
+                    self.dropped = self.dropped.saturating_add(1);
+                    self.recycle(shared);
+                }
+            }
+        }
+        None
+    }
+
+    /// Give the descriptor at `next` back to the DMA and advance.
+    fn recycle<S: DmaSync>(&mut self, shared: &Shared<'_, S>) {
+        // The CPU's reads of the buffer complete before the DMA may refill it.
+        shared.sync.dmb();
+        shared.area.rx_descriptor(self.next).set_word(0, OWN);
+        shared.publish();
+        self.next = (self.next + 1) % RX_RING;
+        // Receive may have stopped for want of descriptors: clear RU (which
+        // restarts QEMU's receive) and demand a poll (the board's).
+        let regs = &shared.regs;
+        if regs.dma().status.read().ru() {
+            regs.clear_status(DmaStatus::DEFAULT.with_ru(true));
+        }
+        regs.rx_poll_demand();
+    }
+}
+
+impl TxState {
+    fn free<S>(&self, shared: &Shared<'_, S>) -> bool {
+        shared.area.tx_descriptor(self.next).word(0) & OWN == 0
+    }
+
+    /// Fill the descriptor at `next` with a frame of `len` bytes built by
+    /// `f` and hand it to the DMA.
+    fn send<S: DmaSync, R>(&mut self, shared: &Shared<'_, S>, len: usize, f: impl FnOnce(&mut [u8]) -> R) -> R {
+        let i = self.next;
+        let len = len.min(BUFFER_SIZE);
+        let (desc, buffer) = (shared.area.tx_descriptor(i), shared.area.tx_buffer(i));
+        // OWN was seen clear (`free`): the MAC is done with the buffer.
+        shared.sync.dmb();
+        // SAFETY: the CPU owns descriptor `i` and its buffer until OWN is set
+        // below, and this is the only slice of the buffer.
+        let r = f(unsafe { buffer.bytes_mut(len) });
+        let [tdes0, tdes1] = desc::tx_control(shared.format, len, i == TX_RING - 1, shared.csum);
+        desc.set_word(1, tdes1);
+        desc.set_word(2, buffer.bus_address());
+        desc.set_word(3, 0);
+        // Buffer and control words before OWN; OWN visible before the poll.
+        shared.sync.dsb();
+        desc.set_word(0, tdes0 | OWN);
+        shared.publish();
+        shared.regs.tx_poll_demand();
+        self.next = (i + 1) % TX_RING;
+        self.frames = self.frames.saturating_add(1);
+        r
+    }
+}
+
+/// A received frame, borrowed from the receive ring until consumed.
+pub struct DwmacRxToken<'b, 'a, S> {
+    shared: &'b Shared<'a, S>,
+    rx: &'b mut RxState,
+    len: usize,
+}
+
+/// Room for one frame in the transmit ring.
+pub struct DwmacTxToken<'b, 'a, S> {
+    shared: &'b Shared<'a, S>,
+    tx: &'b mut TxState,
+}
+
+impl<S: DmaSync> smoltcp::phy::RxToken for DwmacRxToken<'_, '_, S> {
+    fn consume<R, F: FnOnce(&[u8]) -> R>(self, f: F) -> R {
+        let buffer = self.shared.area.rx_buffer(self.rx.next);
+        // SAFETY: `ready` saw OWN clear (then a dmb): the CPU owns the buffer
+        // until `recycle` below hands it back; no mutable slice exists.
+        let r = f(unsafe { buffer.bytes(self.len) });
+        self.rx.frames = self.rx.frames.saturating_add(1);
+        self.rx.recycle(self.shared);
+        r
+    }
+}
+
+impl<S: DmaSync> smoltcp::phy::TxToken for DwmacTxToken<'_, '_, S> {
+    fn consume<R, F: FnOnce(&mut [u8]) -> R>(self, len: usize, f: F) -> R {
+        self.tx.send(self.shared, len, f)
+    }
+}
+
+impl<'a, S: DmaSync, D: DelayNs> Device for Dwmac<'a, S, D> {
+    type RxToken<'b>
+        = DwmacRxToken<'b, 'a, S>
+    where
+        Self: 'b;
+    type TxToken<'b>
+        = DwmacTxToken<'b, 'a, S>
+    where
+        Self: 'b;
+
+    fn receive(&mut self, _timestamp: Instant) -> Option<(Self::RxToken<'_>, Self::TxToken<'_>)> {
+        // A frame waits in the ring until there is room to answer it.
+        if !self.tx.free(&self.shared) {
+            return None;
+        }
+        let len = self.rx.ready(&self.shared)?;
+        Some((
+            DwmacRxToken { shared: &self.shared, rx: &mut self.rx, len },
+            DwmacTxToken { shared: &self.shared, tx: &mut self.tx },
+        ))
+    }
+
+    fn transmit(&mut self, _timestamp: Instant) -> Option<Self::TxToken<'_>> {
+        if !self.tx.free(&self.shared) {
+            self.tx.ring_full = self.tx.ring_full.saturating_add(1);
+            return None;
+        }
+        Some(DwmacTxToken { shared: &self.shared, tx: &mut self.tx })
+    }
+
+    fn capabilities(&self) -> DeviceCapabilities {
+        let mut caps = DeviceCapabilities::default();
+        caps.medium = Medium::Ethernet;
+        caps.max_transmission_unit = MAX_FRAME;
+        caps.max_burst_size = Some(TX_RING);
+        caps.checksum = checksum_capabilities(self.shared.csum);
+        caps
+    }
+}
+
+/// What smoltcp must compute itself, given what the MAC inserts.
+pub fn checksum_capabilities(csum: ChecksumInsertion) -> ChecksumCapabilities {
+    let mut caps = ChecksumCapabilities::default();
+    if csum == ChecksumInsertion::Full {
+        caps.ipv4 = Checksum::Rx;
+        caps.tcp = Checksum::Rx;
+        caps.udp = Checksum::Rx;
+        // ICMP: QEMU's model does not insert it (npcm_gmac.c).
+        caps.icmpv4 = Checksum::Both;
+    }
+    caps
+}

@@ -1,0 +1,35 @@
+//! Polling driver for the Synopsys DesignWare GMAC (DWC Ethernet MAC 3.x):
+//! the Cyclone V HPS EMACs (3.70a, enhanced descriptors) and QEMU's
+//! `npcm-gmac` (normal descriptors), with the PHY on its MDIO bus, behind
+//! smoltcp's [`Device`](smoltcp::phy::Device).
+//!
+//! * [`regs`]: the register block, typed, ending before offset 0x1060 (QEMU's
+//!   model reads and writes past its register array from there on).
+//! * [`desc`]: both descriptor formats as pure encode/decode functions.
+//! * [`ring`]: descriptors and buffers in memory the MAC's DMA shares with
+//!   the CPU, accessed through volatile cells and raw pointers only.
+//! * [`mac`]: bring-up, link configuration and statistics; [`device`]: the
+//!   smoltcp `Device`.
+//! * [`phy`]: IEEE 802.3 clause 22 PHYs (and the Micrel KSZ9021's RGMII
+//!   skews) and the link monitor the main loop polls.
+//! * [`sync`]: the barriers and outer-cache drain a hand-over needs, which
+//!   the board provides.
+//!
+//! No interrupts, no allocation; every wait is bounded ([`wait`]).
+#![cfg_attr(not(test), no_std)]
+
+pub mod desc;
+pub mod device;
+pub mod mac;
+pub mod phy;
+pub mod regs;
+pub mod ring;
+pub mod sync;
+pub mod wait;
+
+pub use mac::{Dwmac, Error, Stats};
+pub use ring::DmaArea;
+pub use sync::DmaSync;
+
+#[cfg(test)]
+mod tests;

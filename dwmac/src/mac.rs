@@ -1,0 +1,317 @@
+//! The MAC: bring-up in the order the hardware needs, link configuration,
+//! the MDIO bus, statistics.
+//!
+//! Bring-up (docs/platform.md#mac-bring-up; Linux `stmmac_hw_setup`, U-Boot
+//! `designware.c` `_dw_eth_init`):
+//!
+//! 1. Find the PHY on MDIO and reset and configure it. MDIO works before the
+//!    DMA reset; the PHY must be out of reset and driving its RX clock
+//!    before the next step can finish.
+//! 2. DMA software reset. On the Cyclone V it completes only with the PHY's
+//!    RX clock running (Cyclone V TRM, EMAC "Initialization"), so a time-out
+//!    resets the PHY once more and retries, a bounded number of times.
+//! 3. Burst length, MAC address, both rings, DMA on. The transmitter and
+//!    receiver stay off until [`Dwmac::set_link`] reports a link, which the
+//!    main loop does whenever the [`LinkMonitor`](crate::phy::LinkMonitor)
+//!    sees one: no waiting for a cable here.
+
+use core::fmt;
+
+use arbitrary_int::u6;
+use embedded_hal::delay::DelayNs;
+
+use crate::desc::{self, ChecksumInsertion, DescFormat, OWN};
+use crate::phy::{self, Link, Mdio, MdioTimeout, PhyConfig, PhyError, PhyId, Speed};
+use crate::regs::{gmii_access, BusMode, DmaStatus, MacConfig, OpMode, Regs};
+use crate::ring::{DmaArea, BUFFER_SIZE, RX_RING, TX_RING};
+use crate::sync::DmaSync;
+use crate::wait::{wait_for, Timeout};
+
+/// Largest frame handed to smoltcp (MTU 1500 + 14-byte Ethernet header).
+pub const MAX_FRAME: usize = 1514;
+
+/// Programmable burst length, in beats: 8 (U-Boot `designware.c` uses 8;
+/// Linux stmmac's default is 8 too).
+pub const BURST_LENGTH: u6 = u6::new(8);
+
+/// How long the DMA software reset may take each attempt.
+pub const RESET_TIMEOUT: Timeout = Timeout::new(100_000, 10);
+
+/// PHY-reset-then-DMA-reset attempts before the bring-up gives up.
+pub const RESET_ATTEMPTS: u8 = 3;
+
+/// How long one MDIO transaction may take (64 bits at 2.5 MHz is 26 us).
+pub const MDIO_TIMEOUT: Timeout = Timeout::new(10_000, 1);
+
+/// How long a TX FIFO flush may take; QEMU never clears the bit, the
+/// board does at once.
+const FLUSH_TIMEOUT: Timeout = Timeout::new(1_000, 10);
+
+/// Bring-up failures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Error {
+    /// The DMA software reset did not finish in any attempt, each after a
+    /// fresh PHY reset (no RX clock from the PHY?).
+    ResetTimeout {
+        /// Attempts made.
+        attempts: u8,
+    },
+    /// The PHY could not be found or set up.
+    Phy(PhyError),
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::ResetTimeout { attempts } => {
+                write!(f, "DMA software reset did not complete in {attempts} attempts (no RX clock from the PHY?)")
+            }
+            Error::Phy(e) => write!(f, "PHY: {e}"),
+        }
+    }
+}
+
+impl core::error::Error for Error {
+    fn source(&self) -> Option<&(dyn core::error::Error + 'static)> {
+        match self {
+            Error::Phy(e) => Some(e),
+            Error::ResetTimeout { .. } => None,
+        }
+    }
+}
+
+impl From<PhyError> for Error {
+    fn from(e: PhyError) -> Error {
+        Error::Phy(e)
+    }
+}
+
+/// The DMA software reset timed out (one attempt).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ResetTimeout;
+
+/// Frame counters.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stats {
+    /// Good frames handed to the stack.
+    pub rx_frames: u32,
+    /// Frames dropped: error bit, split over descriptors, or too long.
+    pub rx_dropped: u32,
+    /// Frames handed to the DMA.
+    pub tx_frames: u32,
+    /// Times smoltcp asked for a TX token while every descriptor was the
+    /// MAC's (the stack keeps the segment and retries; nothing is dropped).
+    pub tx_ring_full: u32,
+}
+
+/// The parts of the driver both tokens of a receive need.
+pub(crate) struct Shared<'a, S> {
+    pub(crate) regs: Regs,
+    pub(crate) area: &'a DmaArea,
+    pub(crate) sync: S,
+    pub(crate) format: DescFormat,
+    pub(crate) csum: ChecksumInsertion,
+}
+
+impl<S: DmaSync> Shared<'_, S> {
+    /// After a descriptor word with OWN set: make it visible to the DMA
+    /// before the poll demand that follows (docs in [`crate::sync`]).
+    pub(crate) fn publish(&self) {
+        self.sync.dsb();
+        self.sync.outer_sync();
+        self.sync.dsb();
+    }
+}
+
+/// Receive ring position and counters.
+#[derive(Default)]
+pub(crate) struct RxState {
+    pub(crate) next: usize,
+    pub(crate) frames: u32,
+    pub(crate) dropped: u32,
+}
+
+/// Transmit ring position and counters.
+#[derive(Default)]
+pub(crate) struct TxState {
+    pub(crate) next: usize,
+    pub(crate) frames: u32,
+    pub(crate) ring_full: u32,
+}
+
+/// The MAC with its rings, barriers `S` and delay `D`.
+pub struct Dwmac<'a, S, D> {
+    pub(crate) shared: Shared<'a, S>,
+    pub(crate) rx: RxState,
+    pub(crate) tx: TxState,
+    delay: D,
+}
+
+impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
+    /// Take the MAC over. Reads only the HW feature register (descriptor
+    /// format, checksum offload); nothing changes until
+    /// [`bring_up`](Self::bring_up).
+    pub fn new(regs: Regs, area: &'a DmaArea, sync: S, delay: D) -> Dwmac<'a, S, D> {
+        let hw = regs.dma().hw_feature.read();
+        let csum = if hw.txcoesel() { ChecksumInsertion::Full } else { ChecksumInsertion::Off };
+        Dwmac {
+            shared: Shared { regs, area, sync, format: DescFormat::from_hw_feature(hw), csum },
+            rx: RxState::default(),
+            tx: TxState::default(),
+            delay,
+        }
+    }
+
+    /// Bring the MAC up to the point where only the link is missing: find
+    /// and configure the PHY, reset the DMA (PHY first, with retries), then
+    /// program address and rings and start both DMA engines. Returns the
+    /// PHY for the [`LinkMonitor`](crate::phy::LinkMonitor).
+    pub fn bring_up(&mut self, mac: [u8; 6], phy_config: &PhyConfig) -> Result<PhyId, Error> {
+        let phy = phy::scan(self)?;
+        reset_phy_then_dma(self, phy, phy_config)?;
+        self.start(mac);
+        Ok(phy)
+    }
+
+    /// Steps 3-6 after a completed DMA reset: burst length, MAC address,
+    /// rings, interrupts off, status cleared, store-and-forward, DMA on.
+    pub(crate) fn start(&mut self, mac: [u8; 6]) {
+        let Shared { regs, area, format, .. } = &self.shared;
+        regs.set_bus_mode(BusMode::DEFAULT.with_pbl(BURST_LENGTH));
+        regs.set_address(mac);
+        for i in 0..RX_RING {
+            let d = area.rx_descriptor(i);
+            d.set_word(1, desc::rx_control(*format, BUFFER_SIZE, i == RX_RING - 1));
+            d.set_word(2, area.rx_buffer(i).bus_address());
+            d.set_word(3, 0);
+            d.set_word(0, OWN);
+        }
+        for i in 0..TX_RING {
+            let d = area.tx_descriptor(i);
+            for w in 0..4 {
+                d.set_word(w, 0);
+            }
+        }
+        self.rx = RxState::default();
+        self.tx = TxState::default();
+        self.shared.publish();
+        let (regs, area) = (&self.shared.regs, self.shared.area);
+        regs.set_descriptor_lists(bus_address(area.rx_descriptor(0)), bus_address(area.tx_descriptor(0)));
+        regs.disable_interrupts();
+        regs.clear_status(DmaStatus::ALL_W1C);
+        // Flush the TX FIFO; the board clears the bit, QEMU keeps it set:
+        // wait briefly, then go on either way.
+        regs.set_op_mode(OpMode::DEFAULT.with_ftf(true));
+        let _ = wait_for(&mut self.delay, FLUSH_TIMEOUT, || (!regs.dma().op_mode.read().ftf()).then_some(()));
+        // Store and forward both ways: checksum insertion needs it on TX.
+        regs.set_op_mode(OpMode::DEFAULT.with_tsf(true).with_rsf(true).with_sr(true).with_st(true));
+    }
+
+    /// Configure the MAC for `link` (speed, duplex; frame filter 0: own
+    /// address and broadcast) with transmitter and receiver on, or turn
+    /// both off while there is no link, as Linux's `stmmac_mac_link_up` /
+    /// `stmmac_mac_link_down` do.
+    pub fn set_link(&mut self, link: Option<Link>) {
+        self.shared.regs.set_frame_filter(0);
+        self.shared.regs.set_config(mac_config(link));
+    }
+
+    /// The descriptor format in use.
+    pub fn format(&self) -> DescFormat {
+        self.shared.format
+    }
+
+    /// Whether the MAC inserts IPv4 and TCP/UDP checksums on transmit.
+    pub fn checksum_insertion(&self) -> ChecksumInsertion {
+        self.shared.csum
+    }
+
+    /// The Synopsys version register.
+    pub fn version(&self) -> u32 {
+        self.shared.regs.mac().version.read()
+    }
+
+    /// Frame counters.
+    pub fn stats(&self) -> Stats {
+        Stats {
+            rx_frames: self.rx.frames,
+            rx_dropped: self.rx.dropped,
+            tx_frames: self.tx.frames,
+            tx_ring_full: self.tx.ring_full,
+        }
+    }
+
+    fn mdio_wait_idle(&mut self) -> Result<(), MdioTimeout> {
+        let regs = &self.shared.regs;
+        wait_for(&mut self.delay, MDIO_TIMEOUT, || (!regs.mac().gmii_address.read().gb()).then_some(()))
+            .ok_or(MdioTimeout)
+    }
+}
+
+/// The two resets of the bring-up with the MDIO bus between them, so that
+/// their order can be tested without a MAC.
+pub trait Resets: Mdio {
+    /// One DMA software reset, bounded by [`RESET_TIMEOUT`].
+    fn reset_dma(&mut self) -> Result<(), ResetTimeout>;
+}
+
+/// Reset and configure the PHY, then reset the DMA; retry both up to
+/// [`RESET_ATTEMPTS`] times while the DMA reset times out.
+pub fn reset_phy_then_dma(bus: &mut impl Resets, phy: PhyId, cfg: &PhyConfig) -> Result<(), Error> {
+    for _ in 0..RESET_ATTEMPTS {
+        phy::configure(bus, phy, cfg)?;
+        if bus.reset_dma().is_ok() {
+            return Ok(());
+        }
+    }
+    Err(Error::ResetTimeout { attempts: RESET_ATTEMPTS })
+}
+
+impl<S: DmaSync, D: DelayNs> Resets for Dwmac<'_, S, D> {
+    fn reset_dma(&mut self) -> Result<(), ResetTimeout> {
+        let regs = &self.shared.regs;
+        regs.set_bus_mode(regs.dma().bus_mode.read().with_swr(true));
+        wait_for(&mut self.delay, RESET_TIMEOUT, || (!regs.dma().bus_mode.read().swr()).then_some(()))
+            .ok_or(ResetTimeout)
+    }
+}
+
+impl<S, D: DelayNs> DelayNs for Dwmac<'_, S, D> {
+    fn delay_ns(&mut self, ns: u32) {
+        self.delay.delay_ns(ns)
+    }
+}
+
+impl<S: DmaSync, D: DelayNs> Mdio for Dwmac<'_, S, D> {
+    fn read(&mut self, phy: u8, reg: u8) -> Result<u16, MdioTimeout> {
+        self.mdio_wait_idle()?;
+        self.shared.regs.start_mdio(gmii_access(phy, reg, false), None);
+        self.mdio_wait_idle()?;
+        Ok(self.shared.regs.mac().gmii_data.read() as u16)
+    }
+
+    fn write(&mut self, phy: u8, reg: u8, value: u16) -> Result<(), MdioTimeout> {
+        self.mdio_wait_idle()?;
+        self.shared.regs.start_mdio(gmii_access(phy, reg, true), Some(value));
+        self.mdio_wait_idle()
+    }
+}
+
+/// MAC configuration for `link`: TE, RE, duplex, port select (PS = 0 for
+/// 1000 Mbit/s, PS = 1 for 10/100, FES for 100); all off without a link.
+pub fn mac_config(link: Option<Link>) -> MacConfig {
+    let Some(link) = link else {
+        return MacConfig::DEFAULT;
+    };
+    let c = MacConfig::DEFAULT.with_te(true).with_re(true).with_dm(link.full_duplex);
+    match link.speed {
+        Speed::M1000 => c,
+        Speed::M100 => c.with_ps(true).with_fes(true),
+        Speed::M10 => c.with_ps(true),
+    }
+}
+
+/// Bus address of `p` (the firmware runs with an identity map).
+pub(crate) fn bus_address<T>(p: &T) -> u32 {
+    p as *const T as usize as u32
+}

@@ -1,0 +1,149 @@
+//! CPU-level pieces: the barriers and cache sync the MAC driver orders its
+//! DMA hand-overs with, the MMU and cache set-up, and the probe load.
+//!
+//! CP15 registers and barriers come from aarch32-cpu. Its traps (see
+//! docs/platform.md#cortex-a9-start-up): the set/way loops hold no barrier
+//! (bracketed with `dsb` here), and TTBCR has no wrapper (written by hand
+//! below).
+
+use core::fmt::Write;
+use core::sync::atomic::{compiler_fence, Ordering};
+
+use aarch32_cpu::asm::{dmb, dsb, isb};
+use aarch32_cpu::cache::invalidate_l1_data_cache;
+use aarch32_cpu::register::{BpIAll, Dacr, Iciallu, Sctlr, TlbIAll, Ttbr0};
+use dwmac::DmaSync;
+use soc::l2c310::L2c310;
+use soc::mmu::{sections_of, MemoryMap, SECTIONS};
+use static_cell::ConstStaticCell;
+
+use crate::boards::Board;
+
+/// Cortex-A9 L1 data cache geometry (both boards: 32 KiB, 4-way, 32-byte
+/// lines, 256 sets; ARM DDI 0388 Cortex-A9 TRM 7.1): log2 ways, line, sets.
+const L1_WAYS_LOG2: usize = 2;
+const L1_LINE_LOG2: usize = 5;
+const L1_SETS_LOG2: usize = 8;
+
+/// The MAC driver's barriers on the Cortex-A9 with the L2C-310.
+pub struct Barriers<'a> {
+    /// The L2 cache controller whose store buffer `outer_sync` drains.
+    pub l2: &'a L2c310,
+}
+
+impl DmaSync for Barriers<'_> {
+    fn dsb(&self) {
+        dsb()
+    }
+
+    fn dmb(&self) {
+        dmb()
+    }
+
+    fn outer_sync(&self) {
+        self.l2.cache_sync()
+    }
+}
+
+/// The first-level table: 4096 section entries, 16 KiB aligned (ARM ARM
+/// B3.5.1: TTBR0 with TTBCR.N = 0). Not aarch32-cpu's `L1Table`, which is
+/// aligned to 1 MiB.
+#[repr(C, align(16384))]
+struct L1Table([u32; SECTIONS]);
+
+/// Build the flat map, turn on the L2C-310, then the MMU and the L1 caches
+/// and branch prediction. Call once, on core 0, with the MMU off (the reset
+/// entry made sure of that).
+pub fn enable_mmu_and_caches<B: Board>(log: &mut impl Write) -> L2c310 {
+    static TABLE: ConstStaticCell<L1Table> = ConstStaticCell::new(L1Table([0; SECTIONS]));
+    // SAFETY: the board's L2C-310 register block; with the MMU off every
+    // access is Strongly-ordered, afterwards the block is mapped Device.
+    // Only the value returned here uses it from now on.
+    let l2 = unsafe { L2c310::new(crate::register_block(B::L2C)) };
+
+    unsafe extern "C" {
+        static __sdma: u8;
+        static __edma: u8;
+    }
+    // Only the symbols' addresses are taken, never their contents.
+    let dma = sections_of(&raw const __sdma as usize..&raw const __edma as usize);
+    let map = MemoryMap {
+        dram_mib: B::DRAM_MIB,
+        uncached: core::slice::from_ref(&dma),
+        strongly_ordered: B::STRONGLY_ORDERED,
+    };
+    let Some(table) = TABLE.try_take() else {
+        let _ = writeln!(log, "mmu: already on");
+        return l2;
+    };
+    map.fill(&mut table.0);
+
+    // L2: invalidate all ways, then enable (the L2C-310 must be invalidated
+    // before it is enabled; ARM DDI 0246 2.3.1). A boot loader's L2 was
+    // cleaned and turned off by the reset entry.
+    let l2_on = if l2.is_enabled() {
+        true
+    } else {
+        match l2.invalidate_all() {
+            Ok(()) => {
+                l2.set_enabled(true);
+                true
+            }
+            Err(e) => {
+                let _ = writeln!(log, "mmu: {e}; L2 left off");
+                false
+            }
+        }
+    };
+
+    // L1 D-cache contents are unknown after reset: invalidate before use.
+    dsb();
+    compiler_fence(Ordering::SeqCst);
+    invalidate_l1_data_cache::<L1_WAYS_LOG2, L1_LINE_LOG2, L1_SETS_LOG2>();
+    compiler_fence(Ordering::SeqCst);
+    dsb();
+    TlbIAll::write();
+    Iciallu::write();
+    BpIAll::write();
+    write_ttbcr_zero();
+    Dacr::write(Dacr::new_with_raw_value(DACR_ALL_CLIENT));
+    // SAFETY: the table is complete, 16 KiB aligned and maps every address
+    // the firmware uses to itself; table walks are non-cacheable (IRGN/RGN 0),
+    // and the table is never changed once the MMU is on.
+    unsafe { Ttbr0::write(Ttbr0::new_with_raw_value(0).with_address(table.0.as_ptr() as usize)) };
+    dsb();
+    isb();
+    // `Sctlr::modify` ends with `dsb` + `isb` on Armv7-A.
+    Sctlr::modify(|s| {
+        s.set_m(true);
+        s.set_c(true);
+        s.set_i(true);
+        s.set_z(true);
+        s.set_a(false);
+    });
+    let s = Sctlr::read();
+    let _ = writeln!(
+        log,
+        "mmu: on; {} MiB cached, DMA {:#010x}..{:#010x} uncached, {} FPGA window(s) strongly-ordered, L1 I/D {}, L2 {} (ID {:#010x})",
+        B::DRAM_MIB,
+        dma.start << 20,
+        dma.end << 20,
+        B::STRONGLY_ORDERED.len(),
+        if s.c() && s.i() { "on" } else { "off" },
+        if l2_on { "on" } else { "off" },
+        l2.cache_id(),
+    );
+    l2
+}
+
+/// DACR: every domain "client" (permissions from the table).
+const DACR_ALL_CLIENT: u32 = 0x5555_5555;
+
+/// TTBCR = 0: TTBR0 translates the whole address space, short descriptors.
+/// Hand-written: aarch32-cpu 0.4 has no TTBCR (ARM ARM B4.1.153: `mcr p15,
+/// 0, Rt, c2, c0, 2`).
+fn write_ttbcr_zero() {
+    // SAFETY: with the MMU off, TTBCR only takes effect once it is enabled,
+    // with the table installed right after.
+    unsafe { core::arch::asm!("mcr p15, 0, {0}, c2, c0, 2", in(reg) 0u32, options(nostack, preserves_flags)) };
+}

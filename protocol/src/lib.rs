@@ -1,0 +1,30 @@
+//! The ray tracer's wire protocol, once for every server and client.
+//!
+//! * [`wire`]: the 12-byte request (light x, y, z as big-endian signed
+//!   32-bit Q13.10), its encoder and decoder, and the two TCP ports
+//!   ([`wire::FRAME_PORT`], and the persistent port one above it).
+//! * [`time`]: [`time::Instant`], the millisecond clock the server runs on.
+//! * [`server`]: the sans-IO frame-server state machine: bytes in, actions
+//!   out. It knows no sockets, clocks or renderers.
+//! * [`fallback`]: a row source that falls back to another where it fails,
+//!   and switches a wedged one off.
+//! * `service` (feature `smoltcp`): the server bound to smoltcp TCP sockets,
+//!   as the firmware runs it.
+//!
+//! The answer to a request is one frame of 518,400 bytes: 480 x 360 RGB888,
+//! row-major, top row first ([`model::FRAME_BYTES`]).
+#![cfg_attr(not(test), no_std)]
+#![forbid(unsafe_code)]
+
+pub mod fallback;
+pub mod server;
+#[cfg(feature = "smoltcp")]
+pub mod service;
+pub mod time;
+pub mod wire;
+
+pub use server::{Action, Closed, Mode, RowSource, Session, SoftwareRenderer};
+pub use time::Instant;
+pub use wire::{
+    decode_request, encode_raw_request, encode_request, persistent_port, FRAME_PORT, PERSISTENT_PORT, REQUEST_BYTES,
+};

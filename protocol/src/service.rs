@@ -1,0 +1,156 @@
+//! The frame server on smoltcp (feature `smoltcp`): TCP listeners on
+//! [`FRAME_PORT`] and [`PERSISTENT_PORT`], one [`Session`] per connected
+//! socket.
+//!
+//! The service owns no buffers: the caller lends it [`SocketBuffers`] for
+//! `N` sockets, split between the two ports. While one socket of a port is
+//! serving, the others keep listening, so a second client is served too (its
+//! rows interleave with the first's, one poll apiece) instead of refused.
+
+use core::fmt::Write;
+
+use model::WIDTH;
+use smoltcp::iface::{SocketHandle, SocketSet};
+use smoltcp::socket::tcp;
+use smoltcp::time::Instant;
+
+use crate::server::{drive, Action, Closed, Mode, RowSource, Session};
+use crate::time;
+use crate::wire::{FRAME_PORT, PERSISTENT_PORT};
+
+/// Receive buffer of one socket: room for 42 pipelined requests.
+pub const RX_BUFFER_BYTES: usize = 512;
+/// Transmit buffer of one socket: about 11 rows in flight.
+pub const TX_BUFFER_BYTES: usize = 16 * 1024;
+
+/// The buffers of one TCP socket.
+pub struct SocketBuffers {
+    rx: [u8; RX_BUFFER_BYTES],
+    tx: [u8; TX_BUFFER_BYTES],
+}
+
+impl SocketBuffers {
+    /// Zeroed buffers (usable in a `static`).
+    pub const fn new() -> SocketBuffers {
+        SocketBuffers { rx: [0; RX_BUFFER_BYTES], tx: [0; TX_BUFFER_BYTES] }
+    }
+}
+
+impl Default for SocketBuffers {
+    fn default() -> Self {
+        SocketBuffers::new()
+    }
+}
+
+struct Slot {
+    handle: SocketHandle,
+    mode: Mode,
+    session: Option<Session>,
+}
+
+impl Slot {
+    fn port(&self) -> u16 {
+        match self.mode {
+            Mode::Single => FRAME_PORT,
+            Mode::Persistent => PERSISTENT_PORT,
+        }
+    }
+}
+
+/// The frame server bound to `N` smoltcp TCP sockets.
+pub struct FrameService<const N: usize> {
+    slots: [Slot; N],
+    row: [u32; WIDTH],
+}
+
+impl<const N: usize> FrameService<N> {
+    /// Add `N` TCP sockets to `sockets`: the first half (rounded up) listens
+    /// on [`FRAME_PORT`], the rest on [`PERSISTENT_PORT`].
+    pub fn new<'a>(sockets: &mut SocketSet<'a>, buffers: &'a mut [SocketBuffers; N]) -> Self {
+        let mut i = 0;
+        let slots = buffers.each_mut().map(|b| {
+            let socket = tcp::Socket::new(tcp::SocketBuffer::new(&mut b.rx[..]), tcp::SocketBuffer::new(&mut b.tx[..]));
+            let mode = if i < N.div_ceil(2) { Mode::Single } else { Mode::Persistent };
+            i += 1;
+            Slot { handle: sockets.add(socket), mode, session: None }
+        });
+        FrameService { slots, row: [0; WIDTH] }
+    }
+
+    /// Number of sessions currently open.
+    pub fn active_sessions(&self) -> usize {
+        self.slots.iter().filter(|s| s.session.is_some()).count()
+    }
+
+    /// Serve every socket once: accept, read requests, render and send rows
+    /// while the socket takes them, close finished sessions, re-listen.
+    /// Call it after each `Interface::poll`.
+    pub fn poll(&mut self, now: Instant, sockets: &mut SocketSet<'_>, rows: &mut impl RowSource, log: &mut impl Write) {
+        let now = time::Instant::from_millis(u64::try_from(now.total_millis()).unwrap_or(0));
+        for (index, slot) in self.slots.iter_mut().enumerate() {
+            let socket = sockets.get_mut::<tcp::Socket>(slot.handle);
+            serve_slot(index, slot, socket, now, rows, &mut self.row, log);
+        }
+    }
+}
+
+fn serve_slot(
+    index: usize,
+    slot: &mut Slot,
+    socket: &mut tcp::Socket<'_>,
+    now: time::Instant,
+    rows: &mut impl RowSource,
+    row: &mut [u32; WIDTH],
+    log: &mut impl Write,
+) {
+    let Some(session) = &mut slot.session else {
+        if !socket.is_open() {
+            if let Err(e) = socket.listen(slot.port()) {
+                let _ = writeln!(log, "[{index}] listen on {} failed: {e:?}", slot.port());
+            }
+        } else if socket.state() == tcp::State::Established {
+            if let Some(peer) = socket.remote_endpoint() {
+                let _ = writeln!(log, "[{index}] port {}: client {peer}", slot.port());
+            }
+            slot.session = Some(Session::new(slot.mode, now));
+        }
+        return;
+    };
+
+    if !socket.is_active() || !socket.may_send() {
+        // Reset, or closed both ways before we finished: nothing to send to.
+        let what = if session.mid_frame() { "vanished mid-frame; frame aborted" } else { "went away" };
+        let _ = writeln!(log, "[{index}] client {what}");
+        socket.abort();
+        slot.session = None;
+        return;
+    }
+
+    while socket.can_recv() && session.wants_requests() {
+        match socket.recv(|buf| {
+            let n = session.receive(now, buf);
+            (n, n)
+        }) {
+            Ok(n) if n > 0 => {}
+            _ => break,
+        }
+    }
+    if !socket.may_recv() && socket.recv_queue() == 0 {
+        session.receive_eof();
+    }
+
+    let action = drive(session, now, rows, row, |bytes| socket.send_slice(bytes).unwrap_or(0), log);
+    if let Action::Close(reason) = action {
+        match reason {
+            Closed::Done => {
+                let _ = writeln!(log, "[{index}] done");
+            }
+            other => {
+                let _ = writeln!(log, "[{index}] closing: {other}");
+            }
+        }
+        // Graceful close: queued rows still go out before the FIN.
+        socket.close();
+        slot.session = None;
+    }
+}

