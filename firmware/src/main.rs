@@ -52,7 +52,8 @@ fn main() -> ! {
     log::init();
     let mut log = log::Log;
     let _ = writeln!(log, "\n\nraytracer firmware {} on {}", env!("CARGO_PKG_VERSION"), Active::NAME);
-    let _ = writeln!(log, "core 0 up; core 1 parked; MMU and caches off at entry; vectors at VBAR");
+    let _ = writeln!(log, "core 0 up; core 1 parked; vectors at VBAR");
+    let _ = writeln!(log, "entry: {}", start::entry_state());
     TIMER.start();
     let hz = Active::timer_hz(&mut log);
     TIMER.set_rate(hz);
@@ -60,6 +61,8 @@ fn main() -> ! {
     log::flush();
     let l2 = cpu::enable_mmu_and_caches::<Active>(&mut log);
     log::flush();
+    #[cfg(feature = "reentry-test")]
+    reentry_test::maybe_reenter(&mut log);
     Active::init(&mut log);
     let mut rows = Active::renderer(&mut log, &TIMER);
     log::flush();
@@ -70,5 +73,36 @@ fn main() -> ! {
             log::flush();
             start::halt()
         }
+    }
+}
+
+/// Test build (`reentry-test`, used by `cargo xtask qemu-test`): the first
+/// boot turns the MMU and caches on, as U-Boot leaves them, and jumps back to
+/// the reset entry, so the emulated board exercises the entry's cache-off
+/// path with translation and the L2C-310 on.
+#[cfg(feature = "reentry-test")]
+mod reentry_test {
+    use core::fmt::Write;
+    use core::sync::atomic::{AtomicU32, Ordering};
+
+    /// Survives the second start-up (`.uninit` is neither loaded nor zeroed).
+    #[unsafe(link_section = ".uninit.REENTERED")]
+    static REENTERED: AtomicU32 = AtomicU32::new(0);
+    const MAGIC: u32 = 0x5245_454e; // "REEN"
+
+    pub fn maybe_reenter(log: &mut impl Write) {
+        if REENTERED.swap(MAGIC, Ordering::SeqCst) == MAGIC {
+            REENTERED.store(0, Ordering::SeqCst);
+            let _ = writeln!(log, "reentry-test: second start-up, continuing");
+            return;
+        }
+        let _ = writeln!(log, "reentry-test: MMU and caches on; jumping back to the reset entry");
+        crate::log::flush();
+        unsafe extern "C" {
+            fn _start() -> !;
+        }
+        // SAFETY: `_start` is the reset entry; it takes no arguments, uses no
+        // stack and resets every piece of state the firmware has.
+        unsafe { _start() }
     }
 }

@@ -23,6 +23,7 @@
 //!   keeps core 1 in reset).
 
 use core::fmt::Write;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use aarch32_cpu::register::{Dfar, Dfsr, Ifar, Ifsr};
 use aarch32_rt::exception;
@@ -39,6 +40,8 @@ core::arch::global_asm!(
     .p2align 2
 _start:
     mrc     p15, 0, r0, c1, c0, 0       @ SCTLR
+    ldr     r1, ={entry_sctlr}          @ kept for the boot log (.uninit:
+    str     r0, [r1]                    @ the start-up code does not zero it)
     tst     r0, #((1 << 2) | (1 << 0))  @ D-cache (C) or MMU (M) on?
     beq     5f
     @ 1. D-cache off: no new line is allocated from here on.
@@ -122,7 +125,33 @@ _asm_fiq_handler:
     .popsection
     "#,
     l2c = const Active::L2C,
+    entry_sctlr = sym ENTRY_SCTLR,
 );
+
+/// SCTLR as the reset entry found it (written by `_start` before anything
+/// else, in `.uninit` so the start-up code leaves it alone).
+#[unsafe(link_section = ".uninit.ENTRY_SCTLR")]
+pub static ENTRY_SCTLR: AtomicU32 = AtomicU32::new(0);
+
+/// What the reset entry found, for the boot log.
+pub fn entry_state() -> EntryState {
+    EntryState(ENTRY_SCTLR.load(Ordering::Relaxed))
+}
+
+/// SCTLR at entry.
+#[derive(Clone, Copy)]
+pub struct EntryState(u32);
+
+impl core::fmt::Display for EntryState {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let on = |bit: u32| if self.0 & (1 << bit) != 0 { "on" } else { "off" };
+        write!(f, "SCTLR {:#010x} at entry (MMU {}, D-cache {}, I-cache {})", self.0, on(0), on(2), on(12))?;
+        if self.0 & ((1 << 0) | (1 << 2)) != 0 {
+            f.write_str(": cleaned and turned off before start-up")?;
+        }
+        Ok(())
+    }
+}
 
 /// Mask interrupts and stop for good (after the reason went to the UART).
 pub fn halt() -> ! {

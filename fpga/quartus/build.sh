@@ -1,7 +1,7 @@
 #!/bin/sh
 # Build the DE1-SoC FPGA image: Platform Designer system, Quartus compile,
 # and the .rbf the firmware's boot steps load (U-Boot `fpga load`, see
-# PLATFORM.md "DE1-SoC boot without Linux").
+# docs/board-bring-up.md).
 #
 # Needs Quartus Prime (Lite is enough for the 5CSEMA5) with Cyclone V
 # support and Platform Designer on PATH: quartus_sh, qsys-script,

@@ -32,7 +32,8 @@ set_instance_parameter_value hps_0 F2SDRAM_Type {}
 set_instance_parameter_value hps_0 F2SDRAM_Width {}
 set_instance_parameter_value hps_0 F2SINTERRUPT_Enable {0}
 set_instance_parameter_value hps_0 S2FINTERRUPT_UART0_Enable {0}
-# Peripherals the firmware uses (PLATFORM.md): EMAC1 RGMII, SD card, UART0.
+# Peripherals the firmware uses (docs/platform.md#two-targets): EMAC1 RGMII,
+# SD card, UART0.
 set_instance_parameter_value hps_0 EMAC1_PinMuxing {HPS I/O Set 0}
 set_instance_parameter_value hps_0 EMAC1_Mode {RGMII}
 set_instance_parameter_value hps_0 SDIO_PinMuxing {HPS I/O Set 0}

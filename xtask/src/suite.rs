@@ -71,5 +71,7 @@ pub fn qemu_tests() -> Result<()> {
     ensure_qemu()?;
     let elf = crate::firmware::build("qemu-npcm750", &[])?;
     println!("==> QEMU end-to-end tests ({})", elf.display());
-    crate::qemu_e2e::run(&elf)
+    crate::qemu_e2e::run(&elf)?;
+    let elf = crate::firmware::build("qemu-npcm750", &["reentry-test"])?;
+    crate::qemu_e2e::reentry(&elf)
 }

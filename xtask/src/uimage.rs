@@ -3,7 +3,7 @@
 //! -C none`).
 //!
 //! Legacy header (64 bytes, big-endian; U-Boot `include/image.h`, struct
-//! `legacy_img_hdr`; summarised in shared/PLATFORM.md "DE1-SoC boot without
+//! `legacy_img_hdr`; summarised in docs/platform.md "Boot without
 //! Linux"): magic 0x27051956, header CRC-32 (computed with this field 0),
 //! time, data size, load address, entry point, data CRC-32, OS, arch, type,
 //! compression, 32-byte name.
