@@ -204,7 +204,7 @@ pub fn run(elf: &std::path::Path) -> Result<()> {
 /// reset entry, which must clean and turn them off, then boot as usual and
 /// serve a frame byte-exact.
 pub fn reentry(elf: &std::path::Path) -> Result<()> {
-    let mut g = Guest::boot(elf, &[])?;
+    let g = Guest::boot(elf, &[])?;
     let start = std::time::Instant::now();
     let result = (|| {
         let uart = g.uart();
