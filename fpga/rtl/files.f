@@ -16,5 +16,6 @@ rt_stage_secondary.sv
 rt_lane.sv
 rt_line_buffer.sv
 rt_row_scheduler.sv
+rt_frame_dma.sv
 rt_avalon_slave.sv
 rt_top.sv

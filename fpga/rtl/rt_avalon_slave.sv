@@ -1,20 +1,28 @@
 // Avalon-MM slave: the CSR block and the line-buffer window, with the
-// register semantics of hal-avalon (src/map.rs, src/sim.rs):
-//   0x00 CONTROL W  bit0 start (also clears done), bit1 clear_done; start
-//                   wins; a start while busy is ignored. Reads 0.
-//   0x04 STATUS  R  bit0 busy, bit1 sticky done.
+// register semantics of hal-avalon (src/map.rs, src/sim.rs), map version 2:
+//   0x00 CONTROL W  bit0 start a row (also clears done), bit1 clear_done;
+//                   start wins; a start while busy is ignored. Reads 0.
+//   0x04 STATUS  R  bit0 busy (a row or a frame in progress), bit1 sticky
+//                   row done.
 //   0x08 ROW_Y   RW bits 8:0.
 //   0x0C/0x10/0x14 LIGHT_X/Y/Z RW bits 23:0, read back sign-extended.
-//   0x18 ID      R  0x5254_0001.
-//   0x1000 + 4x  R  line buffer word x (x < 480), 0x00RRGGBB.
-// Everything else reads 0. Byte addresses are decoded as word addresses
-// (address_i is the word address); fixed read latency 1.
+//   0x18 ID      R  0x5254_0002.
+//   0x1C FRAME_BASE    RW bits 31:3 (byte address; bits 2:0 read 0).
+//   0x20 FRAME_CONTROL W bit0 start a frame at FRAME_BASE with LIGHT_*
+//                   (ignored while busy), bit1 clear frame done. Reads 0.
+//   0x24 FRAME_STATUS  R bit0 busy, bit1 sticky frame done (every row
+//                   landed), bit2 sticky bus error (until the next frame).
+//   0x28 ROWS_DONE     R rows of the current or last frame whose bytes
+//                   have landed (write responses received), 0..360.
+//   0x1000 + 4x  R  line buffer word x (x < 480), 0x00RRGGBB (row mode).
+// Everything else reads 0. address_i is the word address; fixed read
+// latency 1.
 module rt_avalon_slave
   import rt_pkg::*;
 #(
   parameter int unsigned LANES = 1,
   localparam int unsigned PerLane = Width / LANES,
-  localparam int unsigned BankAw = (PerLane > 1) ? $clog2(PerLane) : 1
+  localparam int unsigned IdxW = $clog2(PerLane)
 ) (
   input  logic        clk_i,
   input  logic        rst_ni,
@@ -24,70 +32,88 @@ module rt_avalon_slave
   input  logic        write_i,
   input  logic [31:0] writedata_i,
   output logic [31:0] readdata_o,
-  // to/from the row scheduler
-  output logic        start_o,
+  // to/from the row scheduler and the frame DMA
+  output logic        row_start_o,
+  output logic        frame_start_o,
+  output logic        frame_clear_done_o,
   output coord_t      row_o,
   output vec3_t       light_o,
-  input  logic        busy_i,
-  input  logic        finish_i,
-  // line-buffer read ports, one per bank
-  output logic [BankAw-1:0] lb_raddr_o,
-  input  rgb_t [LANES-1:0]  lb_rdata_i
+  output logic [31:3] frame_base_o,
+  input  logic        busy_i,        // scheduler or DMA busy
+  input  logic        row_finish_i,
+  input  logic        frame_busy_i,  // DMA busy
+  input  logic        frame_done_i,
+  input  logic        frame_error_i,
+  input  row_t        rows_landed_i,
+  // line-buffer read ports (slot 0), one per bank
+  output logic [IdxW-1:0]  lb_raddr_o,
+  input  rgb_t [LANES-1:0] lb_rdata_i
 );
   localparam int unsigned LaneBits = $clog2(LANES);
   // Word offsets of the CSRs (byte offset / 4).
-  localparam logic [10:0] AddrControl = 11'h000;
-  localparam logic [10:0] AddrStatus  = 11'h001;
-  localparam logic [10:0] AddrRowY    = 11'h002;
-  localparam logic [10:0] AddrLightX  = 11'h003;
-  localparam logic [10:0] AddrLightY  = 11'h004;
-  localparam logic [10:0] AddrLightZ  = 11'h005;
-  localparam logic [10:0] AddrId      = 11'h006;
+  localparam logic [10:0] AddrControl     = 11'h000;
+  localparam logic [10:0] AddrStatus      = 11'h001;
+  localparam logic [10:0] AddrRowY        = 11'h002;
+  localparam logic [10:0] AddrLightX      = 11'h003;
+  localparam logic [10:0] AddrLightY      = 11'h004;
+  localparam logic [10:0] AddrLightZ      = 11'h005;
+  localparam logic [10:0] AddrId          = 11'h006;
+  localparam logic [10:0] AddrFrameBase   = 11'h007;
+  localparam logic [10:0] AddrFrameCtl    = 11'h008;
+  localparam logic [10:0] AddrFrameStatus = 11'h009;
+  localparam logic [10:0] AddrRowsDone    = 11'h00a;
 
   coord_t row_q;
   vec3_t light_q;
+  logic [31:3] base_q;
   logic done_q;
 
-  logic ctl_write;
+  logic ctl_write, fctl_write;
   assign ctl_write = write_i && (address_i == AddrControl);
-  assign start_o = ctl_write && writedata_i[0] && !busy_i;
+  assign fctl_write = write_i && (address_i == AddrFrameCtl);
+  assign row_start_o = ctl_write && writedata_i[0] && !busy_i;
+  assign frame_start_o = fctl_write && writedata_i[0] && !busy_i;
+  assign frame_clear_done_o = fctl_write && !writedata_i[0] && writedata_i[1];
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
     if (!rst_ni) begin
-      row_q   <= '0;
-      light_q <= '0;
-      done_q  <= 1'b0;
+      row_q        <= '0;
+      light_q      <= '0;
+      base_q       <= '0;
+      done_q       <= 1'b0;
     end else begin
       if (write_i) begin
         unique case (address_i)
-          AddrRowY:   row_q     <= writedata_i[8:0];
-          AddrLightX: light_q.x <= writedata_i[23:0];
-          AddrLightY: light_q.y <= writedata_i[23:0];
-          AddrLightZ: light_q.z <= writedata_i[23:0];
+          AddrRowY:      row_q     <= writedata_i[8:0];
+          AddrLightX:    light_q.x <= writedata_i[23:0];
+          AddrLightY:    light_q.y <= writedata_i[23:0];
+          AddrLightZ:    light_q.z <= writedata_i[23:0];
+          AddrFrameBase: base_q    <= writedata_i[31:3];
           default: ;
         endcase
       end
       // A finishing row sets done after a same-cycle clear_done.
-      if (finish_i) done_q <= 1'b1;
-      else if (start_o) done_q <= 1'b0;
+      if (row_finish_i) done_q <= 1'b1;
+      else if (row_start_o) done_q <= 1'b0;
       else if (ctl_write && !writedata_i[0] && writedata_i[1]) done_q <= 1'b0;
     end
   end
   assign row_o = row_q;
+  assign light_o = light_q;
+  assign frame_base_o = base_q;
 
   // CONTROL bits 31:2 and the bits above each register's width are ignored.
   /* verilator lint_off UNUSEDSIGNAL */
   logic unused_wdata;
   assign unused_wdata = ^writedata_i[31:24];
   /* verilator lint_on UNUSEDSIGNAL */
-  assign light_o = light_q;
 
   // ---- Reads (registered: fixed latency 1) ----------------------------------
   logic [9:0] lb_x;
   logic lb_sel;
   assign lb_x = address_i[9:0];
   assign lb_sel = address_i[10] && (lb_x < 10'(Width));
-  assign lb_raddr_o = BankAw'(lb_x >> LaneBits);
+  assign lb_raddr_o = IdxW'(lb_x >> LaneBits);
 
   logic [31:0] csr_rdata_q;
   logic lb_sel_q;
@@ -101,13 +127,16 @@ module rt_avalon_slave
       lb_sel_q <= lb_sel;
       bank_q   <= LaneBits > 0 ? lb_x[LaneBits > 0 ? LaneBits - 1 : 0 : 0] : '0;
       unique case (address_i)
-        AddrStatus: csr_rdata_q <= {30'd0, done_q, busy_i};
-        AddrRowY:   csr_rdata_q <= {23'd0, row_q};
-        AddrLightX: csr_rdata_q <= 32'(light_q.x);  // q_t is signed: sign-extends
-        AddrLightY: csr_rdata_q <= 32'(light_q.y);
-        AddrLightZ: csr_rdata_q <= 32'(light_q.z);
-        AddrId:     csr_rdata_q <= IdValue;
-        default:    csr_rdata_q <= '0;
+        AddrStatus:      csr_rdata_q <= {30'd0, done_q, busy_i};
+        AddrRowY:        csr_rdata_q <= {23'd0, row_q};
+        AddrLightX:      csr_rdata_q <= 32'(light_q.x);  // q_t is signed: sign-extends
+        AddrLightY:      csr_rdata_q <= 32'(light_q.y);
+        AddrLightZ:      csr_rdata_q <= 32'(light_q.z);
+        AddrId:          csr_rdata_q <= IdValue;
+        AddrFrameBase:   csr_rdata_q <= {base_q, 3'b000};
+        AddrFrameStatus: csr_rdata_q <= {29'd0, frame_error_i, frame_done_i, frame_busy_i};
+        AddrRowsDone:    csr_rdata_q <= {23'd0, rows_landed_i};
+        default:         csr_rdata_q <= '0;
       endcase
     end
   end

@@ -109,8 +109,21 @@ package rt_pkg;
     rgb_t   rgb;
   } px_out_t;
 
-  // ---- Register map (hal-avalon) ------------------------------------------
-  localparam logic [31:0] IdValue = 32'h5254_0001;
+  // ---- Register map (hal-avalon src/map.rs) --------------------------------
+  // Version 2: the row registers of version 1 plus the frame DMA registers.
+  localparam logic [31:0] IdValue = 32'h5254_0002;
+
+  // ---- Frame DMA (hal-avalon src/map.rs, docs/frame-dma.md) -----------------
+  localparam int unsigned RowBytes   = Width * 3;     // 1440: RGB888 wire row
+  localparam int unsigned RowBeats   = RowBytes / 8;  // 180 64-bit beats
+  localparam int unsigned BurstBeats = 16;            // AXI3 INCR maximum
+  typedef logic [8:0] row_t;                          // 0..360
+  // Line-buffer slots per bank: row r of a frame goes to slot r % 4, so the
+  // lanes render rows r+1..r+3 while the DMA packs row r (with two slots
+  // the lanes would wait for the packer every other row).
+  localparam int unsigned LbSlots = 4;
+  localparam int unsigned SlotW = $clog2(LbSlots);
+  typedef logic [SlotW-1:0] slot_t;
 
   // ---- Saturation (Q::saturate) -------------------------------------------
   // Clamp a wide signed value to the word range; callers sign-extend into 64.

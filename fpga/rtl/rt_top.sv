@@ -1,50 +1,97 @@
 // Ray-tracer accelerator: Avalon-MM slave (CSRs + line-buffer window), row
-// scheduler with LANES fully pipelined lanes, and the banked line buffer.
-// Default LANES = 2: two lanes use 82 of the 87 DSP blocks and about 29k of
-// the 32,075 ALMs (high estimate); a third lane cannot fit (fpga/README.md).
+// scheduler with LANES fully pipelined lanes, the banked line buffer (four
+// row slots per bank), and the frame DMA with its AXI3 write master.
+// Default LANES = 1: in frame mode one lane renders about 289 frames/s at
+// 50 MHz, more than Gigabit Ethernet carries, at about half the DSP blocks
+// and logic of two (fpga/README.md, docs/frame-dma.md).
 module rt_top
   import rt_pkg::*;
 #(
-  parameter int unsigned LANES    = 2,  // power of two dividing 480
+  parameter int unsigned LANES    = 1,  // power of two dividing 480
   parameter int unsigned SQRT_BPS = 2,  // root bits per square-root stage
   parameter int unsigned DIV_BPS  = 2   // quotient bits per divider stage
 ) (
   input  logic        clk_i,
   input  logic        rst_ni,
+  // Avalon-MM slave: the registers (lightweight HPS-to-FPGA bridge)
   input  logic [10:0] avs_address_i,
   input  logic        avs_read_i,
   input  logic        avs_write_i,
   input  logic [31:0] avs_writedata_i,
-  output logic [31:0] avs_readdata_o
+  output logic [31:0] avs_readdata_o,
+  // AXI3 write master: frames into HPS SDRAM (FPGA-to-SDRAM port)
+  output logic [31:0] axm_awaddr_o,
+  output logic [3:0]  axm_awlen_o,
+  output logic [2:0]  axm_awsize_o,
+  output logic [1:0]  axm_awburst_o,
+  output logic [3:0]  axm_awcache_o,
+  output logic [2:0]  axm_awprot_o,
+  output logic        axm_awvalid_o,
+  input  logic        axm_awready_i,
+  output logic [63:0] axm_wdata_o,
+  output logic [7:0]  axm_wstrb_o,
+  output logic        axm_wlast_o,
+  output logic        axm_wvalid_o,
+  input  logic        axm_wready_i,
+  input  logic [1:0]  axm_bresp_i,
+  input  logic        axm_bvalid_i,
+  output logic        axm_bready_o
 );
   localparam int unsigned PerLane = Width / LANES;
-  localparam int unsigned BankAw = (PerLane > 1) ? $clog2(PerLane) : 1;
+  localparam int unsigned IdxW = $clog2(PerLane);
+  localparam int unsigned BankAw = SlotW + IdxW;
 
-  logic start, busy, finish;
+  logic row_start, frame_start, frame_clear_done, sched_busy, dma_busy, dma_done, row_finish, row_done;
+  logic frame_error;
+  slot_t row_done_slot;
+  logic [LbSlots-1:0] slot_release;
+  row_t rows_landed;
   coord_t row;
   vec3_t light;
+  logic [31:3] frame_base;
   logic [LANES-1:0] lb_we;
   logic [LANES-1:0][BankAw-1:0] lb_waddr;
   rgb_t [LANES-1:0] lb_wdata, lb_rdata;
-  logic [BankAw-1:0] lb_raddr;
+  logic [IdxW-1:0] slave_raddr;
+  logic [BankAw-1:0] dma_raddr, lb_raddr;
 
   rt_avalon_slave #(.LANES(LANES)) u_slave (
     .clk_i, .rst_ni,
     .address_i(avs_address_i), .read_i(avs_read_i), .write_i(avs_write_i),
     .writedata_i(avs_writedata_i), .readdata_o(avs_readdata_o),
-    .start_o(start), .row_o(row), .light_o(light), .busy_i(busy), .finish_i(finish),
-    .lb_raddr_o(lb_raddr), .lb_rdata_i(lb_rdata)
+    .row_start_o(row_start), .frame_start_o(frame_start), .frame_clear_done_o(frame_clear_done),
+    .row_o(row), .light_o(light),
+    .frame_base_o(frame_base), .busy_i(sched_busy || dma_busy), .row_finish_i(row_finish),
+    .frame_busy_i(dma_busy), .frame_done_i(dma_done), .frame_error_i(frame_error), .rows_landed_i(rows_landed),
+    .lb_raddr_o(slave_raddr), .lb_rdata_i(lb_rdata)
   );
 
   rt_row_scheduler #(.LANES(LANES), .SQRT_BPS(SQRT_BPS), .DIV_BPS(DIV_BPS)) u_sched (
     .clk_i, .rst_ni,
-    .start_i(start), .row_i(row), .light_i(light),
-    .busy_o(busy), .finish_o(finish),
+    .row_start_i(row_start), .row_i(row), .frame_start_i(frame_start), .light_i(light),
+    .slot_release_i(slot_release),
+    .busy_o(sched_busy), .row_finish_o(row_finish), .row_done_o(row_done), .row_done_slot_o(row_done_slot),
     .lb_we_o(lb_we), .lb_waddr_o(lb_waddr), .lb_wdata_o(lb_wdata)
   );
 
+  rt_frame_dma #(.LANES(LANES)) u_dma (
+    .clk_i, .rst_ni,
+    .start_i(frame_start), .base_i(frame_base), .clear_done_i(frame_clear_done),
+    .row_done_i(row_done), .row_done_slot_i(row_done_slot), .slot_release_o(slot_release),
+    .lb_raddr_o(dma_raddr), .lb_rdata_i(lb_rdata),
+    .busy_o(dma_busy), .done_o(dma_done), .rows_landed_o(rows_landed), .error_o(frame_error),
+    .awaddr_o(axm_awaddr_o), .awlen_o(axm_awlen_o), .awsize_o(axm_awsize_o), .awburst_o(axm_awburst_o),
+    .awcache_o(axm_awcache_o), .awprot_o(axm_awprot_o), .awvalid_o(axm_awvalid_o), .awready_i(axm_awready_i),
+    .wdata_o(axm_wdata_o), .wstrb_o(axm_wstrb_o), .wlast_o(axm_wlast_o), .wvalid_o(axm_wvalid_o),
+    .wready_i(axm_wready_i), .bresp_i(axm_bresp_i), .bvalid_i(axm_bvalid_i), .bready_o(axm_bready_o)
+  );
+
+  // The line buffer's read port: the DMA's during a frame, else the
+  // register interface's (slot 0).
+  assign lb_raddr = dma_busy ? dma_raddr : {SlotW'(0), slave_raddr};
+
   for (genvar l = 0; l < int'(LANES); l++) begin : g_bank
-    rt_line_buffer #(.DEPTH(PerLane), .WIDTH($bits(rgb_t))) u_lb (
+    rt_line_buffer #(.DEPTH(1 << BankAw), .WIDTH($bits(rgb_t))) u_lb (
       .clk_i,
       .we_i(lb_we[l]), .waddr_i(lb_waddr[l]), .wdata_i(lb_wdata[l]),
       .raddr_i(lb_raddr), .rdata_o(lb_rdata[l])

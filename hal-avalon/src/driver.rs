@@ -1,4 +1,5 @@
-//! The row driver: render one row on the accelerator and copy it out.
+//! The driver: rows (render one row, copy it out of the line buffer) and
+//! frames (render a whole frame into memory, watch the rows land).
 
 use core::fmt;
 
@@ -6,8 +7,9 @@ use embedded_hal::delay::DelayNs;
 use model::{Light, LightError};
 
 use crate::map::{
-    light_to_register, line_word_offset, Csr, CONTROL_CLEAR_DONE, CONTROL_START, CSR_OFFSET, ID_VALUE, LINE_WORDS,
-    PIXEL_RESERVED_MASK, ROWS, STATUS_BUSY, STATUS_DONE, STATUS_MASK,
+    light_to_register, line_word_offset, Csr, CONTROL_CLEAR_DONE, CONTROL_START, CSR_OFFSET, FRAME_BASE_MASK,
+    FRAME_CONTROL_START, FRAME_STATUS_BUSY, FRAME_STATUS_DONE, FRAME_STATUS_ERROR, FRAME_STATUS_MASK, ID_MAGIC,
+    ID_VALUE, ID_VERSION_FRAMES, LINE_WORDS, PIXEL_RESERVED_MASK, ROWS, STATUS_BUSY, STATUS_DONE, STATUS_MASK,
 };
 use crate::port::RegisterPort;
 
@@ -57,6 +59,24 @@ impl Default for PollTimeout {
 /// of hanging or panicking.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub enum Error {
+    /// The frame buffer address is not 8-byte aligned; nothing was
+    /// accessed.
+    FrameBaseMisaligned {
+        /// The rejected bus address.
+        base: u32,
+    },
+    /// A write of the frame DMA failed (FRAME_STATUS error): rows `0..rows`
+    /// landed, the rest of the frame is not to be trusted.
+    DmaError {
+        /// Rows that landed before the failure.
+        rows: u16,
+    },
+    /// A frame was asked of an accelerator whose map version has no frame
+    /// DMA (version 1).
+    NoFrameMode {
+        /// The map version it reports.
+        version: u16,
+    },
     /// `row_y` is not a row of the frame (`>= 360`); nothing was accessed.
     RowOutOfRange {
         /// The rejected row.
@@ -92,6 +112,11 @@ pub enum Error {
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
+            Error::FrameBaseMisaligned { base } => write!(f, "frame base {base:#010x} is not 8-byte aligned"),
+            Error::DmaError { rows } => write!(f, "frame DMA write failed after {rows} rows"),
+            Error::NoFrameMode { version } => {
+                write!(f, "register map version {version} has no frame mode (needs {ID_VERSION_FRAMES})")
+            }
             Error::RowOutOfRange { row_y } => {
                 write!(f, "row {row_y} is out of range (0..{ROWS})")
             }
@@ -109,13 +134,38 @@ impl fmt::Display for Error {
     }
 }
 
+impl core::error::Error for Error {}
+
 impl From<LightError> for Error {
     fn from(e: LightError) -> Error {
         Error::LightOutOfRange(e)
     }
 }
 
-/// The row driver over a register port `P`, polling with delay `D`.
+/// What [`Accelerator::probe`] found.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub struct Capabilities {
+    /// The register-map version (ID bits 15:0).
+    pub version: u16,
+}
+
+impl Capabilities {
+    /// Whether the frame DMA registers exist (map version 2 or later).
+    pub const fn frames(&self) -> bool {
+        self.version >= ID_VERSION_FRAMES
+    }
+}
+
+/// Progress of a frame in frame mode.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub struct FrameProgress {
+    /// Rows `0..rows` have landed in memory.
+    pub rows: u16,
+    /// Every row landed and the accelerator is idle.
+    pub done: bool,
+}
+
+/// The row and frame driver over a register port `P`, polling with delay `D`.
 ///
 /// The same code drives the MMIO block on the board and the simulated
 /// device on the host.
@@ -123,55 +173,117 @@ pub struct Accelerator<P, D> {
     port: P,
     delay: D,
     timeout: PollTimeout,
+    caps: Option<Capabilities>,
 }
 
 impl<P: RegisterPort, D: DelayNs> Accelerator<P, D> {
     /// A driver for the accelerator behind `port`. Touches nothing yet.
     pub fn new(port: P, delay: D, timeout: PollTimeout) -> Accelerator<P, D> {
-        Accelerator { port, delay, timeout }
+        Accelerator { port, delay, timeout, caps: None }
     }
 
-    /// Check that a ray tracer of the supported version answers: the ID
-    /// register reads [`ID_VALUE`]. Only reads ID.
-    pub fn probe(&mut self) -> Result<(), Error> {
-        match self.port.read(Csr::Id) {
-            ID_VALUE => Ok(()),
-            id => Err(Error::NotPresent { id }),
+    /// Check that a ray tracer answers: the ID register holds the magic
+    /// [`ID_MAGIC`] and a map version from 1 on. Only reads ID. Call it once
+    /// before the first row or frame (the row and frame calls do not read
+    /// ID again; a device that vanishes later shows up in STATUS, which then
+    /// reads all ones: [`Error::BusFault`]).
+    pub fn probe(&mut self) -> Result<Capabilities, Error> {
+        let id = self.port.read(Csr::Id);
+        let version = (id & 0xffff) as u16;
+        if id >> 16 == u32::from(ID_MAGIC) && version >= 1 {
+            let caps = Capabilities { version };
+            self.caps = Some(caps);
+            Ok(caps)
+        } else {
+            Err(Error::NotPresent { id })
         }
     }
 
     /// Render row `row_y` lit by `light` and copy its 480 `0x00RRGGBB` words
-    /// into `out`, equal to `model::render_row(row_y, light, out)`.
-    ///
-    /// The protocol: check ID; wait until no row is in progress; write
-    /// ROW_Y and LIGHT_X/Y/Z; clear a stale done; start; poll STATUS until
-    /// done; copy the line buffer and check its reserved bits. Every wait
-    /// is bounded by the [`PollTimeout`]. On error `out` is unspecified.
+    /// into `out`, equal to `model::render_row(row_y, light, out)`:
+    /// [`start_row`](Self::start_row) then [`finish_row`](Self::finish_row).
+    /// On error `out` is unspecified.
     pub fn run_row(&mut self, row_y: u16, light: &Light, out: &mut [u32; LINE_WORDS]) -> Result<(), Error> {
+        self.start_row(row_y, light)?;
+        self.finish_row(out)
+    }
+
+    /// Start row `row_y` lit by `light`: wait until nothing is in progress
+    /// (a start while busy would be ignored and the old row reported as this
+    /// one), write ROW_Y and LIGHT_X/Y/Z, clear a stale done, start. Bounded
+    /// by the [`PollTimeout`].
+    pub fn start_row(&mut self, row_y: u16, light: &Light) -> Result<(), Error> {
         if row_y >= ROWS {
             return Err(Error::RowOutOfRange { row_y });
         }
-        self.probe()?;
-
-        // A start while busy would be ignored and the old row reported as
-        // this one: let a row still running (say after a timeout) finish.
         self.poll_status(|s| s & STATUS_BUSY == 0)?;
-
-        let [x, y, z] = light.raw();
         self.port.write(Csr::RowY, u32::from(row_y));
-        self.port.write(Csr::LightX, light_to_register(x));
-        self.port.write(Csr::LightY, light_to_register(y));
-        self.port.write(Csr::LightZ, light_to_register(z));
+        self.write_light(light);
         self.port.write(Csr::Control, CONTROL_CLEAR_DONE);
         self.port.write(Csr::Control, CONTROL_START);
+        Ok(())
+    }
 
+    /// Wait for the row [`start_row`](Self::start_row) began, copy the line
+    /// buffer into `out` and check its reserved bits. Bounded by the
+    /// [`PollTimeout`]. The accelerator is idle again on return, so the next
+    /// row can start before this one is used.
+    pub fn finish_row(&mut self, out: &mut [u32; LINE_WORDS]) -> Result<(), Error> {
         self.poll_status(|s| s & STATUS_DONE != 0)?;
-
         self.port.read_line(out);
         match (0..).zip(out.iter()).find(|(_, w)| **w & PIXEL_RESERVED_MASK != 0) {
             Some((x, &value)) => Err(Error::BusFault { offset: line_word_offset(x), value }),
             None => Ok(()),
         }
+    }
+
+    /// Start rendering a whole frame lit by `light` into the frame buffer at
+    /// bus address `base` (8-byte aligned; [`FRAME_BYTES`](crate::map::FRAME_BYTES)
+    /// long): wait until nothing is in progress, write FRAME_BASE and
+    /// LIGHT_*, start. Then poll [`frame_progress`](Self::frame_progress).
+    /// Needs map version 2 ([`Capabilities::frames`]; refused if
+    /// [`probe`](Self::probe) found version 1).
+    pub fn start_frame(&mut self, base: u32, light: &Light) -> Result<(), Error> {
+        if let Some(caps) = self.caps.filter(|c| !c.frames()) {
+            return Err(Error::NoFrameMode { version: caps.version });
+        }
+        if base & !FRAME_BASE_MASK != 0 {
+            return Err(Error::FrameBaseMisaligned { base });
+        }
+        self.poll_status(|s| s & STATUS_BUSY == 0)?;
+        self.write_light(light);
+        self.port.write(Csr::FrameBase, base);
+        self.port.write(Csr::FrameControl, FRAME_CONTROL_START);
+        Ok(())
+    }
+
+    /// How far the frame [`start_frame`](Self::start_frame) began has come:
+    /// the rows whose bytes have landed in memory (read them after a `dmb`),
+    /// and whether the frame is done. A failed DMA write is
+    /// [`Error::DmaError`]; a value no accelerator reports (reserved bits,
+    /// more than 360 rows) is [`Error::BusFault`]. One FRAME_STATUS and one
+    /// ROWS_DONE read; never waits.
+    pub fn frame_progress(&mut self) -> Result<FrameProgress, Error> {
+        let status = self.port.read(Csr::FrameStatus);
+        if status & !FRAME_STATUS_MASK != 0 {
+            return Err(Error::BusFault { offset: CSR_OFFSET + Csr::FrameStatus.offset(), value: status });
+        }
+        let rows = self.port.read(Csr::RowsDone);
+        if rows > u32::from(ROWS) {
+            return Err(Error::BusFault { offset: CSR_OFFSET + Csr::RowsDone.offset(), value: rows });
+        }
+        let rows = rows as u16;
+        if status & FRAME_STATUS_ERROR != 0 {
+            return Err(Error::DmaError { rows });
+        }
+        Ok(FrameProgress { rows, done: status & FRAME_STATUS_DONE != 0 && status & FRAME_STATUS_BUSY == 0 })
+    }
+
+    fn write_light(&mut self, light: &Light) {
+        let [x, y, z] = light.raw();
+        self.port.write(Csr::LightX, light_to_register(x));
+        self.port.write(Csr::LightY, light_to_register(y));
+        self.port.write(Csr::LightZ, light_to_register(z));
     }
 
     /// [`run_row`](Self::run_row) with the light as raw Q13.10 components

@@ -43,7 +43,7 @@ pub mod port;
 #[cfg(feature = "sim")]
 pub mod sim;
 
-pub use driver::{Accelerator, Error, PollTimeout};
+pub use driver::{Accelerator, Capabilities, Error, FrameProgress, PollTimeout};
 pub use map::Csr;
 pub use mmio::MmioPort;
 pub use port::RegisterPort;

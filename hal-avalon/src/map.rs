@@ -7,24 +7,32 @@
 //!
 //! | window | bridge offset | size | contents |
 //! |---|---|---|---|
-//! | CSR block | [`CSR_OFFSET`] `0x0000` | 7 registers (`0x00..=0x18`) | [`Csr`] |
+//! | CSR block | [`CSR_OFFSET`] `0x0000` | 11 registers (`0x00..=0x28`) | [`Csr`] |
 //! | line buffer | [`LINE_BUFFER_OFFSET`] `0x1000` | [`LINE_WORDS`] x 32 bit | pixel `x` at `0x1000 + 4 * x`, word `0x00RRGGBB` |
 //!
 //! Every register is 32 bits wide and word aligned. Offsets of the bridge
-//! window outside the seven registers and the 480 line-buffer words are not
+//! window outside the eleven registers and the 480 line-buffer words are not
 //! part of the contract, except that unmapped offsets of the CSR block read 0.
+//!
+//! Map version 2 adds the frame DMA (`0x1C..=0x28`) to version 1's row
+//! registers (`0x00..=0x18`, unchanged): the ID register tells a driver which
+//! it has ([`ID_VERSION_FRAMES`]).
 //!
 //! # CSR block
 //!
 //! | offset | name | access | meaning |
 //! |---|---|---|---|
 //! | `0x00` | [`Csr::Control`] | W | bit 0 [`CONTROL_START`]: start a row (pulse; also clears a latched done); bit 1 [`CONTROL_CLEAR_DONE`]: clear done. Other bits ignored; with both bits set, start wins. Reads return 0. |
-//! | `0x04` | [`Csr::Status`] | R | bit 0 [`STATUS_BUSY`]: a row is being rendered; bit 1 [`STATUS_DONE`]: sticky, set when a row finishes. Other bits read 0. Writes ignored. |
+//! | `0x04` | [`Csr::Status`] | R | bit 0 [`STATUS_BUSY`]: a row or a frame is being rendered; bit 1 [`STATUS_DONE`]: sticky, set when a row finishes. Other bits read 0. Writes ignored. |
 //! | `0x08` | [`Csr::RowY`] | R/W | row to render; only bits 8:0 ([`ROW_Y_MASK`]) are stored and read back. |
 //! | `0x0C` | [`Csr::LightX`] | R/W | light x, Q13.10 in bits 23:0 ([`LIGHT_MASK`]); reads return the stored 24 bits sign-extended to 32. |
 //! | `0x10` | [`Csr::LightY`] | R/W | light y, as light x. |
 //! | `0x14` | [`Csr::LightZ`] | R/W | light z, as light x. |
-//! | `0x18` | [`Csr::Id`] | R | [`ID_VALUE`] `0x5254_0001`: magic `0x5254` ("RT") in bits 31:16, version 1 in bits 15:0. Writes ignored. |
+//! | `0x18` | [`Csr::Id`] | R | [`ID_VALUE`] `0x5254_0002`: magic `0x5254` ("RT") in bits 31:16, map version 2 in bits 15:0. Writes ignored. |
+//! | `0x1C` | [`Csr::FrameBase`] | R/W | bus address of the frame buffer; bits 31:3 stored ([`FRAME_BASE_MASK`]), bits 2:0 read 0. |
+//! | `0x20` | [`Csr::FrameControl`] | W | bit 0 [`FRAME_CONTROL_START`]: render a whole frame for `LIGHT_*` into `FRAME_BASE` (ignored while busy); bit 1 [`FRAME_CONTROL_CLEAR_DONE`]: clear frame done. Reads 0. |
+//! | `0x24` | [`Csr::FrameStatus`] | R | bit 0 [`FRAME_STATUS_BUSY`]: a frame is in progress; bit 1 [`FRAME_STATUS_DONE`]: sticky, every row landed; bit 2 [`FRAME_STATUS_ERROR`]: sticky until the next frame, a write to memory failed. Writes ignored. |
+//! | `0x28` | [`Csr::RowsDone`] | R | rows `0..n` of the current (or last) frame whose bytes have landed in memory, `0..=360`. Writes ignored. |
 //!
 //! # Behaviour
 //!
@@ -42,6 +50,22 @@
 //!   the camera. (The driver itself refuses rows `>= 360`.)
 //! * The line buffer's contents are undefined while busy; after reset, before
 //!   any row, it reads 0. It is read-only from the HPS side.
+//!
+//! # Frame mode
+//!
+//! * A frame start while idle latches `FRAME_BASE` and `LIGHT_*`, zeroes
+//!   `ROWS_DONE`, clears frame done and error, and sets frame busy (and
+//!   STATUS busy). It renders rows 0..359 into `FRAME_BASE + y * 1440` as
+//!   RGB888 wire bytes ([`model::ROW_BYTES`] per row, pixel 0's R at the
+//!   lowest address): the frame's bytes are exactly `model::render_frame`.
+//! * `ROWS_DONE` counts rows whose every byte has been written *and
+//!   acknowledged* by the memory: software may read rows below it at once
+//!   (after a `dmb`). It never runs ahead of the data.
+//! * When the last row has landed, busy clears and done sets. A failed
+//!   write sets error and freezes `ROWS_DONE`; the frame still runs to its
+//!   end (busy clears), done stays clear.
+//! * A row start or a frame start while busy is ignored; the line buffer
+//!   and `STATUS.done` are not part of frame mode.
 
 /// Base address of the lightweight HPS-to-FPGA bridge window in the HPS
 /// address map.
@@ -91,11 +115,31 @@ pub enum Csr {
     LightZ,
     /// `0x18`, read-only: magic and version ([`ID_VALUE`]).
     Id,
+    /// `0x1C`, read/write: frame buffer bus address, bits 31:3.
+    FrameBase,
+    /// `0x20`, write-only: frame start pulse and frame clear_done.
+    FrameControl,
+    /// `0x24`, read-only: frame busy, done, error.
+    FrameStatus,
+    /// `0x28`, read-only: rows of the frame that have landed.
+    RowsDone,
 }
 
 impl Csr {
     /// Every register, in address order.
-    pub const ALL: [Csr; 7] = [Csr::Control, Csr::Status, Csr::RowY, Csr::LightX, Csr::LightY, Csr::LightZ, Csr::Id];
+    pub const ALL: [Csr; 11] = [
+        Csr::Control,
+        Csr::Status,
+        Csr::RowY,
+        Csr::LightX,
+        Csr::LightY,
+        Csr::LightZ,
+        Csr::Id,
+        Csr::FrameBase,
+        Csr::FrameControl,
+        Csr::FrameStatus,
+        Csr::RowsDone,
+    ];
 
     /// Byte offset of the register inside the CSR block.
     pub const fn offset(self) -> usize {
@@ -107,6 +151,10 @@ impl Csr {
             Csr::LightY => 0x10,
             Csr::LightZ => 0x14,
             Csr::Id => 0x18,
+            Csr::FrameBase => 0x1C,
+            Csr::FrameControl => 0x20,
+            Csr::FrameStatus => 0x24,
+            Csr::RowsDone => 0x28,
         }
     }
 
@@ -121,6 +169,10 @@ impl Csr {
             0x10 => Some(Csr::LightY),
             0x14 => Some(Csr::LightZ),
             0x18 => Some(Csr::Id),
+            0x1C => Some(Csr::FrameBase),
+            0x20 => Some(Csr::FrameControl),
+            0x24 => Some(Csr::FrameStatus),
+            0x28 => Some(Csr::RowsDone),
             _ => None,
         }
     }
@@ -134,7 +186,7 @@ pub const CONTROL_START: u32 = 1 << 0;
 /// CONTROL bit 1: clear the sticky done bit.
 pub const CONTROL_CLEAR_DONE: u32 = 1 << 1;
 
-/// STATUS bit 0: a row is being rendered.
+/// STATUS bit 0: a row or a frame is being rendered.
 pub const STATUS_BUSY: u32 = 1 << 0;
 /// STATUS bit 1: sticky; a row has finished since the last start or clear_done.
 pub const STATUS_DONE: u32 = 1 << 1;
@@ -149,8 +201,10 @@ pub const LIGHT_MASK: u32 = (1 << model::word::WORD_BITS) - 1;
 
 /// Magic in ID bits 31:16: ASCII "RT".
 pub const ID_MAGIC: u16 = 0x5254;
-/// Register-map version in ID bits 15:0; this document describes version 1.
-pub const ID_VERSION: u16 = 1;
+/// Register-map version in ID bits 15:0; this document describes version 2.
+pub const ID_VERSION: u16 = 2;
+/// The first map version with the frame DMA registers (version 1: rows only).
+pub const ID_VERSION_FRAMES: u16 = 2;
 /// The value the ID register reads on a configured accelerator.
 pub const ID_VALUE: u32 = (ID_MAGIC as u32) << 16 | ID_VERSION as u32;
 
@@ -161,6 +215,25 @@ pub const BUS_ALL_ONES: u32 = 0xFFFF_FFFF;
 /// Bits 31:24 of a line-buffer word; always 0 in a finished row
 /// (`0x00RRGGBB`).
 pub const PIXEL_RESERVED_MASK: u32 = 0xFF00_0000;
+
+/// FRAME_BASE: the stored bits (the frame buffer is 8-byte aligned).
+pub const FRAME_BASE_MASK: u32 = !7;
+/// FRAME_CONTROL bit 0: start a frame.
+pub const FRAME_CONTROL_START: u32 = 1 << 0;
+/// FRAME_CONTROL bit 1: clear frame done.
+pub const FRAME_CONTROL_CLEAR_DONE: u32 = 1 << 1;
+/// FRAME_STATUS bit 0: a frame is in progress.
+pub const FRAME_STATUS_BUSY: u32 = 1 << 0;
+/// FRAME_STATUS bit 1: sticky; every row of the last frame landed.
+pub const FRAME_STATUS_DONE: u32 = 1 << 1;
+/// FRAME_STATUS bit 2: sticky until the next frame; a memory write failed.
+pub const FRAME_STATUS_ERROR: u32 = 1 << 2;
+/// The FRAME_STATUS bits that can be set.
+pub const FRAME_STATUS_MASK: u32 = FRAME_STATUS_BUSY | FRAME_STATUS_DONE | FRAME_STATUS_ERROR;
+/// Bytes of one row in the frame buffer.
+pub const FRAME_ROW_BYTES: u32 = model::ROW_BYTES as u32;
+/// Bytes of one frame in the frame buffer.
+pub const FRAME_BYTES: u32 = model::FRAME_BYTES as u32;
 
 /// A light component as the LIGHT registers store it (bits 23:0).
 pub const fn light_to_register(raw: i32) -> u32 {
@@ -183,13 +256,15 @@ mod tests {
             assert_eq!(Csr::at_offset(csr.offset()), Some(csr));
             assert_eq!(Csr::at_offset(csr.offset() + 3), Some(csr));
         }
-        assert_eq!(Csr::at_offset(0x1C), None);
+        assert_eq!(Csr::at_offset(0x2C), None);
         assert_eq!(Csr::at_offset(CSR_WINDOW - 4), None);
     }
 
     #[test]
     fn constants_match_the_decided_map() {
-        assert_eq!(ID_VALUE, 0x5254_0001);
+        assert_eq!(ID_VALUE, 0x5254_0002);
+        assert_eq!(Csr::RowsDone.offset(), 0x28);
+        assert_eq!(FRAME_ROW_BYTES * 360, FRAME_BYTES);
         assert_eq!(ROW_Y_MASK, 0x1ff);
         assert_eq!(LIGHT_MASK, 0x00ff_ffff);
         assert_eq!(line_word_offset(0), 0x1000);

@@ -39,6 +39,14 @@ pub struct CsrBlock {
     pub light_z: RW<u32>,
     /// `0x18` ID.
     pub id: RO<u32>,
+    /// `0x1C` FRAME_BASE.
+    pub frame_base: RW<u32>,
+    /// `0x20` FRAME_CONTROL.
+    pub frame_control: WO<u32>,
+    /// `0x24` FRAME_STATUS.
+    pub frame_status: RO<u32>,
+    /// `0x28` ROWS_DONE.
+    pub rows_done: RO<u32>,
 }
 
 /// Words between the end of the CSR block and the line buffer.
@@ -66,6 +74,10 @@ const _: () = {
     assert!(offset_of!(CsrBlock, light_y) == Csr::LightY.offset());
     assert!(offset_of!(CsrBlock, light_z) == Csr::LightZ.offset());
     assert!(offset_of!(CsrBlock, id) == Csr::Id.offset());
+    assert!(offset_of!(CsrBlock, frame_base) == Csr::FrameBase.offset());
+    assert!(offset_of!(CsrBlock, frame_control) == Csr::FrameControl.offset());
+    assert!(offset_of!(CsrBlock, frame_status) == Csr::FrameStatus.offset());
+    assert!(offset_of!(CsrBlock, rows_done) == Csr::RowsDone.offset());
     assert!(offset_of!(RegisterBlock, line) == LINE_BUFFER_OFFSET - CSR_OFFSET);
 };
 
@@ -127,14 +139,17 @@ impl RegisterPort for MmioPort {
     fn read(&mut self, csr: Csr) -> u32 {
         let c = &self.registers().csr;
         match csr {
-            // CONTROL is write-only and reads 0: no bus access needed.
-            Csr::Control => 0,
+            // CONTROL registers are write-only and read 0: no bus access.
+            Csr::Control | Csr::FrameControl => 0,
             Csr::Status => c.status.read(),
             Csr::RowY => c.row_y.read(),
             Csr::LightX => c.light_x.read(),
             Csr::LightY => c.light_y.read(),
             Csr::LightZ => c.light_z.read(),
             Csr::Id => c.id.read(),
+            Csr::FrameBase => c.frame_base.read(),
+            Csr::FrameStatus => c.frame_status.read(),
+            Csr::RowsDone => c.rows_done.read(),
         }
     }
 
@@ -151,7 +166,9 @@ impl RegisterPort for MmioPort {
                 Csr::LightY => c.light_y.write(value),
                 Csr::LightZ => c.light_z.write(value),
                 // Read-only registers ignore writes: skip the bus access.
-                Csr::Status | Csr::Id => {}
+                Csr::FrameBase => c.frame_base.write(value),
+                Csr::FrameControl => c.frame_control.write(value),
+                Csr::Status | Csr::Id | Csr::FrameStatus | Csr::RowsDone => {}
             }
         }
     }

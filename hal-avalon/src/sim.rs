@@ -12,6 +12,13 @@
 //!   set, which a finished row never has), so a premature read cannot pass
 //!   for a row.
 //!
+//! Frame mode writes each row's RGB888 bytes into a [`DmaTarget`] (host
+//! memory in hps-sim, the firmware's frame ring under QEMU) before counting
+//! it in ROWS_DONE, as the RTL counts a row only after its write responses;
+//! each FRAME_STATUS, ROWS_DONE or STATUS read lets
+//! [`frame_rows_per_poll`](SimAccelerator::frame_rows_per_poll) more rows
+//! land.
+//!
 //! [`Fault`] injects the failures the driver must survive. No `std`, no
 //! allocation.
 
@@ -19,8 +26,10 @@ use embedded_hal::delay::DelayNs;
 use model::Light;
 
 use crate::map::{
-    light_from_register, Csr, BUS_ALL_ONES, CONTROL_CLEAR_DONE, CONTROL_START, CSR_OFFSET, CSR_WINDOW, ID_VALUE,
-    LIGHT_MASK, LINE_BUFFER_OFFSET, LINE_WORDS, ROW_Y_MASK, STATUS_BUSY, STATUS_DONE,
+    light_from_register, Csr, BUS_ALL_ONES, CONTROL_CLEAR_DONE, CONTROL_START, CSR_OFFSET, CSR_WINDOW, FRAME_BASE_MASK,
+    FRAME_CONTROL_CLEAR_DONE, FRAME_CONTROL_START, FRAME_ROW_BYTES, FRAME_STATUS_BUSY, FRAME_STATUS_DONE,
+    FRAME_STATUS_ERROR, ID_VALUE, LIGHT_MASK, LINE_BUFFER_OFFSET, LINE_WORDS, ROWS, ROW_Y_MASK, STATUS_BUSY,
+    STATUS_DONE,
 };
 use crate::port::RegisterPort;
 
@@ -31,23 +40,49 @@ pub const LINE_POISON: u32 = 0xBAD0_0000;
 /// STATUS reads a row stays busy for unless configured otherwise.
 pub const DEFAULT_BUSY_POLLS: u32 = 3;
 
+/// Rows of a frame that land per status read unless configured otherwise.
+pub const DEFAULT_FRAME_ROWS_PER_POLL: u16 = 12;
+
+/// Memory the simulated frame DMA writes into.
+pub trait DmaTarget {
+    /// Write `bytes` at bus address `addr`; `false` if no memory answers
+    /// there (the RTL's bus error).
+    fn write(&mut self, addr: u32, bytes: &[u8]) -> bool;
+}
+
+/// No memory behind the DMA: every frame write fails.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
+pub struct NoMemory;
+
+impl DmaTarget for NoMemory {
+    fn write(&mut self, _addr: u32, _bytes: &[u8]) -> bool {
+        false
+    }
+}
+
+impl<T: DmaTarget + ?Sized> DmaTarget for &mut T {
+    fn write(&mut self, addr: u32, bytes: &[u8]) -> bool {
+        (**self).write(addr, bytes)
+    }
+}
+
 /// An injected failure.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub enum Fault {
-    /// A row in progress never finishes: busy stays set. Clearing the fault
-    /// lets it run on from where it stopped.
+    /// A row or frame in progress never finishes: busy stays set. Clearing
+    /// the fault lets it run on from where it stopped.
     StuckBusy,
     /// Nothing answers: every read returns all ones, writes are lost (an
     /// empty fabric or a bridge that fails reads).
     Absent,
-    /// Rows finish (busy clears, the line buffer is written) but done is
-    /// never set.
+    /// Rows and frames finish (busy clears, the line buffer or memory is
+    /// written) but done is never set.
     DoneNeverSet,
 }
 
-/// The simulated accelerator.
+/// The simulated accelerator, its frame DMA writing into `M`.
 #[derive(Clone, Debug)]
-pub struct SimAccelerator {
+pub struct SimAccelerator<M = NoMemory> {
     /// ROW_Y as stored (9 bits).
     row_y: u32,
     /// LIGHT_X/Y/Z as stored (24 bits each).
@@ -61,10 +96,30 @@ pub struct SimAccelerator {
     polls_left: u32,
     busy_polls: u32,
     line: [u32; LINE_WORDS],
+    frame: FrameState,
+    frame_rows_per_poll: u16,
+    mem: M,
     fault: Option<Fault>,
     status_reads: u32,
     starts: u32,
     rows_finished: u32,
+    frames_started: u32,
+}
+
+/// Frame mode's registers and progress.
+#[derive(Clone, Copy, Debug, Default)]
+struct FrameState {
+    /// FRAME_BASE as stored.
+    base: u32,
+    latched_base: u32,
+    latched_light: [u32; 3],
+    busy: bool,
+    done: bool,
+    error: bool,
+    /// Rows rendered (and written) so far.
+    next_row: u16,
+    /// Rows that landed before any failure.
+    rows_done: u16,
 }
 
 impl Default for SimAccelerator {
@@ -75,7 +130,7 @@ impl Default for SimAccelerator {
 
 impl SimAccelerator {
     /// A device just out of reset, busy for [`DEFAULT_BUSY_POLLS`] polls per
-    /// row, no fault.
+    /// row, no fault, no memory behind its frame DMA.
     pub const fn new() -> SimAccelerator {
         SimAccelerator::with_busy_polls(DEFAULT_BUSY_POLLS)
     }
@@ -83,6 +138,14 @@ impl SimAccelerator {
     /// A device just out of reset whose rows stay busy for `busy_polls`
     /// STATUS reads (0: done on the first read after the start).
     pub const fn with_busy_polls(busy_polls: u32) -> SimAccelerator {
+        SimAccelerator::with_memory(NoMemory, busy_polls)
+    }
+}
+
+impl<M: DmaTarget> SimAccelerator<M> {
+    /// A device just out of reset whose frame DMA writes into `mem` and whose
+    /// rows stay busy for `busy_polls` STATUS reads.
+    pub const fn with_memory(mem: M, busy_polls: u32) -> SimAccelerator<M> {
         SimAccelerator {
             row_y: 0,
             light: [0; 3],
@@ -93,23 +156,39 @@ impl SimAccelerator {
             polls_left: 0,
             busy_polls,
             line: [0; LINE_WORDS],
+            frame: FrameState {
+                base: 0,
+                latched_base: 0,
+                latched_light: [0; 3],
+                busy: false,
+                done: false,
+                error: false,
+                next_row: 0,
+                rows_done: 0,
+            },
+            frame_rows_per_poll: DEFAULT_FRAME_ROWS_PER_POLL,
+            mem,
             fault: None,
             status_reads: 0,
             starts: 0,
             rows_finished: 0,
+            frames_started: 0,
         }
     }
 
     /// Reset every register and the line buffer to the power-on state; the
-    /// configuration (busy polls, fault) and the counters are kept.
+    /// configuration (busy polls, rows per poll, fault), the memory and the
+    /// counters are kept.
     pub fn reset(&mut self) {
-        *self = SimAccelerator {
-            fault: self.fault,
-            status_reads: self.status_reads,
-            starts: self.starts,
-            rows_finished: self.rows_finished,
-            ..SimAccelerator::with_busy_polls(self.busy_polls)
-        };
+        self.row_y = 0;
+        self.light = [0; 3];
+        self.latched_row_y = 0;
+        self.latched_light = [0; 3];
+        self.busy = false;
+        self.done = false;
+        self.polls_left = 0;
+        self.line = [0; LINE_WORDS];
+        self.frame = FrameState::default();
     }
 
     /// STATUS reads a row stays busy for.
@@ -121,6 +200,26 @@ impl SimAccelerator {
     /// progress keeps its count).
     pub fn set_busy_polls(&mut self, busy_polls: u32) {
         self.busy_polls = busy_polls;
+    }
+
+    /// Rows of a frame that land per status read.
+    pub fn frame_rows_per_poll(&self) -> u16 {
+        self.frame_rows_per_poll
+    }
+
+    /// Change how many rows of a frame land per status read (at least 1).
+    pub fn set_frame_rows_per_poll(&mut self, rows: u16) {
+        self.frame_rows_per_poll = rows.max(1);
+    }
+
+    /// The memory behind the frame DMA.
+    pub fn memory(&self) -> &M {
+        &self.mem
+    }
+
+    /// The memory behind the frame DMA, mutably.
+    pub fn memory_mut(&mut self) -> &mut M {
+        &mut self.mem
     }
 
     /// The injected fault, if any.
@@ -138,23 +237,28 @@ impl SimAccelerator {
         self.status_reads
     }
 
-    /// Starts accepted so far (a start while busy is not counted).
+    /// Row starts accepted so far (a start while busy is not counted).
     pub fn starts(&self) -> u32 {
         self.starts
     }
 
-    /// Rows finished so far.
+    /// Rows finished so far (row mode).
     pub fn rows_finished(&self) -> u32 {
         self.rows_finished
     }
 
-    /// Whether a row is in progress (without counting as a STATUS poll).
+    /// Frame starts accepted so far.
+    pub fn frames_started(&self) -> u32 {
+        self.frames_started
+    }
+
+    /// Whether a row or a frame is in progress (without counting as a poll).
     pub fn is_busy(&self) -> bool {
-        self.busy
+        self.busy || self.frame.busy
     }
 
     /// A 32-bit read at byte offset `offset` of the bridge window (low two
-    /// bits ignored). Offsets outside the seven registers and the 480
+    /// bits ignored). Offsets outside the eleven registers and the 480
     /// line-buffer words read 0.
     pub fn bus_read(&mut self, offset: usize) -> u32 {
         let offset = offset & !3;
@@ -178,7 +282,8 @@ impl SimAccelerator {
     }
 
     /// A 32-bit write at byte offset `offset` of the bridge window (low two
-    /// bits ignored). Only CONTROL, ROW_Y and LIGHT_* take writes.
+    /// bits ignored). Only CONTROL, ROW_Y, LIGHT_*, FRAME_BASE and
+    /// FRAME_CONTROL take writes.
     pub fn bus_write(&mut self, offset: usize, value: u32) {
         if self.fault == Some(Fault::Absent) {
             return;
@@ -192,28 +297,45 @@ impl SimAccelerator {
             Csr::LightX => self.light[0] = value & LIGHT_MASK,
             Csr::LightY => self.light[1] = value & LIGHT_MASK,
             Csr::LightZ => self.light[2] = value & LIGHT_MASK,
-            Csr::Status | Csr::Id => {}
+            Csr::FrameBase => self.frame.base = value & FRAME_BASE_MASK,
+            Csr::FrameControl => self.frame_control(value),
+            Csr::Status | Csr::Id | Csr::FrameStatus | Csr::RowsDone => {}
         }
     }
 
     fn read_csr(&mut self, csr: Csr) -> u32 {
         match csr {
-            Csr::Control => 0,
-            Csr::Status => self.poll_status(),
+            Csr::Control | Csr::FrameControl => 0,
+            Csr::Status => {
+                self.advance_frame();
+                self.poll_status()
+            }
             Csr::RowY => self.row_y,
             Csr::LightX => light_from_register(self.light[0]) as u32,
             Csr::LightY => light_from_register(self.light[1]) as u32,
             Csr::LightZ => light_from_register(self.light[2]) as u32,
             Csr::Id => ID_VALUE,
+            Csr::FrameBase => self.frame.base,
+            Csr::FrameStatus => {
+                self.advance_frame();
+                let f = &self.frame;
+                (if f.busy { FRAME_STATUS_BUSY } else { 0 })
+                    | (if f.done { FRAME_STATUS_DONE } else { 0 })
+                    | (if f.error { FRAME_STATUS_ERROR } else { 0 })
+            }
+            Csr::RowsDone => {
+                self.advance_frame();
+                u32::from(self.frame.rows_done)
+            }
         }
     }
 
-    /// A CONTROL write: start wins over clear_done; a start while busy is
-    /// ignored; done is always 0 while busy, so clear_done needs no busy
-    /// check.
+    /// A CONTROL write: start wins over clear_done; a start while busy (a
+    /// row or a frame) is ignored; done is always 0 while busy, so
+    /// clear_done needs no busy check.
     fn control(&mut self, value: u32) {
         if value & CONTROL_START != 0 {
-            if !self.busy {
+            if !self.is_busy() {
                 self.latched_row_y = self.row_y;
                 self.latched_light = self.light;
                 self.busy = true;
@@ -226,6 +348,66 @@ impl SimAccelerator {
         }
     }
 
+    /// A FRAME_CONTROL write: start a frame when idle, or clear frame done.
+    fn frame_control(&mut self, value: u32) {
+        if value & FRAME_CONTROL_START != 0 {
+            if !self.is_busy() {
+                self.frame = FrameState {
+                    base: self.frame.base,
+                    latched_base: self.frame.base,
+                    latched_light: self.light,
+                    busy: true,
+                    done: false,
+                    error: false,
+                    next_row: 0,
+                    rows_done: 0,
+                };
+                self.frames_started = self.frames_started.wrapping_add(1);
+            }
+        } else if value & FRAME_CONTROL_CLEAR_DONE != 0 {
+            self.frame.done = false;
+        }
+    }
+
+    /// One status read's worth of frame progress: up to
+    /// `frame_rows_per_poll` rows rendered, written to memory, then counted.
+    fn advance_frame(&mut self) {
+        if !self.frame.busy || self.fault == Some(Fault::StuckBusy) {
+            return;
+        }
+        let [x, y, z] = self.frame.latched_light.map(light_from_register);
+        // A sign-extended 24-bit value is always a valid word; should that
+        // ever fail, the frame ends in an error instead of a panic.
+        let light = Light::from_raw(x, y, z).ok();
+        let mut words = [0u32; LINE_WORDS];
+        let mut bytes = [0u8; model::ROW_BYTES];
+        for _ in 0..self.frame_rows_per_poll {
+            let y = self.frame.next_row;
+            if y >= ROWS {
+                break;
+            }
+            let addr = self.frame.latched_base.wrapping_add(u32::from(y) * FRAME_ROW_BYTES);
+            let landed = match &light {
+                Some(l) => {
+                    model::render_row(y, l, &mut words);
+                    model::row_to_rgb888(&words, &mut bytes);
+                    self.mem.write(addr, &bytes)
+                }
+                None => false,
+            };
+            if !landed {
+                self.frame.error = true;
+            } else if !self.frame.error {
+                self.frame.rows_done += 1;
+            }
+            self.frame.next_row = y + 1;
+        }
+        if self.frame.next_row >= ROWS {
+            self.frame.busy = false;
+            self.frame.done = !self.frame.error && self.fault != Some(Fault::DoneNeverSet);
+        }
+    }
+
     /// One STATUS read: time passes for the row in progress.
     fn poll_status(&mut self) -> u32 {
         if self.busy && self.fault != Some(Fault::StuckBusy) {
@@ -235,7 +417,7 @@ impl SimAccelerator {
                 self.polls_left -= 1;
             }
         }
-        (if self.busy { STATUS_BUSY } else { 0 }) | (if self.done { STATUS_DONE } else { 0 })
+        (if self.is_busy() { STATUS_BUSY } else { 0 }) | (if self.done { STATUS_DONE } else { 0 })
     }
 
     fn finish_row(&mut self) {
@@ -267,7 +449,7 @@ fn line_word_index(offset: usize) -> Option<usize> {
     offset.checked_sub(LINE_BUFFER_OFFSET).map(|rel| rel / 4).filter(|x| *x < LINE_WORDS)
 }
 
-impl RegisterPort for SimAccelerator {
+impl<M: DmaTarget> RegisterPort for SimAccelerator<M> {
     fn read(&mut self, csr: Csr) -> u32 {
         self.bus_read(CSR_OFFSET + csr.offset())
     }

@@ -3,7 +3,7 @@
 
 use hal_avalon::map::{line_word_offset, Csr, CONTROL_CLEAR_DONE, CONTROL_START, LINE_WORDS, ROWS, STATUS_BUSY};
 use hal_avalon::sim::{CountingDelay, Fault, SimAccelerator, LINE_POISON};
-use hal_avalon::{Accelerator, Error, PollTimeout, RegisterPort};
+use hal_avalon::{Accelerator, Capabilities, Error, PollTimeout, RegisterPort};
 use model::light::Axis;
 use model::Light;
 
@@ -96,19 +96,24 @@ fn rows_past_the_frame_are_refused_before_any_access() {
 }
 
 #[test]
-fn absent_device_is_not_present_without_writes_or_polls() {
+fn absent_device_is_not_present_and_rows_fail_without_writes() {
     let mut accel = driver(2);
     accel.port_mut().set_fault(Some(Fault::Absent));
     let mut row = [0; LINE_WORDS];
     assert_eq!(accel.probe(), Err(Error::NotPresent { id: 0xFFFF_FFFF }));
-    assert_eq!(accel.run_row(5, &lights()[1], &mut row), Err(Error::NotPresent { id: 0xFFFF_FFFF }));
-    assert_eq!(accel.port().status_reads(), 0);
+    // No ID read per row: the vanished device shows in STATUS, before any write.
+    assert_eq!(
+        accel.run_row(5, &lights()[1], &mut row),
+        Err(Error::BusFault { offset: Csr::Status.offset(), value: 0xFFFF_FFFF })
+    );
+    assert_eq!(accel.port().status_reads(), 1);
     assert_eq!(accel.delay().calls, 0);
     // Once the fabric is configured, the same driver works.
     accel.port_mut().set_fault(None);
-    assert_eq!(accel.probe(), Ok(()));
+    assert_eq!(accel.probe(), Ok(Capabilities { version: 2 }));
     accel.run_row(5, &lights()[1], &mut row).unwrap();
     assert_eq!(row, model_row(5, &lights()[1]));
+    assert_eq!(accel.port().starts(), 1, "the failed row never started");
 }
 
 /// A port that reads a different ID: another design, or another version.
@@ -130,15 +135,22 @@ impl RegisterPort for OtherId {
 }
 
 #[test]
-fn id_mismatch_is_not_present() {
-    for id in [0, 0x5254_0000, 0x5254_0002, 0x5255_0001, 0x0001_5254] {
+fn id_mismatch_is_not_present_and_version_1_has_no_frames() {
+    for id in [0, 0x5254_0000, 0x5255_0001, 0x0001_5254, 0xFFFF_FFFF] {
         let mut accel =
             Accelerator::new(OtherId(SimAccelerator::new(), id), CountingDelay::default(), PollTimeout::DEFAULT);
-        let mut row = [0; LINE_WORDS];
-        assert_eq!(accel.run_row(0, &lights()[0], &mut row), Err(Error::NotPresent { id }));
+        assert_eq!(accel.probe(), Err(Error::NotPresent { id }));
         assert_eq!(accel.port().0.status_reads(), 0);
         assert_eq!(accel.port_mut().0.read(Csr::RowY), 0, "nothing written");
     }
+    let mut v1 =
+        Accelerator::new(OtherId(SimAccelerator::new(), 0x5254_0001), CountingDelay::default(), PollTimeout::DEFAULT);
+    let caps = v1.probe().unwrap();
+    assert_eq!((caps.version, caps.frames()), (1, false));
+    assert_eq!(v1.start_frame(0x1000, &lights()[0]), Err(Error::NoFrameMode { version: 1 }));
+    let mut row = [0; LINE_WORDS];
+    v1.run_row(7, &lights()[0], &mut row).unwrap();
+    assert_eq!(row, model_row(7, &lights()[0]), "version 1 still renders rows");
 }
 
 #[test]
@@ -260,8 +272,8 @@ fn protocol_on_the_bus() {
     let mut row = [0; LINE_WORDS];
     accel.run_row(359, &l, &mut row).unwrap();
     use Csr::*;
+    // No ID read: the driver probes once, not per row.
     let expected = [
-        ('R', Id, 0x5254_0001),
         ('R', Status, 0),
         ('W', RowY, 359),
         ('W', LightX, 0x00FF_FFFF),
@@ -281,8 +293,8 @@ fn protocol_on_the_bus() {
     // before the start, and the new row (not the stale one) comes back.
     accel.port_mut().log.clear();
     accel.run_row(0, &l, &mut row).unwrap();
-    assert_eq!(accel.port().log[1], ('R', Status, hal_avalon::map::STATUS_DONE));
-    assert_eq!(accel.port().log[6], ('W', Control, CONTROL_CLEAR_DONE));
+    assert_eq!(accel.port().log[0], ('R', Status, hal_avalon::map::STATUS_DONE));
+    assert_eq!(accel.port().log[5], ('W', Control, CONTROL_CLEAR_DONE));
     assert_eq!(row, model_row(0, &l));
 }
 

@@ -69,7 +69,7 @@ fn reset_state() {
     for off in LIGHT {
         assert_eq!(sim.bus_read(off), 0);
     }
-    assert_eq!(sim.bus_read(ID), 0x5254_0001);
+    assert_eq!(sim.bus_read(ID), 0x5254_0002);
     assert_eq!(read_line(&mut sim), [0; LINE_WORDS]);
 }
 
@@ -77,7 +77,7 @@ fn reset_state() {
 fn unmapped_offsets_read_zero_and_ignore_writes() {
     let mut sim = device_with_done();
     let line_before = read_line(&mut sim);
-    for off in (0x1C..CSR_WINDOW).step_by(4).chain([line_word_offset(LINE_WORDS), 0x1FFC, 0x10_0000]) {
+    for off in (0x2C..CSR_WINDOW).step_by(4).chain([line_word_offset(LINE_WORDS), 0x1FFC, 0x10_0000]) {
         sim.bus_write(off, 0xFFFF_FFFF);
         assert_eq!(sim.bus_read(off), 0, "offset {off:#x}");
     }
@@ -101,7 +101,7 @@ fn id_is_fixed_and_ignores_writes() {
     sim.bus_write(ID, 0xFFFF_FFFF);
     assert_eq!(sim.bus_read(ID), ID_VALUE);
     assert_eq!(sim.bus_read(ID) >> 16, 0x5254);
-    assert_eq!(sim.bus_read(ID) & 0xFFFF, 1);
+    assert_eq!(sim.bus_read(ID) & 0xFFFF, 2);
 }
 
 #[test]

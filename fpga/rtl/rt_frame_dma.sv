@@ -1,0 +1,307 @@
+// Frame DMA: writes each finished row of a frame as packed RGB888 wire bytes
+// (1,440 bytes, pixel 0's R at the lowest address) to base + row * 1440
+// through a 64-bit AXI3 write master (the HPS FPGA-to-SDRAM port,
+// docs/frame-dma.md).
+//
+// * Rows arrive in order from the scheduler, row r in line-buffer slot
+//   r % LbSlots; the packer reads one pixel per clock, turns 8 pixels into
+//   3 beats, and gives the slot back as soon as it has read it, so the
+//   scheduler renders rows k + 1 .. k + 3 while row k is written.
+// * Bursts of at most 16 beats never cross a 128-byte boundary (so never a
+//   4 KiB one, AXI3 A3.4.1) nor a row end; AW and W walk the same burst
+//   sequence, AW only for rows whose data is being packed, at most
+//   MaxBursts outstanding.
+// * rows_landed_o counts rows whose every burst has its write response:
+//   the AXI FPGA-to-SDRAM port answers once the write is ordered before any
+//   later access to the same address (Intel EMIF handbook, "MPFE operation
+//   ordering"), so the counter never runs ahead of data the CPU can read.
+// * A response other than OKAY sets error_o (sticky until the next frame)
+//   and freezes rows_landed_o; the frame still runs to its end, so busy
+//   always clears. done_o is set in the same clock as busy clears when no
+//   response failed (sticky until the next frame or clear_done_i).
+module rt_frame_dma
+  import rt_pkg::*;
+#(
+  parameter int unsigned LANES = 1,
+  localparam int unsigned PerLane = Width / LANES,
+  localparam int unsigned IdxW = $clog2(PerLane),
+  localparam int unsigned BankAw = SlotW + IdxW
+) (
+  input  logic              clk_i,
+  input  logic              rst_ni,
+  input  logic              start_i,         // a frame starts (scheduler idle)
+  input  logic [31:3]       base_i,          // byte address / 8
+  input  logic              clear_done_i,    // FRAME_CONTROL clear_done
+  input  logic              row_done_i,      // the scheduler wrote a row ...
+  input  slot_t             row_done_slot_i, // ... into this slot
+  output logic [LbSlots-1:0] slot_release_o, // the packer has read a slot
+  output logic [BankAw-1:0] lb_raddr_o,      // line-buffer read, all banks
+  input  rgb_t [LANES-1:0]  lb_rdata_i,
+  output logic              busy_o,
+  output logic              done_o,
+  output row_t              rows_landed_o,
+  output logic              error_o,
+  // AXI3 write master (no read channels)
+  output logic [31:0]       awaddr_o,
+  output logic [3:0]        awlen_o,
+  output logic [2:0]        awsize_o,
+  output logic [1:0]        awburst_o,
+  output logic [3:0]        awcache_o,
+  output logic [2:0]        awprot_o,
+  output logic              awvalid_o,
+  input  logic              awready_i,
+  output logic [63:0]       wdata_o,
+  output logic [7:0]        wstrb_o,
+  output logic              wlast_o,
+  output logic              wvalid_o,
+  input  logic              wready_i,
+  input  logic [1:0]        bresp_i,
+  input  logic              bvalid_i,
+  output logic              bready_o
+);
+  localparam int unsigned LaneBits = $clog2(LANES);
+  localparam int unsigned MaxBursts = 16;
+  localparam int unsigned FifoDepth = 8;
+
+  logic active_q, done_q;
+
+  // ---- Rows waiting in the line buffer ---------------------------------------
+  logic [LbSlots-1:0] filled_q;  // slot holds a finished row not yet packed
+  slot_t pslot_q;             // slot the packer reads
+  row_t prow_q;               // row the packer reads (rows before it are packed)
+  logic [9:0] px_q;           // pixel reads issued in the row
+  logic rd_q;                 // a read was issued last clock ...
+  logic [LaneBits > 0 ? LaneBits - 1 : 0 : 0] rd_lane_q;  // ... from this bank
+  logic rd_last_q;            // ... and it was the row's last pixel
+
+  // ---- Packer and beat FIFO ------------------------------------------------------
+  logic [127:0] acc_q;        // bytes in stream order, lowest first
+  logic [4:0] acc_n_q;        // valid bytes in acc_q (0..10)
+  logic [63:0] fifo_q [FifoDepth];
+  logic [$clog2(FifoDepth):0] fifo_n_q;
+  logic [$clog2(FifoDepth)-1:0] fifo_rd_q, fifo_wr_q;
+
+  logic can_read, push, pop;
+  assign can_read = active_q && filled_q[pslot_q] && (px_q < 10'(Width))
+                    && (fifo_n_q < ($clog2(FifoDepth)+1)'(FifoDepth - 2));
+  assign lb_raddr_o = {pslot_q, IdxW'(px_q >> LaneBits)};
+
+  rgb_t rd_pixel;
+  always_comb begin
+    rd_pixel = lb_rdata_i[0];
+    for (int l = 0; l < int'(LANES); l++) if (LaneBits > 0 && rd_lane_q == $bits(rd_lane_q)'(l)) rd_pixel = lb_rdata_i[l];
+  end
+
+  // Append R, G, B at the next three byte positions; a full beat leaves.
+  logic [127:0] acc_in;
+  logic [4:0] acc_n_in;
+  always_comb begin
+    acc_in = acc_q;
+    acc_n_in = acc_n_q;
+    if (rd_q) begin
+      acc_in = acc_q | (128'({rd_pixel.b, rd_pixel.g, rd_pixel.r}) << (8 * acc_n_q));
+      acc_n_in = acc_n_q + 5'd3;
+    end
+  end
+  assign push = acc_n_in >= 5'd8;
+
+  // ---- Burst walk, shared by AW and W -------------------------------------------
+  // A burst starts at row beat `inrow` of a row, at beat `beat16` of its
+  // 128-byte block (byte address bits 6:3).
+  function automatic logic [4:0] burst_len(input logic [3:0] beat16, input logic [7:0] inrow);
+    logic [4:0] to_boundary;
+    logic [7:0] to_row_end;
+    to_boundary = 5'(BurstBeats) - 5'(beat16);
+    to_row_end = 8'(RowBeats) - inrow;
+    return (8'(to_boundary) < to_row_end) ? to_boundary : to_row_end[4:0];
+  endfunction
+
+  // AW side
+  logic [31:0] aw_addr_q;
+  logic [7:0] aw_inrow_q;
+  row_t aw_row_q;
+  logic aw_pending_q;          // awvalid held
+  logic [4:0] aw_len_q;
+  logic aw_last_of_row_q;
+  logic [$clog2(MaxBursts):0] outstanding_q;
+  // B bookkeeping: one entry per outstanding burst, "last burst of its row".
+  logic [MaxBursts-1:0] blast_q;
+  logic [$clog2(MaxBursts)-1:0] b_wr_q, b_rd_q;
+
+  // AW only for rows whose data is packed or in the line buffer.
+  logic aw_may;
+  assign aw_may = active_q && !aw_pending_q && (aw_row_q < row_t'(Height))
+                  && (aw_row_q < prow_q || (aw_row_q == prow_q && filled_q[pslot_q]))
+                  && (outstanding_q < ($clog2(MaxBursts)+1)'(MaxBursts));
+  // Beats whose burst address was accepted, and beats sent: W never runs
+  // ahead of AW (allowed by AXI3, but not needed and not every slave likes it).
+  logic [16:0] aw_beats_q, w_beats_q;
+
+  // W side
+  logic [31:0] w_addr_q;
+  logic [7:0] w_inrow_q;
+  logic [4:0] w_left_q;        // beats left in the open burst (0: none open)
+  logic [4:0] w_len_now;
+  assign w_len_now = (w_left_q != 0) ? w_left_q : burst_len(w_addr_q[6:3], w_inrow_q);
+  assign wvalid_o = active_q && (fifo_n_q != 0) && (w_beats_q < aw_beats_q);
+  assign wdata_o = fifo_q[fifo_rd_q];
+  assign wstrb_o = 8'hff;
+  assign wlast_o = (w_len_now == 5'd1);
+  assign pop = wvalid_o && wready_i;
+
+  // B side
+  row_t rows_acked_q;          // rows whose bursts all answered (errors too)
+  row_t rows_landed_q;
+  logic error_q;
+  assign bready_o = 1'b1;
+  logic b_fire;
+  assign b_fire = bvalid_i && (outstanding_q != 0);
+
+  always_ff @(posedge clk_i or negedge rst_ni) begin
+    if (!rst_ni) begin
+      active_q <= 1'b0;
+      done_q <= 1'b0;
+      filled_q <= '0;
+      pslot_q <= '0;
+      prow_q <= '0;
+      px_q <= '0;
+      rd_q <= 1'b0;
+      rd_lane_q <= '0;
+      rd_last_q <= 1'b0;
+      acc_q <= '0;
+      acc_n_q <= '0;
+      fifo_n_q <= '0;
+      fifo_rd_q <= '0;
+      fifo_wr_q <= '0;
+      aw_addr_q <= '0;
+      aw_inrow_q <= '0;
+      aw_row_q <= '0;
+      aw_pending_q <= 1'b0;
+      aw_len_q <= '0;
+      aw_last_of_row_q <= 1'b0;
+      outstanding_q <= '0;
+      blast_q <= '0;
+      b_wr_q <= '0;
+      b_rd_q <= '0;
+      w_addr_q <= '0;
+      w_inrow_q <= '0;
+      w_left_q <= '0;
+      aw_beats_q <= '0;
+      w_beats_q <= '0;
+      rows_acked_q <= '0;
+      rows_landed_q <= '0;
+      error_q <= 1'b0;
+    end else if (start_i && !active_q) begin
+      active_q <= 1'b1;
+      done_q <= 1'b0;
+      filled_q <= '0;
+      pslot_q <= '0;
+      prow_q <= '0;
+      px_q <= '0;
+      rd_q <= 1'b0;
+      acc_q <= '0;
+      acc_n_q <= '0;
+      fifo_n_q <= '0;
+      fifo_rd_q <= '0;
+      fifo_wr_q <= '0;
+      aw_addr_q <= {base_i, 3'b000};
+      aw_inrow_q <= '0;
+      aw_row_q <= '0;
+      aw_pending_q <= 1'b0;
+      outstanding_q <= '0;
+      b_wr_q <= '0;
+      b_rd_q <= '0;
+      w_addr_q <= {base_i, 3'b000};
+      w_inrow_q <= '0;
+      w_left_q <= '0;
+      aw_beats_q <= '0;
+      w_beats_q <= '0;
+      rows_acked_q <= '0;
+      rows_landed_q <= '0;
+      error_q <= 1'b0;
+    end else if (!active_q) begin
+      if (clear_done_i) done_q <= 1'b0;
+    end else begin
+      // Rows finished by the scheduler.
+      if (row_done_i) filled_q[row_done_slot_i] <= 1'b1;
+
+      // Packer reads.
+      rd_q <= can_read;
+      rd_lane_q <= px_q[LaneBits > 0 ? LaneBits - 1 : 0 : 0];
+      rd_last_q <= can_read && (px_q == 10'(Width - 1));
+      if (can_read) px_q <= px_q + 10'd1;
+      if (rd_last_q) begin
+        // The row's last pixel is in the packer: the slot is free again.
+        filled_q[pslot_q] <= row_done_i && (row_done_slot_i == pslot_q);
+        pslot_q <= pslot_q + slot_t'(1);
+        prow_q <= prow_q + row_t'(1);
+        px_q <= '0;
+      end
+      acc_q <= push ? (acc_in >> 64) : acc_in;
+      acc_n_q <= push ? (acc_n_in - 5'd8) : acc_n_in;
+      if (push) begin
+        fifo_q[fifo_wr_q] <= acc_in[63:0];
+        fifo_wr_q <= fifo_wr_q + 1'b1;
+      end
+      if (pop) fifo_rd_q <= fifo_rd_q + 1'b1;
+      fifo_n_q <= fifo_n_q + ($clog2(FifoDepth)+1)'(push) - ($clog2(FifoDepth)+1)'(pop);
+
+      // AW: one burst at a time, held until accepted.
+      if (aw_may) begin
+        aw_pending_q <= 1'b1;
+        aw_len_q <= burst_len(aw_addr_q[6:3], aw_inrow_q);
+        aw_last_of_row_q <= (aw_inrow_q + 8'(burst_len(aw_addr_q[6:3], aw_inrow_q))) == 8'(RowBeats);
+      end
+      if (awvalid_o && awready_i) begin
+        aw_pending_q <= 1'b0;
+        aw_beats_q <= aw_beats_q + 17'(aw_len_q);
+        blast_q[b_wr_q] <= aw_last_of_row_q;
+        b_wr_q <= b_wr_q + 1'b1;
+        aw_addr_q <= aw_addr_q + 32'(aw_len_q) * 32'd8;
+        if (aw_last_of_row_q) begin
+          aw_inrow_q <= '0;
+          aw_row_q <= aw_row_q + row_t'(1);
+        end else begin
+          aw_inrow_q <= aw_inrow_q + 8'(aw_len_q);
+        end
+      end
+      outstanding_q <= outstanding_q + ($clog2(MaxBursts)+1)'(awvalid_o && awready_i)
+                                     - ($clog2(MaxBursts)+1)'(b_fire);
+
+      // W: walk the same bursts as AW.
+      if (pop) begin
+        w_beats_q <= w_beats_q + 17'd1;
+        w_left_q <= w_len_now - 5'd1;
+        w_addr_q <= w_addr_q + 32'd8;
+        w_inrow_q <= (w_inrow_q == 8'(RowBeats - 1)) ? 8'd0 : w_inrow_q + 8'd1;
+      end
+
+      // B: count rows; an error freezes the landed count.
+      if (b_fire) begin
+        b_rd_q <= b_rd_q + 1'b1;
+        if (bresp_i != 2'b00) error_q <= 1'b1;
+        if (blast_q[b_rd_q]) begin
+          rows_acked_q <= rows_acked_q + row_t'(1);
+          if (!error_q && bresp_i == 2'b00) rows_landed_q <= rows_landed_q + row_t'(1);
+          if (rows_acked_q == row_t'(Height - 1)) begin
+            active_q <= 1'b0;
+            done_q <= !error_q && bresp_i == 2'b00;
+          end
+        end
+      end
+    end
+  end
+
+  assign slot_release_o = rd_last_q ? (LbSlots'(1) << pslot_q) : '0;
+  assign awaddr_o = aw_addr_q;
+  assign awlen_o = 4'(aw_len_q - 5'd1);
+  assign awsize_o = 3'b011;     // 8 bytes per beat
+  assign awburst_o = 2'b01;     // INCR
+  assign awcache_o = 4'b0000;   // device non-bufferable: the response comes from the end point
+  assign awprot_o = 3'b000;
+  assign awvalid_o = aw_pending_q;
+  assign busy_o = active_q;
+  assign done_o = done_q;
+  assign rows_landed_o = rows_landed_q;
+  assign error_o = error_q;
+endmodule
