@@ -6,12 +6,18 @@ use std::net::{Shutdown, SocketAddr, TcpStream};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use hps_sim::HpsSim;
+use hps_sim::{HpsSim, RenderMode};
 use model::{render_frame, Light, FRAME_BYTES};
 use rt_protocol::{encode_raw_request, encode_request};
 
 fn sim() -> HpsSim {
     HpsSim::start("127.0.0.1:0".parse().expect("address")).expect("hps-sim starts")
+}
+
+/// The simulated board in both modes: frame DMA into memory, and rows.
+fn sims() -> [(RenderMode, HpsSim); 2] {
+    [RenderMode::Frames, RenderMode::Rows]
+        .map(|m| (m, HpsSim::start_with("127.0.0.1:0".parse().expect("address"), m, false).expect("hps-sim starts")))
 }
 
 fn light(x: f64, y: f64, z: f64) -> Light {
@@ -41,59 +47,63 @@ fn raw_request(x: i32, y: i32, z: i32) -> [u8; 12] {
 
 #[test]
 fn seed_port_is_byte_exact_for_several_lights() {
-    let sim = sim();
-    for l in [light(3.0, 4.0, -2.0), light(-2.5, 1.5, 1.5), light(1500.0, 2000.0, -1000.0)] {
-        let mut s = connect(sim.frame_addr());
-        s.write_all(&encode_request(&l)).expect("send request");
-        let got = read_all(s);
-        assert_eq!(got.len(), 518_400, "12 bytes in, 518,400 out, then EOF");
-        assert!(got == model_frame(&l), "frame equals the model for {l:?}");
+    for (mode, sim) in sims() {
+        for l in [light(3.0, 4.0, -2.0), light(-2.5, 1.5, 1.5), light(1500.0, 2000.0, -1000.0)] {
+            let mut s = connect(sim.frame_addr());
+            s.write_all(&encode_request(&l)).expect("send request");
+            let got = read_all(s);
+            assert_eq!(got.len(), 518_400, "12 bytes in, 518,400 out, then EOF");
+            assert!(got == model_frame(&l), "frame equals the model for {l:?} ({mode:?})");
+        }
     }
 }
 
 #[test]
 fn seed_port_takes_the_request_in_pieces() {
-    let sim = sim();
-    let l = light(0.0, 3.0, 3.0);
-    let mut s = connect(sim.frame_addr());
-    for piece in encode_request(&l).chunks(5) {
-        s.write_all(piece).expect("send");
-        thread::sleep(Duration::from_millis(20));
+    for (_mode, sim) in sims() {
+        let l = light(0.0, 3.0, 3.0);
+        let mut s = connect(sim.frame_addr());
+        for piece in encode_request(&l).chunks(5) {
+            s.write_all(piece).expect("send");
+            thread::sleep(Duration::from_millis(20));
+        }
+        assert!(read_all(s) == model_frame(&l));
     }
-    assert!(read_all(s) == model_frame(&l));
 }
 
 #[test]
 fn persistent_port_answers_pipelined_requests_in_order() {
-    let sim = sim();
-    let lights = [light(3.0, 3.0, 0.0), light(0.0, 3.0, 3.0), light(-3.0, 3.0, 0.0)];
-    let mut s = connect(sim.persistent_addr());
-    for l in &lights {
-        s.write_all(&encode_request(l)).expect("send");
-    }
-    s.shutdown(Shutdown::Write).expect("half close");
-    let got = read_all(s);
-    assert_eq!(got.len(), 3 * FRAME_BYTES);
-    for (i, l) in lights.iter().enumerate() {
-        assert!(got[i * FRAME_BYTES..(i + 1) * FRAME_BYTES] == model_frame(l)[..], "frame {i}");
+    for (mode, sim) in sims() {
+        let lights = [light(3.0, 3.0, 0.0), light(0.0, 3.0, 3.0), light(-3.0, 3.0, 0.0)];
+        let mut s = connect(sim.persistent_addr());
+        for l in &lights {
+            s.write_all(&encode_request(l)).expect("send");
+        }
+        s.shutdown(Shutdown::Write).expect("half close");
+        let got = read_all(s);
+        assert_eq!(got.len(), 3 * FRAME_BYTES);
+        for (i, l) in lights.iter().enumerate() {
+            assert!(got[i * FRAME_BYTES..(i + 1) * FRAME_BYTES] == model_frame(l)[..], "frame {i} ({mode:?})");
+        }
     }
 }
 
 #[test]
 fn out_of_range_light_gets_no_frame_and_the_next_client_is_served() {
-    let sim = sim();
-    for bad in [raw_request(1 << 23, 0, 0), raw_request(0, -(1 << 23) - 1, 0), raw_request(0, 0, i32::MAX)] {
-        for addr in [sim.frame_addr(), sim.persistent_addr()] {
-            let mut s = connect(addr);
-            s.write_all(&bad).expect("send");
-            assert!(read_all(s).is_empty(), "zero frame bytes, then close");
+    for (_mode, sim) in sims() {
+        for bad in [raw_request(1 << 23, 0, 0), raw_request(0, -(1 << 23) - 1, 0), raw_request(0, 0, i32::MAX)] {
+            for addr in [sim.frame_addr(), sim.persistent_addr()] {
+                let mut s = connect(addr);
+                s.write_all(&bad).expect("send");
+                assert!(read_all(s).is_empty(), "zero frame bytes, then close");
+            }
         }
+        // The edges of the range are valid.
+        let edge = raw_request(-(1 << 23), (1 << 23) - 1, 0);
+        let mut s = connect(sim.frame_addr());
+        s.write_all(&edge).expect("send");
+        assert_eq!(read_all(s).len(), FRAME_BYTES);
     }
-    // The edges of the range are valid.
-    let edge = raw_request(-(1 << 23), (1 << 23) - 1, 0);
-    let mut s = connect(sim.frame_addr());
-    s.write_all(&edge).expect("send");
-    assert_eq!(read_all(s).len(), FRAME_BYTES);
 }
 
 #[test]
@@ -122,30 +132,32 @@ fn idle_half_sent_request_is_dropped_after_five_seconds() {
 
 #[test]
 fn client_vanishing_mid_frame_does_not_disturb_the_next() {
-    let sim = sim();
-    let l = light(3.0, 4.0, -2.0);
-    let mut quitter = connect(sim.frame_addr());
-    quitter.write_all(&encode_request(&l)).expect("send");
-    let mut some = vec![0u8; 50_000];
-    quitter.read_exact(&mut some).expect("first rows");
-    drop(quitter);
-    let mut next = connect(sim.frame_addr());
-    next.write_all(&encode_request(&l)).expect("send");
-    assert!(read_all(next) == model_frame(&l));
+    for (_mode, sim) in sims() {
+        let l = light(3.0, 4.0, -2.0);
+        let mut quitter = connect(sim.frame_addr());
+        quitter.write_all(&encode_request(&l)).expect("send");
+        let mut some = vec![0u8; 50_000];
+        quitter.read_exact(&mut some).expect("first rows");
+        drop(quitter);
+        let mut next = connect(sim.frame_addr());
+        next.write_all(&encode_request(&l)).expect("send");
+        assert!(read_all(next) == model_frame(&l));
+    }
 }
 
 #[test]
 fn two_clients_at_once_are_both_served() {
-    let sim = sim();
-    let (a, b) = (light(2.0, 3.0, -1.0), light(-2.0, 3.0, -1.0));
-    // Both connect and ask before either reads.
-    let mut sa = connect(sim.frame_addr());
-    let mut sb = connect(sim.persistent_addr());
-    sa.write_all(&encode_request(&a)).expect("send a");
-    sb.write_all(&encode_request(&b)).expect("send b");
-    sb.shutdown(Shutdown::Write).expect("half close b");
-    let ta = thread::spawn(move || read_all(sa));
-    let tb = thread::spawn(move || read_all(sb));
-    assert!(ta.join().expect("client a") == model_frame(&a));
-    assert!(tb.join().expect("client b") == model_frame(&b));
+    for (_mode, sim) in sims() {
+        let (a, b) = (light(2.0, 3.0, -1.0), light(-2.0, 3.0, -1.0));
+        // Both connect and ask before either reads.
+        let mut sa = connect(sim.frame_addr());
+        let mut sb = connect(sim.persistent_addr());
+        sa.write_all(&encode_request(&a)).expect("send a");
+        sb.write_all(&encode_request(&b)).expect("send b");
+        sb.shutdown(Shutdown::Write).expect("half close b");
+        let ta = thread::spawn(move || read_all(sa));
+        let tb = thread::spawn(move || read_all(sb));
+        assert!(ta.join().expect("client a") == model_frame(&a));
+        assert!(tb.join().expect("client b") == model_frame(&b));
+    }
 }

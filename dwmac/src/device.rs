@@ -101,6 +101,7 @@ impl TxState {
         shared.regs.tx_poll_demand();
         self.next = (i + 1) % TX_RING;
         self.frames = self.frames.saturating_add(1);
+        self.bytes = self.bytes.saturating_add(len as u64);
         r
     }
 }

@@ -99,6 +99,8 @@ pub struct Stats {
     pub rx_dropped: u32,
     /// Frames handed to the DMA.
     pub tx_frames: u32,
+    /// Bytes of those frames (headers included).
+    pub tx_bytes: u64,
     /// Times smoltcp asked for a TX token while every descriptor was the
     /// MAC's (the stack keeps the segment and retries; nothing is dropped).
     pub tx_ring_full: u32,
@@ -136,6 +138,7 @@ pub(crate) struct RxState {
 pub(crate) struct TxState {
     pub(crate) next: usize,
     pub(crate) frames: u32,
+    pub(crate) bytes: u64,
     pub(crate) ring_full: u32,
 }
 
@@ -237,6 +240,7 @@ impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
             rx_frames: self.rx.frames,
             rx_dropped: self.rx.dropped,
             tx_frames: self.tx.frames,
+            tx_bytes: self.tx.bytes,
             tx_ring_full: self.tx.ring_full,
         }
     }

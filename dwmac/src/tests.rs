@@ -273,6 +273,7 @@ fn transmit_fills_a_normal_descriptor_and_wraps() {
     transmit_one(&mut mac, 42, 7);
     assert_eq!(mac.shared.area.tx_descriptor(0).word(1) & 0x7ff, 42, "wrapped to descriptor 0");
     assert_eq!(mac.stats().tx_frames, TX_RING as u32 + 1);
+    assert_eq!(mac.stats().tx_bytes, 60 + (TX_RING as u64 - 1) * 100 + 42);
 }
 
 #[test]
@@ -320,7 +321,7 @@ fn receive_hands_over_good_frames_and_returns_descriptors() {
     mac.dma_receive(2, &frame[..20], FS_LS);
     let (rx, _tx) = mac.receive(Instant::ZERO).expect("the good frame");
     assert_eq!(rx.consume(|b| b.len()), 20);
-    assert_eq!(mac.stats(), Stats { rx_frames: 2, rx_dropped: 1, tx_frames: 0, tx_ring_full: 0 });
+    assert_eq!(mac.stats(), Stats { rx_frames: 2, rx_dropped: 1, tx_frames: 0, tx_bytes: 0, tx_ring_full: 0 });
 
     // A frame split over descriptors 3 and 4 is dropped once the DMA moved on.
     mac.dma_receive(3, &frame, desc::RDES0_FS);

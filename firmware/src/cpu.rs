@@ -14,7 +14,7 @@ use aarch32_cpu::cache::invalidate_l1_data_cache;
 use aarch32_cpu::register::{BpIAll, Dacr, Iciallu, Sctlr, TlbIAll, Ttbr0};
 use dwmac::DmaSync;
 use soc::l2c310::L2c310;
-use soc::mmu::{sections_of, MemoryMap, SECTIONS};
+use soc::mmu::{sections_of, MemoryMap, PageTable, PAGES, SECTIONS};
 use static_cell::ConstStaticCell;
 
 use crate::boards::Board;
@@ -56,6 +56,7 @@ struct L1Table([u32; SECTIONS]);
 /// entry made sure of that).
 pub fn enable_mmu_and_caches<B: Board>(log: &mut impl Write) -> L2c310 {
     static TABLE: ConstStaticCell<L1Table> = ConstStaticCell::new(L1Table([0; SECTIONS]));
+    static PAGE_TABLE: ConstStaticCell<PageTable> = ConstStaticCell::new(PageTable([0; PAGES]));
     // SAFETY: the board's L2C-310 register block; with the MMU off every
     // access is Strongly-ordered, afterwards the block is mapped Device.
     // Only the value returned here uses it from now on.
@@ -64,19 +65,25 @@ pub fn enable_mmu_and_caches<B: Board>(log: &mut impl Write) -> L2c310 {
     unsafe extern "C" {
         static __sdma: u8;
         static __edma: u8;
+        static __sframes: u8;
+        static __eframes: u8;
     }
     // Only the symbols' addresses are taken, never their contents.
     let dma = sections_of(&raw const __sdma as usize..&raw const __edma as usize);
+    let frames = sections_of(&raw const __sframes as usize..&raw const __eframes as usize);
+    let uncached = [dma.clone(), frames.clone()];
     let map = MemoryMap {
         dram_mib: B::DRAM_MIB,
-        uncached: core::slice::from_ref(&dma),
+        uncached: &uncached,
         strongly_ordered: B::STRONGLY_ORDERED,
+        paged: B::PAGED,
     };
-    let Some(table) = TABLE.try_take() else {
+    let (Some(table), Some(pages)) = (TABLE.try_take(), PAGE_TABLE.try_take()) else {
         let _ = writeln!(log, "mmu: already on");
         return l2;
     };
-    map.fill(&mut table.0);
+    let pages_addr = pages.0.as_ptr() as u32;
+    map.fill(&mut table.0, pages, pages_addr);
 
     // L2: invalidate all ways, then enable (the L2C-310 must be invalidated
     // before it is enabled; ARM DDI 0246 2.3.1). A boot loader's L2 was
@@ -124,10 +131,12 @@ pub fn enable_mmu_and_caches<B: Board>(log: &mut impl Write) -> L2c310 {
     let s = Sctlr::read();
     let _ = writeln!(
         log,
-        "mmu: on; {} MiB cached, DMA {:#010x}..{:#010x} uncached, {} FPGA window(s) strongly-ordered, L1 I/D {}, L2 {} (ID {:#010x})",
+        "mmu: on; {} MiB cached, DMA {:#010x}..{:#010x} and frames {:#010x}..{:#010x} uncached, {} FPGA window(s) strongly-ordered, L1 I/D {}, L2 {} (ID {:#010x})",
         B::DRAM_MIB,
         dma.start << 20,
         dma.end << 20,
+        frames.start << 20,
+        frames.end << 20,
         B::STRONGLY_ORDERED.len(),
         if s.c() && s.i() { "on" } else { "off" },
         if l2_on { "on" } else { "off" },

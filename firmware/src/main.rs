@@ -15,7 +15,9 @@
 #![no_std]
 #![no_main]
 
+mod bench;
 mod boards;
+mod copy;
 mod cpu;
 mod log;
 mod net;
@@ -64,9 +66,9 @@ fn main() -> ! {
     #[cfg(feature = "reentry-test")]
     reentry_test::maybe_reenter(&mut log);
     Active::init(&mut log);
-    let mut rows = Active::renderer(&mut log, &TIMER);
+    let mut frames = Active::renderer(&mut log, &TIMER);
     log::flush();
-    match net::run::<Active>(&TIMER, &l2, &mut rows) {
+    match net::run::<Active>(&TIMER, &l2, &mut frames) {
         Ok(never) => match never {},
         Err(why) => {
             let _ = writeln!(log, "network not started: {why}");

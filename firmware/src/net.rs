@@ -23,7 +23,7 @@ use static_cell::ConstStaticCell;
 use crate::boards::Board;
 use crate::cpu::Barriers;
 use crate::log::{self, Log};
-use crate::render::Renderer;
+use crate::render::Frames;
 
 /// TCP sockets of the frame service: half on each port, so while one client
 /// of a port is served three more are accepted (and served interleaved)
@@ -111,7 +111,7 @@ const TAKEN_TWICE: NetError = NetError::AlreadyRunning;
 pub fn run<B: Board>(
     timer: &'static GlobalTimer,
     l2: &L2c310,
-    rows: &mut Renderer,
+    frames: &mut Frames<B::Port>,
 ) -> Result<core::convert::Infallible, NetError> {
     static SOCKET_BUFFERS: ConstStaticCell<[SocketBuffers; SOCKETS]> =
         ConstStaticCell::new([const { SocketBuffers::new() }; SOCKETS]);
@@ -157,7 +157,8 @@ pub fn run<B: Board>(
         }
     }
     let mut sockets = SocketSet::new(&mut socket_storage[..]);
-    let mut service = FrameService::<SOCKETS>::new(&mut sockets, socket_buffers);
+    let mut service = FrameService::<usize, SOCKETS>::new(&mut sockets, socket_buffers);
+    let mut counts = crate::bench::Counts::default();
     let _ = writeln!(
         log,
         "net: {cidr} via {}, MAC {}, listening on TCP {FRAME_PORT} and {PERSISTENT_PORT} ({SOCKETS} sockets)",
@@ -180,8 +181,9 @@ pub fn run<B: Board>(
         }
         let now = instant(timer);
         iface.poll(now, &mut mac, &mut sockets);
-        service.poll(now, &mut sockets, rows, &mut log);
-        rows.report(&mut log);
+        service.poll(now, &mut sockets, frames, &mut log);
+        frames.report(&mut log);
+        counts.report(frames.bus_accesses(), mac.stats().tx_bytes, &mut log);
         log::drain();
     }
 }

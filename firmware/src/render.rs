@@ -1,86 +1,258 @@
-//! The row source the frame server renders with: on the DE1-SoC the FPGA
-//! accelerator through hal-avalon, falling back to the model on the A9 for
-//! any row it fails and for good once it is wedged; elsewhere the model.
+//! Where the frame server's frames come from on the board.
+//!
+//! * Frame mode ([`Frames::Ring`]): four frame slots in the uncached
+//!   `.frames` region ([`Uncached`]); the FPGA's frame DMA renders into them
+//!   (the software renderer where there is none, or where it failed), and
+//!   rows go out as its rows-done counter covers them.
+//! * Row mode ([`Frames::Rows`]): accelerators without the frame registers
+//!   (map version 1) render a row per start, the next started before the
+//!   current one is sent; the software renderer behind them.
+//!
+//! Either way a wedged accelerator is switched off after a few failures in
+//! a row (logged once) and the model on the A9 takes over.
 
-use core::fmt::Write;
+use core::cell::UnsafeCell;
+use core::fmt::{self, Write};
+use core::time::Duration;
 
-use hal_avalon::{Accelerator, MmioPort};
-use model::{Light, WIDTH};
+use hal_avalon::sim::DmaTarget;
+use hal_avalon::sources::PipelinedRows;
+use hal_avalon::{Accelerator, Counted, RegisterPort};
+use model::{Light, FRAME_BYTES, ROW_BYTES};
 use rt_protocol::fallback::{Fallback, FallbackEvent, WEDGED_AFTER};
-use rt_protocol::{RowSource, SoftwareRenderer};
+use rt_protocol::{
+    EngineError, FallbackEngine, FrameMemory, FrameRing, FrameSource, RowEngine, RowFrames, SoftwareRenderer, Watchdog,
+    WatchdogError,
+};
 use soc::global_timer::TimerDelay;
 
-/// The FPGA row driver on the board, as a row source.
-pub struct FpgaRows(pub Accelerator<MmioPort, TimerDelay<'static>>);
+use crate::bench;
+use crate::net::SOCKETS;
 
-impl RowSource for FpgaRows {
-    type Error = hal_avalon::Error;
+/// Frame slots of the ring: one being sent and three to render ahead, for
+/// up to four sessions at once.
+pub const RING_SLOTS: usize = 4;
 
-    fn render_row(&mut self, y: u16, light: &Light, out: &mut [u32; WIDTH]) -> Result<(), Self::Error> {
-        self.0.run_row(y, light, out)
+/// How long a frame of the accelerator may go without a new row before it
+/// counts as failed (a frame takes about 3.5 ms at 50 MHz).
+pub const STALL_LIMIT: Duration = Duration::from_millis(500);
+
+/// The frame ring's memory, in the `.frames` section (memory.x).
+#[repr(C, align(4096))]
+struct Slots(UnsafeCell<[u8; RING_SLOTS * FRAME_BYTES]>);
+
+// SAFETY: only `Uncached` touches the slots, from the main loop on core 0;
+// the ring hands each slot to one writer (engine) and then to readers.
+unsafe impl Sync for Slots {}
+
+#[unsafe(link_section = ".frames")]
+static SLOTS: Slots = Slots(UnsafeCell::new([0; RING_SLOTS * FRAME_BYTES]));
+
+/// The frame slots: Normal non-cacheable memory (the MMU map), so rows the
+/// FPGA-to-SDRAM port wrote are read from DRAM and never from a stale cache
+/// line, with no cache maintenance (docs/frame-dma.md#caches).
+#[derive(Clone, Copy)]
+pub struct Uncached {
+    base: *mut u8,
+}
+
+impl Uncached {
+    /// The `.frames` region.
+    pub fn frames() -> Uncached {
+        Uncached { base: SLOTS.0.get().cast() }
+    }
+
+    fn at(&self, slot: usize, y: u16, offset: usize, len: usize) -> Option<*mut u8> {
+        let start = slot.checked_mul(FRAME_BYTES)? + usize::from(y) * ROW_BYTES + offset;
+        (start + len <= RING_SLOTS * FRAME_BYTES).then(|| self.base.wrapping_add(start))
     }
 }
 
-/// Where rows come from.
-pub struct Renderer(Fallback<FpgaRows, SoftwareRenderer>);
-
-impl Renderer {
-    /// The FPGA accelerator if there is one, with the software renderer
-    /// (`model::render_row` on the CPU) as fallback.
-    pub fn new(fpga: Option<FpgaRows>) -> Renderer {
-        Renderer(Fallback::new(fpga, SoftwareRenderer))
+impl FrameMemory for Uncached {
+    fn slot_address(&self, slot: usize) -> u32 {
+        self.base as u32 + (slot * FRAME_BYTES) as u32
     }
 
-    /// Report what the accelerator did since the last call.
+    fn read_row(&mut self, slot: usize, y: u16, offset: usize, out: &mut [u8]) {
+        let Some(src) = self.at(slot, y, offset, out.len()) else { return };
+        // The engine's counter (read before) covers this row: order the
+        // row's loads after that read (docs/frame-dma.md#write-completion).
+        aarch32_cpu::asm::dmb();
+        // SAFETY: `at` checked the range lies in the slots; the ring reads
+        // only rows the engine has finished writing.
+        unsafe { crate::copy::from_uncached(out, src) };
+        bench::uncached_read(out.len());
+    }
+
+    fn write_row(&mut self, slot: usize, y: u16, row: &[u8; ROW_BYTES]) {
+        let Some(dst) = self.at(slot, y, 0, ROW_BYTES) else { return };
+        // SAFETY: `at` checked the range; the ring gives a slot to one
+        // engine at a time and reads only rows written before.
+        unsafe { core::ptr::copy_nonoverlapping(row.as_ptr(), dst, ROW_BYTES) };
+    }
+}
+
+/// The simulated accelerator's frame DMA on the emulated board writes the
+/// same slots.
+impl DmaTarget for Uncached {
+    fn write(&mut self, addr: u32, bytes: &[u8]) -> bool {
+        let Some(off) = addr.checked_sub(self.base as u32).map(|o| o as usize) else { return false };
+        if off + bytes.len() > RING_SLOTS * FRAME_BYTES {
+            return false;
+        }
+        // SAFETY: checked to lie in the slots, written by one engine at a time.
+        unsafe { core::ptr::copy_nonoverlapping(bytes.as_ptr(), self.base.add(off), bytes.len()) };
+        true
+    }
+}
+
+/// The accelerator driver as the firmware runs it, its bus accesses counted.
+pub type Accel<P> = Accelerator<Counted<P>, TimerDelay<'static>>;
+
+/// The driver over `port`, polling on the global timer.
+pub fn accelerator<P: RegisterPort>(port: P, timer: &'static soc::global_timer::GlobalTimer) -> Accel<P> {
+    Accelerator::new(Counted::new(port), TimerDelay(timer), hal_avalon::PollTimeout::DEFAULT)
+}
+
+/// The firmware's clock for the watchdog.
+fn now() -> rt_protocol::Instant {
+    rt_protocol::Instant::from_millis(crate::TIMER.now_us() / 1000)
+}
+
+type Clock = fn() -> rt_protocol::Instant;
+type Software = bench::TimedRows<SoftwareRenderer>;
+type RingEngine<P> = FallbackEngine<bench::TimedEngine<Watchdog<Accel<P>, Clock>>, RowEngine<Software>>;
+type RowSources<P> = Fallback<bench::TimedRows<PipelinedRows<Counted<P>, TimerDelay<'static>>>, Software>;
+
+/// The frame server's frames.
+// One value for the whole run, on `main`'s stack; the row variant's row
+// buffers are the bigger one and there is no allocator to box it.
+#[allow(clippy::large_enum_variant)]
+pub enum Frames<P: RegisterPort> {
+    /// Frame mode: whole frames in the ring.
+    Ring(FrameRing<Uncached, RingEngine<P>, RING_SLOTS>),
+    /// Row mode: a row per start.
+    Rows(RowFrames<RowSources<P>, SOCKETS>),
+}
+
+/// Why a frame could not be delivered.
+#[derive(Clone, Copy, Debug)]
+pub enum RenderError {
+    /// The accelerator failed the frame (under way: its client sees the
+    /// connection close).
+    Accelerator(WatchdogError<hal_avalon::Error>),
+}
+
+impl fmt::Display for RenderError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RenderError::Accelerator(e) => write!(f, "FPGA: {e}"),
+        }
+    }
+}
+
+impl core::error::Error for RenderError {}
+
+impl<P: RegisterPort> Frames<P> {
+    /// Frame mode with the accelerator `fpga` (none: the software renderer
+    /// fills the ring).
+    pub fn ring(fpga: Option<Accel<P>>) -> Frames<P> {
+        let primary = fpga.map(|a| bench::TimedEngine::new(Watchdog::new(a, now as Clock, STALL_LIMIT)));
+        let engine = FallbackEngine::new(primary, RowEngine::new(bench::TimedRows::new(SoftwareRenderer)));
+        Frames::Ring(FrameRing::new(Uncached::frames(), engine))
+    }
+
+    /// Row mode with the accelerator `fpga` (none: the software renderer).
+    pub fn rows(fpga: Option<Accel<P>>) -> Frames<P> {
+        let primary = fpga.map(|a| bench::TimedRows::new(PipelinedRows::new(a)));
+        Frames::Rows(RowFrames::new(Fallback::new(primary, bench::TimedRows::new(SoftwareRenderer))))
+    }
+
+    /// "frame mode" or "row mode", and what renders.
+    pub fn describe(&mut self) -> &'static str {
+        match self {
+            Frames::Ring(r) => match r.engine().primary_active() {
+                true => "frame mode, FPGA frame DMA into the ring (software fallback)",
+                false => "frame mode, software renderer into the ring",
+            },
+            Frames::Rows(r) => match r.rows().primary_active() {
+                true => "row mode, FPGA rows (software fallback)",
+                false => "row mode, software renderer",
+            },
+        }
+    }
+
+    /// Bus accesses to the accelerator so far: (reads, writes).
+    pub fn bus_accesses(&mut self) -> (u32, u32) {
+        let port = match self {
+            Frames::Ring(r) => r.engine().primary().map(|t| t.inner().engine().port()),
+            Frames::Rows(r) => r.rows().primary().map(|p| p.inner().accelerator().port()),
+        };
+        port.map_or((0, 0), |c| (c.reads, c.writes))
+    }
+
+    /// Report (once) what the accelerator did since the last call.
     pub fn report(&mut self, log: &mut impl Write) {
-        match self.0.take_event() {
-            Some(FallbackEvent::RowsFailed { error, total }) => {
-                let _ = writeln!(log, "FPGA: {error}; row rendered in software ({total} so far)");
+        match self {
+            Frames::Ring(r) => {
+                if r.engine().take_switched_off() {
+                    let _ = writeln!(
+                        log,
+                        "FPGA: {WEDGED_AFTER} frames failed in a row: accelerator switched off, software from now on"
+                    );
+                }
             }
-            Some(FallbackEvent::SwitchedOff { error }) => {
-                let _ = writeln!(log, "FPGA: {error}; {WEDGED_AFTER} rows failed in a row: accelerator switched off, software from now on");
-            }
-            None => {}
+            Frames::Rows(r) => match r.rows().take_event() {
+                Some(FallbackEvent::RowsFailed { error, total }) => {
+                    let _ = writeln!(log, "FPGA: {error}; row rendered in software ({total} so far)");
+                }
+                Some(FallbackEvent::SwitchedOff { error }) => {
+                    let _ = writeln!(log, "FPGA: {error}; {WEDGED_AFTER} rows failed in a row: accelerator switched off, software from now on");
+                }
+                None => {}
+            },
         }
     }
 }
 
-impl RowSource for Renderer {
-    type Error = core::convert::Infallible;
+impl<P: RegisterPort> FrameSource for Frames<P> {
+    type Frame = usize;
+    type Error = RenderError;
 
-    fn render_row(&mut self, y: u16, light: &Light, out: &mut [u32; WIDTH]) -> Result<(), Self::Error> {
-        #[cfg(feature = "bench")]
-        return bench::timed(y, || self.0.render_row(y, light, out));
-        #[cfg(not(feature = "bench"))]
-        self.0.render_row(y, light, out)
+    fn begin(&mut self, light: &Light) -> Result<Option<usize>, RenderError> {
+        match self {
+            Frames::Ring(r) => r.begin(light).map_err(ring_error),
+            Frames::Rows(r) => r.begin(light).map_err(|never| match never {}),
+        }
+    }
+
+    fn rows_ready(&mut self, frame: usize) -> Result<u16, RenderError> {
+        match self {
+            Frames::Ring(r) => r.rows_ready(frame).map_err(ring_error),
+            Frames::Rows(r) => r.rows_ready(frame).map_err(|never| match never {}),
+        }
+    }
+
+    fn copy_row(&mut self, frame: usize, y: u16, offset: usize, out: &mut [u8]) -> usize {
+        let n = match self {
+            Frames::Ring(r) => r.copy_row(frame, y, offset, out),
+            Frames::Rows(r) => r.copy_row(frame, y, offset, out),
+        };
+        bench::copied(n);
+        n
+    }
+
+    fn end(&mut self, frame: usize) {
+        match self {
+            Frames::Ring(r) => r.end(frame),
+            Frames::Rows(r) => r.end(frame),
+        }
     }
 }
 
-/// Bench build: guest nanoseconds per frame and per frame's rendering, on
-/// the UART. Under QEMU's `-icount shift=0` one guest nanosecond is one
-/// guest instruction.
-#[cfg(feature = "bench")]
-mod bench {
-    use core::fmt::Write;
-    use core::sync::atomic::{AtomicU64, Ordering};
-
-    use crate::log::Log;
-
-    static RENDER_NS: AtomicU64 = AtomicU64::new(0);
-
-    /// Run `f` (rendering row `y`), adding its duration to the frame's.
-    pub fn timed<R>(y: u16, f: impl FnOnce() -> R) -> R {
-        let t0 = crate::TIMER.now_ns();
-        if y == 0 {
-            RENDER_NS.store(0, Ordering::Relaxed);
-            let _ = writeln!(Log, "bench: frame start {t0}");
-        }
-        let r = f();
-        let dt = crate::TIMER.now_ns().saturating_sub(t0);
-        let total = RENDER_NS.fetch_add(dt, Ordering::Relaxed) + dt;
-        if usize::from(y) == model::HEIGHT - 1 {
-            let _ = writeln!(Log, "bench: frame rendered {total}");
-        }
-        r
+fn ring_error(e: EngineError<WatchdogError<hal_avalon::Error>, core::convert::Infallible>) -> RenderError {
+    match e {
+        EngineError::Primary(e) => RenderError::Accelerator(e),
+        EngineError::Fallback(never) => match never {},
     }
 }

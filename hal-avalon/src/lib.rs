@@ -14,6 +14,8 @@
 //!   [`Error`]s instead of hangs or panics.
 //! * `sim` (feature `sim`): `SimAccelerator`, a simulated device built from
 //!   [`model`], bit-exact at the register level, with fault injection.
+//! * `sources` (feature `protocol`): the accelerator as the frame server's
+//!   row source (row mode) and frame engine (frame mode).
 //!
 //! ```
 //! # #[cfg(feature = "sim")] {
@@ -42,8 +44,10 @@ pub mod mmio;
 pub mod port;
 #[cfg(feature = "sim")]
 pub mod sim;
+#[cfg(feature = "protocol")]
+pub mod sources;
 
 pub use driver::{Accelerator, Capabilities, Error, FrameProgress, PollTimeout};
 pub use map::Csr;
 pub use mmio::MmioPort;
-pub use port::RegisterPort;
+pub use port::{Counted, RegisterPort};

@@ -173,7 +173,38 @@ impl RegisterPort for MmioPort {
         }
     }
 
+    /// On the Cortex-A9: a `dmb` (the line buffer may sit in a Normal
+    /// page, unordered against the STATUS read that said done), then
+    /// four-word `ldm`/`stm` bursts: the firmware maps the line-buffer page
+    /// Normal non-cacheable, where an `ldm` becomes one bus burst instead of
+    /// four single reads (docs/frame-dma.md#row-mode). Elsewhere: one
+    /// volatile read per word.
     fn read_line(&mut self, out: &mut [u32; LINE_WORDS]) {
+        #[cfg(target_arch = "arm")]
+        {
+            const _: () = assert!(LINE_WORDS.is_multiple_of(4));
+            aarch32_cpu::asm::dmb();
+            let src = self.registers().line.as_ptr();
+            // SAFETY: `src` is the 480-word line buffer of the block
+            // `MmioPort::new` was given (reads have no side effects), `out`
+            // is 480 aligned words; the loop copies exactly LINE_WORDS / 4
+            // groups of four words and clobbers only the named registers.
+            unsafe {
+                core::arch::asm!(
+                    "2:",
+                    "ldm {src}!, {{r3, r4, r5, r8}}",
+                    "stm {dst}!, {{r3, r4, r5, r8}}",
+                    "subs {n}, {n}, #1",
+                    "bne 2b",
+                    src = inout(reg) src => _,
+                    dst = inout(reg) out.as_mut_ptr() => _,
+                    n = inout(reg) (LINE_WORDS / 4) as u32 => _,
+                    out("r3") _, out("r4") _, out("r5") _, out("r8") _,
+                    options(nostack),
+                );
+            }
+        }
+        #[cfg(not(target_arch = "arm"))]
         for (word, reg) in out.iter_mut().zip(self.registers().line.iter()) {
             *word = reg.read();
         }

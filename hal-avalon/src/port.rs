@@ -37,3 +37,48 @@ impl<P: RegisterPort + ?Sized> RegisterPort for &mut P {
         (**self).read_line(out)
     }
 }
+
+/// A port that counts its bus accesses (bench builds and cost models): a
+/// line-buffer read counts as [`LINE_WORDS`] reads.
+#[derive(Debug, Default)]
+pub struct Counted<P> {
+    port: P,
+    /// Register and line-buffer words read.
+    pub reads: u32,
+    /// Registers written.
+    pub writes: u32,
+}
+
+impl<P> Counted<P> {
+    /// Count the accesses to `port`.
+    pub fn new(port: P) -> Counted<P> {
+        Counted { port, reads: 0, writes: 0 }
+    }
+
+    /// The port.
+    pub fn inner(&self) -> &P {
+        &self.port
+    }
+
+    /// The port, mutably.
+    pub fn inner_mut(&mut self) -> &mut P {
+        &mut self.port
+    }
+}
+
+impl<P: RegisterPort> RegisterPort for Counted<P> {
+    fn read(&mut self, csr: Csr) -> u32 {
+        self.reads = self.reads.wrapping_add(1);
+        self.port.read(csr)
+    }
+
+    fn write(&mut self, csr: Csr, value: u32) {
+        self.writes = self.writes.wrapping_add(1);
+        self.port.write(csr, value)
+    }
+
+    fn read_line(&mut self, out: &mut [u32; LINE_WORDS]) {
+        self.reads = self.reads.wrapping_add(LINE_WORDS as u32);
+        self.port.read_line(out)
+    }
+}

@@ -187,3 +187,31 @@ fn the_driver_reports_dma_errors_and_vanished_devices() {
     accel.port_mut().set_fault(Some(Fault::StuckBusy));
     assert!(matches!(accel.start_frame(BASE, &light(3.0, 4.0, -2.0)), Err(Error::Timeout { .. })));
 }
+
+#[test]
+fn pipelined_rows_start_the_next_row_before_returning_this_one() {
+    use hal_avalon::sources::PipelinedRows;
+    use rt_protocol::RowSource;
+    let accel = Accelerator::new(
+        hal_avalon::Counted::new(SimAccelerator::new()),
+        CountingDelay::default(),
+        PollTimeout::DEFAULT,
+    );
+    let mut rows = PipelinedRows::new(accel);
+    let (a, b) = (light(3.0, 4.0, -2.0), light(-1.0, 2.0, 1.0));
+    let (mut got, mut want) = ([0u32; LINE_WORDS], [0u32; LINE_WORDS]);
+    for y in 0..5 {
+        rows.render_row(y, &a, &mut got).unwrap();
+        model::render_row(y, &a, &mut want);
+        assert_eq!(got, want, "row {y}");
+        assert!(rows.accelerator().port().inner().is_busy(), "row {} already started", y + 1);
+    }
+    assert_eq!(rows.accelerator().port().inner().starts(), 6, "rows 0..=5 started, each once");
+    // Another light: the row started ahead is let finish, then this one runs.
+    rows.render_row(9, &b, &mut got).unwrap();
+    model::render_row(9, &b, &mut want);
+    assert_eq!(got, want);
+    // The last row starts nothing after it.
+    rows.render_row(359, &b, &mut got).unwrap();
+    assert!(!rows.accelerator().port().inner().is_busy());
+}

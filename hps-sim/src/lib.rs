@@ -1,27 +1,35 @@
 //! `hps-sim`: the board simulated on the host. The firmware's frame server
-//! (`rt_protocol::server`) on std TCP, rendering through hal-avalon's row
-//! driver and simulated accelerator.
+//! (`rt_protocol::server`) on std TCP, rendering through hal-avalon's driver
+//! and simulated accelerator, in either of the board's modes:
+//!
+//! * frame mode (the default): the accelerator's frame DMA writes whole
+//!   frames into a ring of two frame slots in host memory, and rows stream
+//!   out as its rows-done counter covers them (`rt_protocol::FrameRing`);
+//! * row mode: one row per start through the line buffer
+//!   (`rt_protocol::RowFrames`).
 //!
 //! Two listeners: the seed protocol on the listen port and the persistent
 //! protocol on the listen port + 1. Every connection is served concurrently
 //! on its own thread with its own simulated accelerator (a board has one
-//! accelerator and interleaves rows; on the host a device per client keeps
-//! the clients independent and the frames identical).
+//! accelerator and interleaves its clients; on the host a device per client
+//! keeps the clients independent and the frames identical).
 
+use std::cell::RefCell;
 use std::fmt;
 use std::io::{self, Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
+use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::sync::Arc;
 use std::thread;
 use std::time::{Duration, Instant};
 
-use hal_avalon::sim::{CountingDelay, SimAccelerator};
+use hal_avalon::sim::{CountingDelay, DmaTarget, SimAccelerator};
 use hal_avalon::{Accelerator, PollTimeout};
-use model::{Light, WIDTH};
-use rt_protocol::server::{drive, Action, Closed, Mode, RowSource, Session};
-use rt_protocol::{persistent_port, Instant as ProtocolInstant};
+use model::{FRAME_BYTES, ROW_BYTES};
+use rt_protocol::server::{drive, Action, Closed, Mode, Session};
+use rt_protocol::{persistent_port, FrameMemory, FrameRing, FrameSource, Instant as ProtocolInstant, RowFrames};
 
 /// STATUS polls a simulated row stays busy for: enough that the driver's
 /// polling loop runs, few enough to cost nothing.
@@ -32,32 +40,89 @@ const SIM_BUSY_POLLS: u32 = 2;
 /// connection and could cost the client the frame's tail).
 const LINGER: Duration = Duration::from_secs(2);
 
-/// The row driver over a simulated accelerator, as a row source.
-pub struct SimRows(Accelerator<SimAccelerator, CountingDelay>);
+/// How the simulated board renders.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
+pub enum RenderMode {
+    /// Whole frames by the accelerator's frame DMA into a ring in memory.
+    #[default]
+    Frames,
+    /// One row per start through the line buffer.
+    Rows,
+}
 
-impl SimRows {
-    /// A fresh simulated accelerator behind the real driver.
-    pub fn new() -> SimRows {
-        SimRows(Accelerator::new(
-            SimAccelerator::with_busy_polls(SIM_BUSY_POLLS),
-            CountingDelay::default(),
-            PollTimeout::DEFAULT,
-        ))
+/// Frame slots per connection in frame mode: one being sent, one rendering.
+pub const FRAME_SLOTS: usize = 2;
+
+/// Bus address of the simulated frame ring (any 8-byte aligned value).
+const RING_BASE: u32 = 0x0410_0000;
+
+/// Host memory shared by the simulated frame DMA (which writes it) and the
+/// frame ring (which reads it): one connection's thread only.
+#[derive(Clone)]
+pub struct SharedMemory(Rc<RefCell<Vec<u8>>>);
+
+impl SharedMemory {
+    fn new(slots: usize) -> SharedMemory {
+        SharedMemory(Rc::new(RefCell::new(vec![0; slots * FRAME_BYTES])))
+    }
+
+    fn offset(addr: u32) -> Option<usize> {
+        addr.checked_sub(RING_BASE).map(|o| o as usize)
     }
 }
 
-impl Default for SimRows {
-    fn default() -> Self {
-        SimRows::new()
+impl DmaTarget for SharedMemory {
+    fn write(&mut self, addr: u32, bytes: &[u8]) -> bool {
+        let mut mem = self.0.borrow_mut();
+        match Self::offset(addr).and_then(|o| mem.get_mut(o..o + bytes.len())) {
+            Some(dst) => {
+                dst.copy_from_slice(bytes);
+                true
+            }
+            None => false,
+        }
     }
 }
 
-impl RowSource for SimRows {
-    type Error = hal_avalon::Error;
-
-    fn render_row(&mut self, y: u16, light: &Light, out: &mut [u32; WIDTH]) -> Result<(), Self::Error> {
-        self.0.run_row(y, light, out)
+impl FrameMemory for SharedMemory {
+    fn slot_address(&self, slot: usize) -> u32 {
+        RING_BASE + (slot * FRAME_BYTES) as u32
     }
+
+    fn read_row(&mut self, slot: usize, y: u16, offset: usize, out: &mut [u8]) {
+        let at = slot * FRAME_BYTES + usize::from(y) * ROW_BYTES + offset;
+        if let Some(src) = self.0.borrow().get(at..at + out.len()) {
+            out.copy_from_slice(src);
+        }
+    }
+
+    fn write_row(&mut self, slot: usize, y: u16, row: &[u8; ROW_BYTES]) {
+        let at = slot * FRAME_BYTES + usize::from(y) * ROW_BYTES;
+        if let Some(dst) = self.0.borrow_mut().get_mut(at..at + ROW_BYTES) {
+            dst.copy_from_slice(row);
+        }
+    }
+}
+
+/// The driver over a simulated accelerator whose frame DMA writes `M`.
+pub type SimDriver<M> = Accelerator<SimAccelerator<M>, CountingDelay>;
+
+/// Row mode: the driver over a fresh simulated accelerator, one frame.
+pub fn row_frames() -> RowFrames<SimDriver<hal_avalon::sim::NoMemory>, 1> {
+    let accel = Accelerator::new(
+        SimAccelerator::with_busy_polls(SIM_BUSY_POLLS),
+        CountingDelay::default(),
+        PollTimeout::DEFAULT,
+    );
+    RowFrames::new(accel)
+}
+
+/// Frame mode: a ring of [`FRAME_SLOTS`] in host memory, filled by the
+/// simulated accelerator's frame DMA through the driver.
+pub fn frame_ring() -> FrameRing<SharedMemory, SimDriver<SharedMemory>, FRAME_SLOTS> {
+    let mem = SharedMemory::new(FRAME_SLOTS);
+    let sim = SimAccelerator::with_memory(mem.clone(), SIM_BUSY_POLLS);
+    FrameRing::new(mem, Accelerator::new(sim, CountingDelay::default(), PollTimeout::DEFAULT))
 }
 
 /// A running simulated board.
@@ -69,17 +134,20 @@ pub struct HpsSim {
 
 impl HpsSim {
     /// Listen on `addr` (seed protocol) and on its port + 1 (persistent),
-    /// logging connections and requests to stderr. Port 0 picks a free pair.
+    /// in frame mode, logging connections and requests to stderr. Port 0
+    /// picks a free pair.
     pub fn start(addr: SocketAddr) -> io::Result<HpsSim> {
-        HpsSim::start_with(addr, true)
+        HpsSim::start_with(addr, RenderMode::Frames, true)
     }
 
     /// [`HpsSim::start`] without the log (for a client that embeds the board).
     pub fn start_quiet(addr: SocketAddr) -> io::Result<HpsSim> {
-        HpsSim::start_with(addr, false)
+        HpsSim::start_with(addr, RenderMode::Frames, false)
     }
 
-    fn start_with(addr: SocketAddr, verbose: bool) -> io::Result<HpsSim> {
+    /// Listen on `addr` and its port + 1, rendering in `render` mode,
+    /// logging to stderr if `verbose`.
+    pub fn start_with(addr: SocketAddr, render: RenderMode, verbose: bool) -> io::Result<HpsSim> {
         let (single, persistent) = bind_pair(addr)?;
         let sim = HpsSim {
             frame_addr: single.local_addr()?,
@@ -91,7 +159,7 @@ impl HpsSim {
             let (stop, ids) = (sim.stop.clone(), ids.clone());
             thread::Builder::new()
                 .name(format!("accept {mode:?}"))
-                .spawn(move || accept_loop(listener, mode, &stop, &ids, verbose))?;
+                .spawn(move || accept_loop(listener, mode, render, &stop, &ids, verbose))?;
         }
         Ok(sim)
     }
@@ -141,7 +209,14 @@ fn bind_pair(addr: SocketAddr) -> io::Result<(TcpListener, TcpListener)> {
     Err(last_err.unwrap_or_else(|| io::Error::new(io::ErrorKind::AddrInUse, "no free port pair")))
 }
 
-fn accept_loop(listener: TcpListener, mode: Mode, stop: &AtomicBool, ids: &AtomicU64, verbose: bool) {
+fn accept_loop(
+    listener: TcpListener,
+    mode: Mode,
+    render: RenderMode,
+    stop: &AtomicBool,
+    ids: &AtomicU64,
+    verbose: bool,
+) {
     for stream in listener.incoming() {
         if stop.load(Ordering::SeqCst) {
             return;
@@ -151,7 +226,7 @@ fn accept_loop(listener: TcpListener, mode: Mode, stop: &AtomicBool, ids: &Atomi
                 let id = ids.fetch_add(1, Ordering::Relaxed);
                 let spawned = thread::Builder::new()
                     .name(format!("client {id}"))
-                    .spawn(move || serve_connection(stream, mode, Log::new(id, verbose)));
+                    .spawn(move || serve_connection(stream, mode, render, Log::new(id, verbose)));
                 if let Err(e) = spawned {
                     eprintln!("[{id}] cannot start a thread: {e}");
                 }
@@ -195,8 +270,16 @@ impl fmt::Write for Log {
     }
 }
 
-/// Serve one connection to its end. Never panics on peer behaviour.
-pub fn serve_connection(mut stream: TcpStream, mode: Mode, mut log: Log) {
+/// Serve one connection to its end with its own simulated accelerator in
+/// `render` mode. Never panics on peer behaviour.
+pub fn serve_connection(stream: TcpStream, mode: Mode, render: RenderMode, log: Log) {
+    match render {
+        RenderMode::Frames => serve(stream, mode, &mut frame_ring(), log),
+        RenderMode::Rows => serve(stream, mode, &mut row_frames(), log),
+    }
+}
+
+fn serve<S: FrameSource>(mut stream: TcpStream, mode: Mode, frames: &mut S, mut log: Log) {
     let peer = stream.peer_addr().map_or_else(|_| "?".into(), |a| a.to_string());
     let _ = fmt::Write::write_fmt(&mut log, format_args!("{mode:?} connection from {peer}\n"));
     let _ = stream.set_nodelay(true);
@@ -210,8 +293,6 @@ pub fn serve_connection(mut stream: TcpStream, mode: Mode, mut log: Log) {
     let start = Instant::now();
     let now = || ProtocolInstant::from_millis(u64::try_from(start.elapsed().as_millis()).unwrap_or(u64::MAX));
     let mut session = Session::new(mode, now());
-    let mut rows = SimRows::new();
-    let mut row = [0u32; WIDTH];
     let mut pending: Vec<u8> = Vec::new();
     let mut input_ended = false;
     loop {
@@ -226,13 +307,18 @@ pub fn serve_connection(mut stream: TcpStream, mode: Mode, mut log: Log) {
         let action = drive(
             &mut session,
             now(),
-            &mut rows,
-            &mut row,
-            |bytes| match stream.write(bytes) {
-                Ok(n) => n,
-                Err(_) => {
-                    write_failed = true;
-                    0
+            frames,
+            |fill| {
+                // std TCP has no window into its buffer: copy a row's worth,
+                // write what the stream takes (the rest is copied again).
+                let mut buf = [0u8; ROW_BYTES];
+                let n = fill(&mut buf);
+                match stream.write(&buf[..n]) {
+                    Ok(m) => m,
+                    Err(_) => {
+                        write_failed = true;
+                        0
+                    }
                 }
             },
             &mut log,
@@ -246,12 +332,17 @@ pub fn serve_connection(mut stream: TcpStream, mode: Mode, mut log: Log) {
                 close_gracefully(&stream, &input, input_ended);
                 return;
             }
-            Action::Send => {
+            Action::Send { .. } => {
                 let what = if write_failed { "vanished mid-frame; frame aborted" } else { "stopped taking data" };
                 let _ = fmt::Write::write_fmt(&mut log, format_args!("client {what}\n"));
+                for frame in session.take_frames().into_iter().flatten() {
+                    frames.end(frame);
+                }
                 return;
             }
-            Action::Render { .. } => {}
+            // The simulated accelerator moves on with every status read:
+            // poll again at once.
+            Action::Progress { .. } | Action::Begin { .. } | Action::End { .. } => {}
             Action::Wait { deadline } => {
                 if input_ended {
                     // Nothing more can arrive; poll again right away.

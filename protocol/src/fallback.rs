@@ -48,6 +48,11 @@ impl<P: RowSource, F: RowSource> Fallback<P, F> {
         self.primary.is_some()
     }
 
+    /// The primary source, while it is in use.
+    pub fn primary(&mut self) -> Option<&mut P> {
+        self.primary.as_mut()
+    }
+
     /// The event to report since the last call, if any (a switch-off is
     /// reported once).
     pub fn take_event(&mut self) -> Option<FallbackEvent<P::Error>> {

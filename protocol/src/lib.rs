@@ -6,6 +6,9 @@
 //! * [`time`]: [`time::Instant`], the millisecond clock the server runs on.
 //! * [`server`]: the sans-IO frame-server state machine: bytes in, actions
 //!   out. It knows no sockets, clocks or renderers.
+//! * [`frames`]: where frames come from: rendered a row at a time (row
+//!   mode), or whole frames in a ring of slots filled by an engine (frame
+//!   mode), the same streaming code for both.
 //! * [`fallback`]: a row source that falls back to another where it fails,
 //!   and switches a wedged one off.
 //! * `service` (feature `smoltcp`): the server bound to smoltcp TCP sockets,
@@ -17,12 +20,17 @@
 #![forbid(unsafe_code)]
 
 pub mod fallback;
+pub mod frames;
 pub mod server;
 #[cfg(feature = "smoltcp")]
 pub mod service;
 pub mod time;
 pub mod wire;
 
+pub use frames::{
+    EngineError, FallbackEngine, FrameEngine, FrameMemory, FrameRing, FrameSource, RowEngine, RowFrames, SliceMemory,
+    Watchdog, WatchdogError,
+};
 pub use server::{Action, Closed, Mode, RowSource, Session, SoftwareRenderer};
 pub use time::Instant;
 pub use wire::{

@@ -15,8 +15,11 @@
 //!   frames returned in order, until the client closes its sending side and
 //!   every complete request before that has been answered.
 //!
-//! Rows go out as they are rendered: the session holds one row of output
-//! (1,440 bytes), never a frame.
+//! Frames come from a [`FrameSource`]: the session asks it for a frame per
+//! request, and for a persistent connection begins the next request's frame
+//! while the current one is still being sent, so the source can render
+//! frame n + 1 while frame n goes out. Row bytes go from the source straight
+//! into the transport's buffer; the session holds no pixel data.
 //!
 //! # Bad input
 //!
@@ -32,8 +35,9 @@
 use core::time::Duration;
 
 use heapless::Deque;
-use model::{row_to_rgb888, Light, LightError, HEIGHT, ROW_BYTES, WIDTH};
+use model::{Light, LightError, ROW_BYTES, WIDTH};
 
+use crate::frames::{FrameSource, ROWS};
 use crate::time::Instant;
 use crate::wire::{decode_request, REQUEST_BYTES};
 #[cfg(doc)]
@@ -78,10 +82,11 @@ pub enum Closed {
     },
     /// The client closed before sending any request.
     NoRequest,
-    /// The row source failed (for example the accelerator timed out); the
-    /// frame in progress is abandoned.
+    /// The frame source failed (for example the accelerator timed out); the
+    /// frame in progress is abandoned, and the close tells the client its
+    /// frame is short.
     RenderFailed {
-        /// The row that could not be rendered.
+        /// The first row that could not be delivered.
         row: u16,
     },
 }
@@ -103,19 +108,37 @@ impl core::fmt::Display for Closed {
     }
 }
 
-/// What the adapter should do next.
+/// What the adapter should do next ([`drive`] carries these out with a
+/// [`FrameSource`]).
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
-pub enum Action {
-    /// Render row `y` for `light` and hand it to [`Session::row_rendered`]
-    /// (or report [`Session::render_failed`]). `y == 0` starts a new frame.
-    Render {
-        /// Row to render, `0..360`.
-        y: u16,
+pub enum Action<F> {
+    /// Ask the source for a frame for `light` and report it with
+    /// [`Session::begun`] (`None` when the source has no room yet).
+    Begin {
         /// The request's light.
         light: Light,
     },
-    /// Send (a prefix of) [`Session::outgoing`], then call [`Session::sent`].
-    Send,
+    /// Ask the source how many rows of `frame` are ready and report it with
+    /// [`Session::rows_ready`].
+    Progress {
+        /// The frame being sent.
+        frame: F,
+    },
+    /// Copy bytes `offset..` of row `row` of `frame` into the transport and
+    /// report how many with [`Session::sent`].
+    Send {
+        /// The frame being sent.
+        frame: F,
+        /// Its row, `0..360`.
+        row: u16,
+        /// The first byte of the row not sent yet.
+        offset: usize,
+    },
+    /// Give `frame` back to the source.
+    End {
+        /// The frame the session is done with.
+        frame: F,
+    },
     /// Nothing to do until more bytes arrive, the stream ends, or the time
     /// reaches `deadline` (when given).
     Wait {
@@ -123,34 +146,46 @@ pub enum Action {
         deadline: Option<Instant>,
     },
     /// Close the connection (gracefully: queued bytes were all handed out).
+    /// Every frame the session held was ended before.
     Close(Closed),
 }
 
 /// A complete request: a valid light or the reason it is not.
 type Request = Result<Light, LightError>;
 
-/// One connection's protocol state.
+/// The frame a session is sending.
+#[derive(Clone, Copy, Debug)]
+struct Sending<F> {
+    frame: F,
+    row: u16,
+    offset: usize,
+    ready: u16,
+}
+
+/// One connection's protocol state, holding frames of type `F` (the
+/// source's handles).
 #[derive(Debug)]
-pub struct Session {
+pub struct Session<F> {
     mode: Mode,
     partial: [u8; REQUEST_BYTES],
     partial_len: u8,
     /// Time of the last byte added to `partial`.
     partial_since: Instant,
     requests_seen: u32,
+    /// Requests not begun yet.
     queue: Deque<Request, PIPELINE_DEPTH>,
-    /// The frame being sent and its next row to render.
-    frame: Option<(Light, u16)>,
-    out: [u8; ROW_BYTES],
-    out_start: usize,
-    out_end: usize,
+    sending: Option<Sending<F>>,
+    /// The frame of the front request, begun while `sending` goes out.
+    ahead: Option<F>,
+    /// The row of `sending` at which the source last refused a frame ahead.
+    ahead_refused_at: Option<u16>,
     eof: bool,
     closed: Option<Closed>,
 }
 
-impl Session {
+impl<F: Copy> Session<F> {
     /// A new session for a connection accepted at `now`.
-    pub fn new(mode: Mode, now: Instant) -> Session {
+    pub fn new(mode: Mode, now: Instant) -> Session<F> {
         Session {
             mode,
             partial: [0; REQUEST_BYTES],
@@ -158,10 +193,9 @@ impl Session {
             partial_since: now,
             requests_seen: 0,
             queue: Deque::new(),
-            frame: None,
-            out: [0; ROW_BYTES],
-            out_start: 0,
-            out_end: 0,
+            sending: None,
+            ahead: None,
+            ahead_refused_at: None,
             eof: false,
             closed: None,
         }
@@ -215,85 +249,125 @@ impl Session {
     }
 
     /// The next action at time `now`.
-    pub fn poll(&mut self, now: Instant) -> Action {
+    pub fn poll(&mut self, now: Instant) -> Action<F> {
         if let Some(reason) = self.closed {
+            if let Some(frame) = self.ahead.take() {
+                return Action::End { frame };
+            }
+            if let Some(s) = self.sending.take() {
+                return Action::End { frame: s.frame };
+            }
             return Action::Close(reason);
         }
-        if self.out_start < self.out_end {
-            return Action::Send;
+        if let Some(s) = self.sending {
+            if s.row == ROWS {
+                self.sending = None;
+                self.ahead_refused_at = None;
+                if self.mode == Mode::Single {
+                    self.closed = Some(Closed::Done);
+                }
+                return Action::End { frame: s.frame };
+            }
+            // Begin the next request's frame early (once per row if the
+            // source has no room), so it renders while this one is sent.
+            if self.ahead.is_none() && self.ahead_refused_at != Some(s.row) {
+                if let Some(Ok(light)) = self.queue.front() {
+                    return Action::Begin { light: *light };
+                }
+            }
+            if s.row < s.ready {
+                return Action::Send { frame: s.frame, row: s.row, offset: s.offset };
+            }
+            return Action::Progress { frame: s.frame };
         }
-        if let Some((light, y)) = self.frame {
-            if (y as usize) < HEIGHT {
-                return Action::Render { y, light };
-            }
-            self.frame = None;
-            if self.mode == Mode::Single {
-                return self.close(Closed::Done);
-            }
+        if let Some(frame) = self.ahead.take() {
+            self.sending = Some(Sending { frame, row: 0, offset: 0, ready: 0 });
+            return Action::Progress { frame };
         }
-        match self.queue.pop_front() {
-            Some(Ok(light)) => {
-                self.frame = Some((light, 0));
-                return Action::Render { y: 0, light };
+        match self.queue.front() {
+            Some(Ok(light)) => return Action::Begin { light: *light },
+            Some(Err(e)) => {
+                let reason = Closed::BadLight(*e);
+                self.closed = Some(reason);
+                return Action::Close(reason);
             }
-            Some(Err(e)) => return self.close(Closed::BadLight(e)),
             None => {}
         }
         let received = self.partial_len;
         if self.eof {
-            return self.close(match (received, self.requests_seen) {
+            let reason = match (received, self.requests_seen) {
                 (0, 0) => Closed::NoRequest,
                 (0, _) => Closed::Done,
                 _ => Closed::ShortRequest { received },
-            });
+            };
+            self.closed = Some(reason);
+            return Action::Close(reason);
         }
         if received > 0 {
             let deadline = self.partial_since + REQUEST_TIMEOUT;
             if now >= deadline {
-                return self.close(Closed::RequestTimeout { received });
+                let reason = Closed::RequestTimeout { received };
+                self.closed = Some(reason);
+                return Action::Close(reason);
             }
             return Action::Wait { deadline: Some(deadline) };
         }
         Action::Wait { deadline: None }
     }
 
-    /// The row asked for by the last [`Action::Render`] is in `row`.
-    pub fn row_rendered(&mut self, row: &[u32; WIDTH]) {
-        if let Some((_, y)) = &mut self.frame {
-            row_to_rgb888(row, &mut self.out);
-            self.out_start = 0;
-            self.out_end = ROW_BYTES;
-            *y += 1;
+    /// The answer to [`Action::Begin`]: the frame for the front request, or
+    /// `None` if the source had no room (the session asks again later).
+    pub fn begun(&mut self, frame: Option<F>) {
+        let Some(frame) = frame else {
+            if let Some(s) = self.sending {
+                self.ahead_refused_at = Some(s.row);
+            }
+            return;
+        };
+        let _ = self.queue.pop_front();
+        if self.sending.is_none() {
+            self.sending = Some(Sending { frame, row: 0, offset: 0, ready: 0 });
+        } else {
+            self.ahead = Some(frame);
         }
     }
 
-    /// The row asked for by the last [`Action::Render`] could not be rendered.
-    pub fn render_failed(&mut self) {
-        let row = self.frame.map_or(0, |(_, y)| y);
-        self.close(Closed::RenderFailed { row });
+    /// The answer to [`Action::Progress`]: rows `0..rows` of the frame being
+    /// sent can be copied.
+    pub fn rows_ready(&mut self, rows: u16) {
+        if let Some(s) = &mut self.sending {
+            s.ready = rows.min(ROWS);
+        }
     }
 
-    /// Bytes waiting to be sent.
-    pub fn outgoing(&self) -> &[u8] {
-        &self.out[self.out_start..self.out_end]
-    }
-
-    /// `n` bytes of [`Session::outgoing`] were sent.
+    /// The answer to [`Action::Send`]: `n` bytes went out.
     pub fn sent(&mut self, n: usize) {
-        self.out_start = (self.out_start + n).min(self.out_end);
+        if let Some(s) = &mut self.sending {
+            s.offset += n;
+            if s.offset >= ROW_BYTES {
+                s.offset = 0;
+                s.row += 1;
+            }
+        }
     }
 
-    /// Whether a frame is partly sent (a close now would cut it short).
+    /// The frame being sent could not be delivered: close, ending its frames.
+    pub fn render_failed(&mut self) {
+        let row = self.sending.map_or(0, |s| s.row);
+        self.closed = Some(Closed::RenderFailed { row });
+    }
+
+    /// Take every frame the session holds, for an adapter that drops the
+    /// session without driving it to its close (the client vanished): it
+    /// must [`end`](FrameSource::end) them, or their slots stay taken.
+    pub fn take_frames(&mut self) -> [Option<F>; 2] {
+        [self.sending.take().map(|s| s.frame), self.ahead.take()]
+    }
+
+    /// Whether bytes of a frame went out and the frame is not complete (a
+    /// close now would cut it short).
     pub fn mid_frame(&self) -> bool {
-        self.frame.is_some() || self.out_start < self.out_end
-    }
-
-    fn close(&mut self, reason: Closed) -> Action {
-        self.closed = Some(reason);
-        self.frame = None;
-        self.out_start = 0;
-        self.out_end = 0;
-        Action::Close(reason)
+        self.sending.is_some_and(|s| s.row > 0 || s.offset > 0)
     }
 }
 
@@ -320,43 +394,69 @@ impl RowSource for SoftwareRenderer {
     }
 }
 
-/// Carry out [`Session::poll`]'s actions until the session must wait for
-/// I/O: render rows with `rows` and hand output to `send` (which returns how
-/// many bytes it took; 0 means "no room now"). Each new frame's request is
-/// written to `log` as one line. Returns the last action: [`Action::Wait`],
-/// [`Action::Send`] (output pending, no room), or [`Action::Close`].
-pub fn drive<R: RowSource>(
-    session: &mut Session,
+/// Carry out [`Session::poll`]'s actions with `source` until the session
+/// must wait: for input ([`Action::Wait`]), for room in the transport
+/// ([`Action::Send`]: `send` took nothing), for rows ([`Action::Progress`]:
+/// none new), for a free slot ([`Action::Begin`]: refused), or because it
+/// closed ([`Action::Close`]).
+///
+/// `send` offers the transport's free buffer: it calls its argument with a
+/// writable slice and returns how many bytes of it the transport took
+/// (0: no room). Each new frame's request is written to `log` as one line,
+/// each render failure too.
+pub fn drive<S: FrameSource>(
+    session: &mut Session<S::Frame>,
     now: Instant,
-    rows: &mut R,
-    row: &mut [u32; WIDTH],
-    mut send: impl FnMut(&[u8]) -> usize,
+    source: &mut S,
+    mut send: impl FnMut(&mut dyn FnMut(&mut [u8]) -> usize) -> usize,
     log: &mut impl core::fmt::Write,
-) -> Action {
+) -> Action<S::Frame> {
     loop {
-        match session.poll(now) {
-            Action::Render { y, light } => {
-                if y == 0 {
+        let action = session.poll(now);
+        match action {
+            Action::Begin { light } => match source.begin(&light) {
+                Ok(Some(frame)) => {
                     let [x, y, z] = light.raw();
                     // A log sink that fails must not stop the frame.
                     let _ = writeln!(log, "request light raw ({x}, {y}, {z}) on {:?}", session.mode());
+                    session.begun(Some(frame));
                 }
-                match rows.render_row(y, &light, row) {
-                    Ok(()) => session.row_rendered(row),
+                Ok(None) => {
+                    let waiting = session.sending.is_none();
+                    session.begun(None);
+                    if waiting {
+                        return action;
+                    }
+                }
+                Err(e) => {
+                    let _ = writeln!(log, "frame not begun: {e}");
+                    session.render_failed();
+                }
+            },
+            Action::Progress { frame } => {
+                let before = session.sending.map_or(0, |s| s.ready);
+                match source.rows_ready(frame) {
+                    Ok(rows) => {
+                        session.rows_ready(rows);
+                        if rows <= before {
+                            return action;
+                        }
+                    }
                     Err(e) => {
-                        let _ = writeln!(log, "row {y}: render failed: {e:?}");
+                        let _ = writeln!(log, "row {before}: render failed: {e}");
                         session.render_failed();
                     }
                 }
             }
-            Action::Send => {
-                let n = send(session.outgoing());
+            Action::Send { frame, row, offset } => {
+                let n = send(&mut |buf| source.copy_row(frame, row, offset, buf));
                 if n == 0 {
-                    return Action::Send;
+                    return action;
                 }
                 session.sent(n);
             }
-            other => return other,
+            Action::End { frame } => source.end(frame),
+            Action::Wait { .. } | Action::Close(_) => return action,
         }
     }
 }
@@ -364,7 +464,10 @@ pub fn drive<R: RowSource>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::frames::RowFrames;
     use model::FRAME_BYTES;
+
+    type Source = RowFrames<SoftwareRenderer, 2>;
 
     fn request(x: i32, y: i32, z: i32) -> [u8; 12] {
         crate::wire::encode_raw_request([x, y, z])
@@ -378,26 +481,37 @@ mod tests {
         model::render_frame(&Light::from_raw(x, y, z).expect("test light in range"))
     }
 
-    /// Run a session to its close, collecting output; `chunk` limits how much
-    /// each send takes, to exercise partial sends.
-    fn run(session: &mut Session, chunk: usize) -> (Vec<u8>, Closed) {
+    /// `drive` with a transport taking at most `chunk` bytes per call into `out`.
+    fn step(
+        s: &mut Session<usize>,
+        src: &mut Source,
+        chunk: usize,
+        out: &mut Vec<u8>,
+        log: &mut String,
+    ) -> Action<usize> {
+        drive(
+            s,
+            Instant::ZERO,
+            src,
+            |fill| {
+                let mut buf = vec![0u8; chunk];
+                let n = fill(&mut buf);
+                out.extend_from_slice(&buf[..n]);
+                n
+            },
+            log,
+        )
+    }
+
+    /// Run a session to its close, collecting output.
+    fn run(session: &mut Session<usize>, chunk: usize) -> (Vec<u8>, Closed) {
+        let mut src = Source::new(SoftwareRenderer);
         let mut out = Vec::new();
-        let mut row = [0u32; WIDTH];
         loop {
-            match drive(
-                session,
-                Instant::ZERO,
-                &mut SoftwareRenderer,
-                &mut row,
-                |b| {
-                    let n = b.len().min(chunk);
-                    out.extend_from_slice(&b[..n]);
-                    n
-                },
-                &mut String::new(),
-            ) {
+            match step(session, &mut src, chunk, &mut out, &mut String::new()) {
                 Action::Close(c) => return (out, c),
                 Action::Wait { .. } => session.receive_eof(),
+                Action::Progress { .. } | Action::Begin { .. } => {}
                 a => panic!("unexpected {a:?}"),
             }
         }
@@ -412,23 +526,18 @@ mod tests {
             assert_eq!(s.receive(at(0), &[b]), 1);
         }
         assert_eq!(s.receive(at(0), &[1, 2, 3]), 3);
-        let mut row = [0u32; WIDTH];
-        let mut out = Vec::new();
-        let mut log = String::new();
-        let last = drive(
-            &mut s,
-            Instant::ZERO,
-            &mut SoftwareRenderer,
-            &mut row,
-            |b| {
-                out.extend_from_slice(&b[..b.len().min(1000)]);
-                b.len().min(1000)
-            },
-            &mut log,
-        );
+        let mut src = Source::new(SoftwareRenderer);
+        let (mut out, mut log) = (Vec::new(), String::new());
+        let last = loop {
+            match step(&mut s, &mut src, 1000, &mut out, &mut log) {
+                Action::Progress { .. } => {}
+                other => break other,
+            }
+        };
         assert_eq!(log, "request light raw (3072, 4096, -2048) on Single\n");
         assert_eq!(last, Action::Close(Closed::Done));
         assert_eq!(out, expected(3 << 10, 4 << 10, -2 << 10));
+        assert_eq!(src.begin(&Light::from_raw(0, 0, 0).unwrap()).unwrap(), Some(0), "the frame was ended");
     }
 
     #[test]
@@ -448,12 +557,68 @@ mod tests {
     }
 
     #[test]
-    fn pipeline_queue_applies_backpressure() {
+    fn the_next_frame_is_begun_while_the_current_one_is_sent() {
         let mut s = Session::new(Mode::Persistent, at(0));
+        s.receive(at(0), &request(1024, 4096, 0));
+        s.receive(at(0), &request(-1024, 4096, 0));
+        assert_eq!(s.poll(at(0)), Action::Begin { light: Light::from_raw(1024, 4096, 0).unwrap() });
+        s.begun(Some(7));
+        assert_eq!(s.poll(at(0)), Action::Begin { light: Light::from_raw(-1024, 4096, 0).unwrap() }, "ahead");
+        s.begun(Some(8));
+        assert_eq!(s.poll(at(0)), Action::Progress { frame: 7 });
+        s.rows_ready(2);
+        assert_eq!(s.poll(at(0)), Action::Send { frame: 7, row: 0, offset: 0 });
+        s.sent(1000);
+        assert_eq!(s.poll(at(0)), Action::Send { frame: 7, row: 0, offset: 1000 });
+        s.sent(ROW_BYTES - 1000);
+        assert_eq!(s.poll(at(0)), Action::Send { frame: 7, row: 1, offset: 0 });
+        assert!(s.mid_frame());
+        // A source with no room for the frame ahead is asked once per row.
+        let mut t = Session::new(Mode::Persistent, at(0));
+        t.receive(at(0), &request(1, 2, 3));
+        t.receive(at(0), &request(4, 5, 6));
+        assert!(matches!(t.poll(at(0)), Action::Begin { .. }));
+        t.begun(Some(1));
+        assert!(matches!(t.poll(at(0)), Action::Begin { .. }));
+        t.begun(None);
+        assert_eq!(t.poll(at(0)), Action::Progress { frame: 1 });
+        t.rows_ready(1);
+        assert_eq!(t.poll(at(0)), Action::Send { frame: 1, row: 0, offset: 0 });
+        t.sent(ROW_BYTES);
+        assert!(matches!(t.poll(at(0)), Action::Begin { .. }), "asked again on the next row");
+    }
+
+    #[test]
+    fn a_closing_session_ends_every_frame_it_holds() {
+        let mut s = Session::new(Mode::Persistent, at(0));
+        s.receive(at(0), &request(1024, 4096, 0));
+        s.receive(at(0), &request(-1024, 4096, 0));
+        s.poll(at(0));
+        s.begun(Some(3));
+        s.poll(at(0));
+        s.begun(Some(4));
+        s.render_failed();
+        let mut ended = vec![];
+        let closed = loop {
+            match s.poll(at(0)) {
+                Action::End { frame } => ended.push(frame),
+                Action::Close(c) => break c,
+                a => panic!("unexpected {a:?}"),
+            }
+        };
+        ended.sort();
+        assert_eq!(ended, [3, 4]);
+        assert_eq!(closed, Closed::RenderFailed { row: 0 });
+    }
+
+    #[test]
+    fn pipeline_queue_applies_backpressure() {
+        let mut s: Session<usize> = Session::new(Mode::Persistent, at(0));
         let many: Vec<u8> = (0..10).flat_map(|i| request(i << 10, 3 << 10, 0)).collect();
         assert_eq!(s.receive(at(0), &many), PIPELINE_DEPTH * 12, "queue holds PIPELINE_DEPTH");
-        // Starting a frame frees a slot.
-        assert!(matches!(s.poll(at(0)), Action::Render { y: 0, .. }));
+        // Beginning a frame frees a slot.
+        assert!(matches!(s.poll(at(0)), Action::Begin { .. }));
+        s.begun(Some(0));
         assert_eq!(s.receive(at(0), &many[PIPELINE_DEPTH * 12..]), 12);
     }
 
@@ -481,12 +646,12 @@ mod tests {
     #[test]
     fn short_request_at_eof_is_dropped() {
         for mode in [Mode::Single, Mode::Persistent] {
-            let mut s = Session::new(mode, at(0));
+            let mut s: Session<usize> = Session::new(mode, at(0));
             s.receive(at(0), &[0, 0, 4]);
             s.receive_eof();
             assert_eq!(s.poll(at(0)), Action::Close(Closed::ShortRequest { received: 3 }));
         }
-        let mut s = Session::new(Mode::Single, at(0));
+        let mut s: Session<usize> = Session::new(Mode::Single, at(0));
         s.receive_eof();
         assert_eq!(s.poll(at(0)), Action::Close(Closed::NoRequest));
     }
@@ -504,14 +669,14 @@ mod tests {
 
     #[test]
     fn partial_request_times_out() {
-        let mut s = Session::new(Mode::Single, at(1_000));
+        let mut s: Session<usize> = Session::new(Mode::Single, at(1_000));
         s.receive(at(2_000), &[0; 5]);
         assert_eq!(s.poll(at(2_000)), Action::Wait { deadline: Some(at(7_000)) });
         s.receive(at(3_000), &[0; 2]); // more bytes restart the clock
         assert_eq!(s.poll(at(7_999)), Action::Wait { deadline: Some(at(8_000)) });
         assert_eq!(s.poll(at(8_000)), Action::Close(Closed::RequestTimeout { received: 7 }));
         // An idle connection without a partial request does not time out.
-        let mut idle = Session::new(Mode::Persistent, at(0));
+        let mut idle: Session<usize> = Session::new(Mode::Persistent, at(0));
         assert_eq!(idle.poll(at(1_000_000)), Action::Wait { deadline: None });
     }
 
@@ -519,11 +684,11 @@ mod tests {
     fn render_failure_closes_mid_frame() {
         struct Failing;
         impl RowSource for Failing {
-            type Error = ();
-            fn render_row(&mut self, y: u16, _: &Light, out: &mut [u32; WIDTH]) -> Result<(), ()> {
+            type Error = &'static str;
+            fn render_row(&mut self, y: u16, _: &Light, out: &mut [u32; WIDTH]) -> Result<(), &'static str> {
                 out.fill(0);
                 if y == 5 {
-                    Err(())
+                    Err("row 5 broke")
                 } else {
                     Ok(())
                 }
@@ -531,34 +696,39 @@ mod tests {
         }
         let mut s = Session::new(Mode::Single, at(0));
         s.receive(at(0), &request(0, 4096, 0));
-        let mut sent = 0;
-        let mut row = [0u32; WIDTH];
-        let mut log = String::new();
-        let a = drive(
-            &mut s,
-            Instant::ZERO,
-            &mut Failing,
-            &mut row,
-            |b| {
-                sent += b.len();
-                b.len()
-            },
-            &mut log,
-        );
-        assert!(log.ends_with("row 5: render failed: ()\n"), "{log}");
+        let mut src = RowFrames::<Failing, 1>::new(Failing);
+        let (mut sent, mut log) = (0, String::new());
+        let a = loop {
+            let a = drive(
+                &mut s,
+                Instant::ZERO,
+                &mut src,
+                |fill| {
+                    let mut buf = [0u8; 4096];
+                    let n = fill(&mut buf);
+                    sent += n;
+                    n
+                },
+                &mut log,
+            );
+            if !matches!(a, Action::Progress { .. }) {
+                break a;
+            }
+        };
+        assert!(log.ends_with("row 5: render failed: row 5 broke\n"), "{log}");
         assert_eq!(a, Action::Close(Closed::RenderFailed { row: 5 }));
         assert_eq!(sent, 5 * ROW_BYTES);
         assert!(!s.mid_frame());
+        assert_eq!(src.begin(&Light::from_raw(0, 0, 0).unwrap()).unwrap(), Some(0), "the frame was ended");
     }
 
     #[test]
     fn send_with_no_room_pauses() {
         let mut s = Session::new(Mode::Single, at(0));
         s.receive(at(0), &request(0, 4096, 0));
-        let mut row = [0u32; WIDTH];
-        let a = drive(&mut s, Instant::ZERO, &mut SoftwareRenderer, &mut row, |_| 0, &mut String::new());
-        assert_eq!(a, Action::Send);
-        assert!(s.mid_frame());
-        assert_eq!(s.outgoing().len(), ROW_BYTES, "one row rendered, none sent");
+        let mut src = Source::new(SoftwareRenderer);
+        let a = drive(&mut s, Instant::ZERO, &mut src, |_| 0, &mut String::new());
+        assert_eq!(a, Action::Send { frame: 0, row: 0, offset: 0 });
+        assert!(!s.mid_frame(), "nothing sent yet");
     }
 }

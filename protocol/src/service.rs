@@ -9,12 +9,12 @@
 
 use core::fmt::Write;
 
-use model::WIDTH;
 use smoltcp::iface::{SocketHandle, SocketSet};
 use smoltcp::socket::tcp;
 use smoltcp::time::Instant;
 
-use crate::server::{drive, Action, Closed, Mode, RowSource, Session};
+use crate::frames::FrameSource;
+use crate::server::{drive, Action, Closed, Mode, Session};
 use crate::time;
 use crate::wire::{FRAME_PORT, PERSISTENT_PORT};
 
@@ -42,13 +42,13 @@ impl Default for SocketBuffers {
     }
 }
 
-struct Slot {
+struct Slot<F> {
     handle: SocketHandle,
     mode: Mode,
-    session: Option<Session>,
+    session: Option<Session<F>>,
 }
 
-impl Slot {
+impl<F> Slot<F> {
     fn port(&self) -> u16 {
         match self.mode {
             Mode::Single => FRAME_PORT,
@@ -57,13 +57,13 @@ impl Slot {
     }
 }
 
-/// The frame server bound to `N` smoltcp TCP sockets.
-pub struct FrameService<const N: usize> {
-    slots: [Slot; N],
-    row: [u32; WIDTH],
+/// The frame server bound to `N` smoltcp TCP sockets, serving frames whose
+/// handles are `F` (a [`FrameSource`]'s).
+pub struct FrameService<F, const N: usize> {
+    slots: [Slot<F>; N],
 }
 
-impl<const N: usize> FrameService<N> {
+impl<F: Copy, const N: usize> FrameService<F, N> {
     /// Add `N` TCP sockets to `sockets`: the first half (rounded up) listens
     /// on [`FRAME_PORT`], the rest on [`PERSISTENT_PORT`].
     pub fn new<'a>(sockets: &mut SocketSet<'a>, buffers: &'a mut [SocketBuffers; N]) -> Self {
@@ -74,7 +74,7 @@ impl<const N: usize> FrameService<N> {
             i += 1;
             Slot { handle: sockets.add(socket), mode, session: None }
         });
-        FrameService { slots, row: [0; WIDTH] }
+        FrameService { slots }
     }
 
     /// Number of sessions currently open.
@@ -82,25 +82,30 @@ impl<const N: usize> FrameService<N> {
         self.slots.iter().filter(|s| s.session.is_some()).count()
     }
 
-    /// Serve every socket once: accept, read requests, render and send rows
-    /// while the socket takes them, close finished sessions, re-listen.
-    /// Call it after each `Interface::poll`.
-    pub fn poll(&mut self, now: Instant, sockets: &mut SocketSet<'_>, rows: &mut impl RowSource, log: &mut impl Write) {
+    /// Serve every socket once: accept, read requests, copy rows from
+    /// `frames` into the socket while it takes them, close finished
+    /// sessions, re-listen. Call it after each `Interface::poll`.
+    pub fn poll<S: FrameSource<Frame = F>>(
+        &mut self,
+        now: Instant,
+        sockets: &mut SocketSet<'_>,
+        frames: &mut S,
+        log: &mut impl Write,
+    ) {
         let now = time::Instant::from_millis(u64::try_from(now.total_millis()).unwrap_or(0));
         for (index, slot) in self.slots.iter_mut().enumerate() {
             let socket = sockets.get_mut::<tcp::Socket>(slot.handle);
-            serve_slot(index, slot, socket, now, rows, &mut self.row, log);
+            serve_slot(index, slot, socket, now, frames, log);
         }
     }
 }
 
-fn serve_slot(
+fn serve_slot<S: FrameSource>(
     index: usize,
-    slot: &mut Slot,
+    slot: &mut Slot<S::Frame>,
     socket: &mut tcp::Socket<'_>,
     now: time::Instant,
-    rows: &mut impl RowSource,
-    row: &mut [u32; WIDTH],
+    frames: &mut S,
     log: &mut impl Write,
 ) {
     let Some(session) = &mut slot.session else {
@@ -121,6 +126,9 @@ fn serve_slot(
         // Reset, or closed both ways before we finished: nothing to send to.
         let what = if session.mid_frame() { "vanished mid-frame; frame aborted" } else { "went away" };
         let _ = writeln!(log, "[{index}] client {what}");
+        for frame in session.take_frames().into_iter().flatten() {
+            frames.end(frame);
+        }
         socket.abort();
         slot.session = None;
         return;
@@ -139,7 +147,21 @@ fn serve_slot(
         session.receive_eof();
     }
 
-    let action = drive(session, now, rows, row, |bytes| socket.send_slice(bytes).unwrap_or(0), log);
+    // Rows are copied by the source straight into the socket's buffer.
+    let action = drive(
+        session,
+        now,
+        frames,
+        |fill| {
+            socket
+                .send(|buf| {
+                    let n = fill(buf);
+                    (n, n)
+                })
+                .unwrap_or(0)
+        },
+        log,
+    );
     if let Action::Close(reason) = action {
         match reason {
             Closed::Done => {

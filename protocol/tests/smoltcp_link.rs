@@ -7,7 +7,10 @@ use std::rc::Rc;
 
 use model::{render_frame, Light, FRAME_BYTES};
 use rt_protocol::service::{FrameService, SocketBuffers};
-use rt_protocol::{encode_raw_request, encode_request, SoftwareRenderer, FRAME_PORT, PERSISTENT_PORT};
+use rt_protocol::{
+    encode_raw_request, encode_request, FrameRing, FrameSource, RowEngine, RowFrames, SliceMemory, SoftwareRenderer,
+    FRAME_PORT, PERSISTENT_PORT,
+};
 use smoltcp::iface::{Config, Interface, SocketHandle, SocketSet};
 use smoltcp::phy::{self, Device, DeviceCapabilities, Medium};
 use smoltcp::socket::tcp;
@@ -98,8 +101,20 @@ struct Client {
     received: Vec<u8>,
 }
 
+/// Where the server's frames come from.
+#[derive(Clone, Copy, Debug)]
+enum Mode {
+    /// Row mode: rendered a row at a time as they are sent.
+    Rows,
+    /// Frame mode: a ring of two frame slots filled by a software engine.
+    Ring,
+}
+
+const MODES: [Mode; 2] = [Mode::Rows, Mode::Ring];
+
 /// The cable with an interface at each end (server 10.0.0.1, clients 10.0.0.2).
 struct Link {
+    mode: Mode,
     server_dev: CableEnd,
     client_dev: CableEnd,
     server_if: Interface,
@@ -108,11 +123,11 @@ struct Link {
 }
 
 impl Link {
-    fn new() -> Link {
+    fn new(mode: Mode) -> Link {
         let (mut server_dev, mut client_dev) = cable();
         let server_if = interface(&mut server_dev, 1);
         let client_if = interface(&mut client_dev, 2);
-        Link { server_dev, client_dev, server_if, client_if, clients: SocketSet::new(vec![]) }
+        Link { mode, server_dev, client_dev, server_if, client_if, clients: SocketSet::new(vec![]) }
     }
 
     fn connect(&mut self, port: u16, local_port: u16, send: Vec<u8>, close_after_send: bool) -> Client {
@@ -131,6 +146,25 @@ impl Link {
     /// Run the service and the clients in 1 ms steps until every client
     /// has seen the server close (or `max_steps` pass). Returns the log.
     fn run(&mut self, clients: &mut [Client], max_steps: u64) -> String {
+        match self.mode {
+            Mode::Rows => self.run_with(clients, max_steps, &mut RowFrames::<_, 4>::new(SoftwareRenderer)),
+            Mode::Ring => {
+                let mut memory = vec![0u8; 2 * FRAME_BYTES];
+                let mut ring =
+                    FrameRing::<_, _, 2>::new(SliceMemory::new(0, &mut memory), RowEngine::new(SoftwareRenderer));
+                let log = self.run_with(clients, max_steps, &mut ring);
+                assert_eq!(ring.free_slots(), 2, "every slot given back; log: {log}");
+                log
+            }
+        }
+    }
+
+    fn run_with<S: FrameSource<Frame = usize>>(
+        &mut self,
+        clients: &mut [Client],
+        max_steps: u64,
+        frames: &mut S,
+    ) -> String {
         let mut buffers: Box<[SocketBuffers; 4]> = Box::default();
         let mut server_sockets = SocketSet::new(vec![]);
         let mut service = FrameService::new(&mut server_sockets, &mut buffers);
@@ -138,7 +172,7 @@ impl Link {
         for step in 0..max_steps {
             let now = Instant::from_millis(step as i64);
             self.server_if.poll(now, &mut self.server_dev, &mut server_sockets);
-            service.poll(now, &mut server_sockets, &mut SoftwareRenderer, &mut log);
+            service.poll(now, &mut server_sockets, frames, &mut log);
             self.server_if.poll(now, &mut self.server_dev, &mut server_sockets);
             self.client_if.poll(now, &mut self.client_dev, &mut self.clients);
             let mut open = 0;
@@ -191,70 +225,78 @@ impl Link {
 
 #[test]
 fn single_port_serves_the_seed_protocol() {
-    let lights = [Light::from_world(3.0, 4.0, -2.0).unwrap(), Light::from_world(-1.5, 2.5, 2.0).unwrap()];
-    for light in lights {
-        let mut link = Link::new();
-        let mut clients = [link.connect(FRAME_PORT, 50_000, request(&light).to_vec(), false)];
-        let log = link.run(&mut clients, 20_000);
-        assert_eq!(clients[0].received.len(), FRAME_BYTES, "log: {log}");
-        assert!(clients[0].received == frame(&light), "frame differs from the model");
-        assert!(log.contains("request light raw"), "{log}");
-        assert!(log.contains("done"), "{log}");
+    for mode in MODES {
+        let lights = [Light::from_world(3.0, 4.0, -2.0).unwrap(), Light::from_world(-1.5, 2.5, 2.0).unwrap()];
+        for light in lights {
+            let mut link = Link::new(mode);
+            let mut clients = [link.connect(FRAME_PORT, 50_000, request(&light).to_vec(), false)];
+            let log = link.run(&mut clients, 20_000);
+            assert_eq!(clients[0].received.len(), FRAME_BYTES, "log: {log}");
+            assert!(clients[0].received == frame(&light), "frame differs from the model ({mode:?})");
+            assert!(log.contains("request light raw"), "{log}");
+            assert!(log.contains("done"), "{log}");
+        }
     }
 }
 
 #[test]
 fn persistent_port_pipelines_frames_in_order() {
-    let lights = [
-        Light::from_world(3.0, 4.0, -2.0).unwrap(),
-        Light::from_world(0.0, 8.0, 0.0).unwrap(),
-        Light::from_world(-3.0, 1.0, 1.0).unwrap(),
-    ];
-    let bytes: Vec<u8> = lights.iter().flat_map(request).collect();
-    let mut link = Link::new();
-    let mut clients = [link.connect(PERSISTENT_PORT, 50_001, bytes, true)];
-    let log = link.run(&mut clients, 60_000);
-    let want: Vec<u8> = lights.iter().flat_map(frame).collect();
-    assert_eq!(clients[0].received.len(), want.len(), "log: {log}");
-    assert!(clients[0].received == want, "frames differ from the model");
+    for mode in MODES {
+        let lights = [
+            Light::from_world(3.0, 4.0, -2.0).unwrap(),
+            Light::from_world(0.0, 8.0, 0.0).unwrap(),
+            Light::from_world(-3.0, 1.0, 1.0).unwrap(),
+        ];
+        let bytes: Vec<u8> = lights.iter().flat_map(request).collect();
+        let mut link = Link::new(mode);
+        let mut clients = [link.connect(PERSISTENT_PORT, 50_001, bytes, true)];
+        let log = link.run(&mut clients, 60_000);
+        let want: Vec<u8> = lights.iter().flat_map(frame).collect();
+        assert_eq!(clients[0].received.len(), want.len(), "log: {log}");
+        assert!(clients[0].received == want, "frames differ from the model");
+    }
 }
 
 #[test]
 fn two_clients_at_once_and_a_bad_request() {
-    let a = Light::from_world(2.0, 3.0, -1.0).unwrap();
-    let b = Light::from_world(-2.0, 3.0, -1.0).unwrap();
-    let [_, y, z] = a.raw();
-    let bad = encode_raw_request([1 << 23, y, z]);
-    let mut link = Link::new();
-    let mut clients = [
-        link.connect(FRAME_PORT, 50_010, request(&a).to_vec(), false),
-        link.connect(PERSISTENT_PORT, 50_011, request(&b).to_vec(), true),
-        link.connect(FRAME_PORT, 50_012, bad.to_vec(), false),
-    ];
-    let log = link.run(&mut clients, 60_000);
-    assert!(clients[0].received == frame(&a), "client a; log: {log}");
-    assert!(clients[1].received == frame(&b), "client b; log: {log}");
-    assert!(clients[2].received.is_empty(), "bad request gets no frame bytes");
-    assert!(log.contains("closing: bad request"), "{log}");
+    for mode in MODES {
+        let a = Light::from_world(2.0, 3.0, -1.0).unwrap();
+        let b = Light::from_world(-2.0, 3.0, -1.0).unwrap();
+        let [_, y, z] = a.raw();
+        let bad = encode_raw_request([1 << 23, y, z]);
+        let mut link = Link::new(mode);
+        let mut clients = [
+            link.connect(FRAME_PORT, 50_010, request(&a).to_vec(), false),
+            link.connect(PERSISTENT_PORT, 50_011, request(&b).to_vec(), true),
+            link.connect(FRAME_PORT, 50_012, bad.to_vec(), false),
+        ];
+        let log = link.run(&mut clients, 60_000);
+        assert!(clients[0].received == frame(&a), "client a; log: {log}");
+        assert!(clients[1].received == frame(&b), "client b; log: {log}");
+        assert!(clients[2].received.is_empty(), "bad request gets no frame bytes");
+        assert!(log.contains("closing: bad request"), "{log}");
+    }
 }
 
 #[test]
 fn client_vanishing_mid_frame_does_not_stop_the_next() {
-    let light = Light::from_world(3.0, 4.0, -2.0).unwrap();
-    let mut link = Link::new();
-    let mut quitter = link.connect(FRAME_PORT, 50_020, request(&light).to_vec(), false);
-    quitter.abort_after = Some(100_000);
-    // Two more clients, one after the other, after the quitter has gone: the
-    // second of them needs the quitter's socket listening again (two sockets
-    // serve the port).
-    let mut next = link.connect(FRAME_PORT, 50_021, request(&light).to_vec(), false);
-    next.start_step = 1_000;
-    let mut last = link.connect(FRAME_PORT, 50_022, request(&light).to_vec(), false);
-    last.start_step = 1_001;
-    let mut clients = [quitter, next, last];
-    let log = link.run(&mut clients, 60_000);
-    assert!(clients[0].received.len() < FRAME_BYTES, "the quitter left early");
-    assert!(log.contains("vanished mid-frame"), "{log}");
-    assert!(clients[1].received == frame(&light), "next client served; log: {log}");
-    assert!(clients[2].received == frame(&light), "last client served; log: {log}");
+    for mode in MODES {
+        let light = Light::from_world(3.0, 4.0, -2.0).unwrap();
+        let mut link = Link::new(mode);
+        let mut quitter = link.connect(FRAME_PORT, 50_020, request(&light).to_vec(), false);
+        quitter.abort_after = Some(100_000);
+        // Two more clients, one after the other, after the quitter has gone: the
+        // second of them needs the quitter's socket listening again (two sockets
+        // serve the port).
+        let mut next = link.connect(FRAME_PORT, 50_021, request(&light).to_vec(), false);
+        next.start_step = 1_000;
+        let mut last = link.connect(FRAME_PORT, 50_022, request(&light).to_vec(), false);
+        last.start_step = 1_001;
+        let mut clients = [quitter, next, last];
+        let log = link.run(&mut clients, 60_000);
+        assert!(clients[0].received.len() < FRAME_BYTES, "the quitter left early");
+        assert!(log.contains("vanished mid-frame"), "{log}");
+        assert!(clients[1].received == frame(&light), "next client served; log: {log}");
+        assert!(clients[2].received == frame(&light), "last client served; log: {log}");
+    }
 }

@@ -6,6 +6,12 @@
 //! `TEX[2:0]` 14:12, `AP[2]` 15, S 16, nG 17, base 31:20; memory types per
 //! table B3-10 (TEX/C/B with TEX remap off).
 //!
+//! One section may instead point to a second-level table of 4 KiB small
+//! pages (figure B3-4, "page table" entry; figure B3-5, small page), for a
+//! window whose pages need different types: the accelerator's CSR page
+//! Strongly-ordered, its line-buffer page Normal non-cacheable so that an
+//! `ldm` reads it in one burst.
+//!
 //! Pure functions, so that the host can test the entries the firmware
 //! installs (aarch32-cpu's `mmu` module is compiled only for Arm targets).
 
@@ -58,6 +64,65 @@ pub const fn section_entry(index: u32, ty: MemType) -> u32 {
     }
 }
 
+/// Entries of a second-level (small page) table: 256 pages of 4 KiB.
+pub const PAGES: usize = 256;
+
+/// A second-level table, 1 KiB aligned (ARM ARM B3.5.1).
+#[repr(C, align(1024))]
+pub struct PageTable(pub [u32; PAGES]);
+
+/// The memory types of the 4 KiB pages of one section.
+#[derive(Clone, Copy, Debug)]
+pub struct PagedSection<'a> {
+    /// The section (MiB index).
+    pub section: u32,
+    /// The type of every page not listed in `pages`.
+    pub default: MemType,
+    /// Page ranges (indexes 0..256 within the section) and their types.
+    pub pages: &'a [(Range<u32>, MemType)],
+}
+
+impl PagedSection<'_> {
+    /// The type of page `page` (0..256).
+    pub fn memory_type(&self, page: u32) -> MemType {
+        self.pages.iter().find(|(r, _)| r.contains(&page)).map_or(self.default, |(_, t)| *t)
+    }
+
+    /// Fill a second-level table with this section's pages.
+    pub fn fill(&self, table: &mut PageTable) {
+        let base = self.section << 20;
+        for (i, e) in (0u32..).zip(table.0.iter_mut()) {
+            *e = small_page_entry(base | i << 12, self.memory_type(i));
+        }
+    }
+}
+
+/// The first-level entry that points to the second-level table at bus
+/// address `table` (1 KiB aligned): bits 1:0 = 0b01, domain 0, base 31:10.
+pub const fn page_table_entry(table: u32) -> u32 {
+    (table & !0x3ff) | 0b01
+}
+
+/// The small-page entry mapping the 4 KiB at `addr` to itself with type
+/// `ty`, read/write at PL1 (figure B3-5: XN 0, bit 1 = 1, B 2, C 3,
+/// `AP[1:0]` 5:4, `TEX[2:0]` 8:6, `AP[2]` 9, S 10, nG 11, base 31:12).
+pub const fn small_page_entry(addr: u32, ty: MemType) -> u32 {
+    const SMALL: u32 = 0b10;
+    const XN: u32 = 1 << 0;
+    const B: u32 = 1 << 2;
+    const C: u32 = 1 << 3;
+    const AP_RW: u32 = 0b11 << 4;
+    const TEX_001: u32 = 0b001 << 6;
+    let base = addr & !0xfff;
+    match ty {
+        MemType::NormalCached => base | SMALL | AP_RW | TEX_001 | C | B,
+        MemType::NormalUncached => base | SMALL | AP_RW | TEX_001 | XN,
+        MemType::Device => base | SMALL | AP_RW | B | XN,
+        MemType::StronglyOrdered => base | SMALL | AP_RW | XN,
+        MemType::Fault => 0,
+    }
+}
+
 /// What the board maps where, in sections (MiB indexes).
 #[derive(Clone, Copy, Debug)]
 pub struct MemoryMap<'a> {
@@ -67,6 +132,8 @@ pub struct MemoryMap<'a> {
     pub uncached: &'a [Range<u32>],
     /// Windows mapped Strongly-ordered.
     pub strongly_ordered: &'a [Range<u32>],
+    /// A section mapped page by page, if any (overrides the above for it).
+    pub paged: Option<PagedSection<'a>>,
 }
 
 impl MemoryMap<'_> {
@@ -85,10 +152,17 @@ impl MemoryMap<'_> {
         }
     }
 
-    /// Fill a first-level table with this map.
-    pub fn fill(&self, table: &mut [u32; SECTIONS]) {
+    /// Fill a first-level table with this map, and `pages` (at bus
+    /// address `pages_addr`) with the paged section's pages.
+    pub fn fill(&self, table: &mut [u32; SECTIONS], pages: &mut PageTable, pages_addr: u32) {
         for (i, e) in (0u32..).zip(table.iter_mut()) {
             *e = section_entry(i, self.memory_type(i));
+        }
+        if let Some(p) = &self.paged {
+            p.fill(pages);
+            if let Some(e) = table.get_mut(p.section as usize) {
+                *e = page_table_entry(pages_addr);
+            }
         }
     }
 }
@@ -129,9 +203,9 @@ mod tests {
         assert_eq!(lw, 0xff2..0xff4);
         let dma = sections_of(0x0400_0000..0x0400_4000);
         assert_eq!(dma, 0x040..0x041, "a partial MiB is a whole section");
-        let map = MemoryMap { dram_mib: 1024, uncached: &[dma], strongly_ordered: &[lw] };
+        let map = MemoryMap { dram_mib: 1024, uncached: &[dma], strongly_ordered: &[lw], paged: None };
         let mut t = [0u32; SECTIONS];
-        map.fill(&mut t);
+        map.fill(&mut t, &mut PageTable([0; PAGES]), 0);
         assert_eq!(t[0x001], section_entry(0x001, MemType::NormalCached));
         assert_eq!(t[0x040], section_entry(0x040, MemType::NormalUncached));
         assert_eq!(t[0x3ff], section_entry(0x3ff, MemType::NormalCached), "last MiB of DRAM");
@@ -147,5 +221,34 @@ mod tests {
         for (i, e) in t.iter().enumerate() {
             assert_eq!((*e >> 20) as usize, i, "flat");
         }
+    }
+
+    #[test]
+    fn the_line_buffer_page_is_normal_uncached_and_the_csr_page_strongly_ordered() {
+        // The accelerator: CSRs at 0xFF20_0000, line buffer at 0xFF20_1000.
+        let lw = sections_of(0xff20_0000..0xff40_0000);
+        let paged = PagedSection {
+            section: 0xff2,
+            default: MemType::StronglyOrdered,
+            pages: &[(1..2, MemType::NormalUncached)],
+        };
+        let map = MemoryMap { dram_mib: 1024, uncached: &[], strongly_ordered: &[lw], paged: Some(paged) };
+        let mut t = [0u32; SECTIONS];
+        let mut pages = PageTable([0; PAGES]);
+        map.fill(&mut t, &mut pages, 0x0011_8400);
+        assert_eq!(t[0xff2], 0x0011_8401, "page-table entry: base 31:10, bits 1:0 = 01, domain 0");
+        assert_eq!(t[0xff3], section_entry(0xff3, MemType::StronglyOrdered), "the second MiB stays a section");
+        let csr = pages.0[0];
+        assert_eq!(csr & !0xfff, 0xff20_0000);
+        assert_eq!(csr & 0b11, 0b11, "small page, XN");
+        assert_eq!((csr >> 6) & 0b111, 0, "TEX 000");
+        assert_eq!((csr >> 2) & 0b11, 0, "C 0 B 0: Strongly-ordered");
+        let line = pages.0[1];
+        assert_eq!(line & !0xfff, 0xff20_1000);
+        assert_eq!((line >> 6) & 0b111, 0b001, "TEX 001");
+        assert_eq!((line >> 2) & 0b11, 0, "C 0 B 0: Normal non-cacheable");
+        assert_eq!((line >> 4) & 0b11, 0b11, "AP full access");
+        assert_eq!(pages.0[2], small_page_entry(0xff20_2000, MemType::StronglyOrdered));
+        assert_eq!(pages.0[255] & !0xfff, 0xff2f_f000);
     }
 }

@@ -200,6 +200,35 @@ pub fn run(elf: &std::path::Path) -> Result<()> {
     Ok(())
 }
 
+/// Another build of the firmware (`renderer` is what its UART log must say
+/// renders): frames on both ports byte-exact, and two clients at once.
+pub fn variant(elf: &std::path::Path, renderer: &str) -> Result<()> {
+    let mut g = Guest::boot(elf, &[])?;
+    let start = std::time::Instant::now();
+    let result = (|| {
+        let line = format!("renderer: {renderer}");
+        if !g.uart().contains(&line) {
+            return Err(format!("UART log lacks {line:?}"));
+        }
+        t_seed_port_frames(&mut g)?;
+        t_persistent_port_pipelined(&mut g)?;
+        t_two_clients_at_once(&mut g)
+    })();
+    match result {
+        Ok(()) => {
+            println!(
+                "qemu e2e: {renderer}: frames byte-exact on both ports ... ok ({:.1} s)",
+                start.elapsed().as_secs_f64()
+            );
+            Ok(())
+        }
+        Err(e) => {
+            println!("qemu e2e: {renderer} ... FAILED: {e}\n--- UART log ---\n{}", g.uart());
+            Err(format!("the {renderer} build failed its tests"))
+        }
+    }
+}
+
 /// The reentry-test build: it turns the MMU and caches on and re-enters the
 /// reset entry, which must clean and turn them off, then boot as usual and
 /// serve a frame byte-exact.

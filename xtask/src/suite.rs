@@ -73,5 +73,17 @@ pub fn qemu_tests() -> Result<()> {
     println!("==> QEMU end-to-end tests ({})", elf.display());
     crate::qemu_e2e::run(&elf)?;
     let elf = crate::firmware::build("qemu-npcm750", &["reentry-test"])?;
-    crate::qemu_e2e::reentry(&elf)
+    crate::qemu_e2e::reentry(&elf)?;
+    // The other renderers: row mode, and the FPGA's code paths (driver,
+    // frame DMA into the ring, pipelined rows) over the simulated
+    // accelerator.
+    for (features, renderer) in [
+        (&["row-mode"][..], "row mode, software renderer"),
+        (&["sim-accelerator"][..], "frame mode, FPGA frame DMA into the ring (software fallback)"),
+        (&["sim-accelerator", "row-mode"][..], "row mode, FPGA rows (software fallback)"),
+    ] {
+        let elf = crate::firmware::build("qemu-npcm750", features)?;
+        crate::qemu_e2e::variant(&elf, renderer)?;
+    }
+    Ok(())
 }

@@ -11,14 +11,14 @@ use core::fmt::{self, Write};
 use core::ops::Range;
 
 use dwmac::phy::PhyConfig;
-use hal_avalon::map::{ID_MAGIC, LW_BRIDGE_BASE};
-use hal_avalon::{Accelerator, MmioPort, PollTimeout};
+use hal_avalon::map::{ID_MAGIC, LINE_BUFFER_OFFSET, LW_BRIDGE_BASE};
+use hal_avalon::MmioPort;
 use soc::cyclone_v::{periph_clock_hz, FpgaMode, Managers, DE1_SOC_OSC1_HZ};
-use soc::global_timer::{GlobalTimer, TimerDelay};
-use soc::mmu::sections_of;
+use soc::global_timer::GlobalTimer;
+use soc::mmu::{sections_of, MemType, PagedSection};
 
 use super::Board;
-use crate::render::{FpgaRows, Renderer};
+use crate::render::{Accel, Frames};
 
 /// The Terasic DE1-SoC.
 pub enum De1Soc {}
@@ -48,6 +48,14 @@ impl Board for De1Soc {
     /// The lightweight HPS-to-FPGA bridge, 2 MiB at 0xFF20_0000.
     const STRONGLY_ORDERED: &'static [Range<u32>] =
         &[sections_of(LW_BRIDGE_BASE..LW_BRIDGE_BASE + hal_avalon::map::LW_BRIDGE_SIZE)];
+    /// The bridge's first MiB page by page: the CSR page Strongly-ordered,
+    /// the line-buffer page (0xFF20_1000) Normal non-cacheable, where the
+    /// driver's `ldm` reads it in bursts (docs/frame-dma.md#row-mode).
+    const PAGED: Option<PagedSection<'static>> = Some(PagedSection {
+        section: (LW_BRIDGE_BASE >> 20) as u32,
+        default: MemType::StronglyOrdered,
+        pages: &[((LINE_BUFFER_OFFSET >> 12) as u32..(LINE_BUFFER_OFFSET >> 12) as u32 + 1, MemType::NormalUncached)],
+    });
     /// A locally administered address (bit 1 of the first octet): the board
     /// has no factory MAC address the firmware can read.
     const MAC_ADDR: [u8; 6] = [0x02, 0xde, 0x1c, 0x50, 0xc0, 0x01];
@@ -77,18 +85,25 @@ impl Board for De1Soc {
         let _ = writeln!(log, "board: EMAC1 reset, RGMII selected");
     }
 
-    fn renderer(log: &mut impl Write, timer: &'static GlobalTimer) -> Renderer {
-        match fpga(timer) {
-            Ok(accel) => {
-                let _ = writeln!(log, "renderer: FPGA accelerator, software fallback");
-                Renderer::new(Some(accel))
+    type Port = MmioPort;
+
+    fn renderer(log: &mut impl Write, timer: &'static GlobalTimer) -> Frames<MmioPort> {
+        let mut frames = match fpga(timer) {
+            Ok((accel, version)) => {
+                let _ = writeln!(log, "FPGA: ray tracer, register map version {version}");
+                if version >= hal_avalon::map::ID_VERSION_FRAMES {
+                    Frames::ring(Some(accel))
+                } else {
+                    Frames::rows(Some(accel))
+                }
             }
             Err(why) => {
                 let _ = writeln!(log, "FPGA: {why}");
-                let _ = writeln!(log, "renderer: software (model on the A9)");
-                Renderer::new(None)
+                Frames::ring(None)
             }
-        }
+        };
+        let _ = writeln!(log, "renderer: {}", frames.describe());
+        frames
     }
 }
 
@@ -116,7 +131,7 @@ impl fmt::Display for NoFpga {
 /// is out of reset and visible, and the ID register answers (without a bus
 /// hang: an empty fabric aborts the read, which the data-abort handler
 /// turns into a failed probe).
-fn fpga(timer: &'static GlobalTimer) -> Result<FpgaRows, NoFpga> {
+fn fpga(timer: &'static GlobalTimer) -> Result<(Accel<MmioPort>, u16), NoFpga> {
     let m = managers();
     match m.fpga_mode() {
         Ok(FpgaMode::User) => {}
@@ -135,9 +150,9 @@ fn fpga(timer: &'static GlobalTimer) -> Result<FpgaRows, NoFpga> {
     // visible, and a ray tracer answered the ID read; the window is mapped
     // Strongly-ordered and only the accelerator driver uses it.
     let port = unsafe { MmioPort::lightweight_bridge() };
-    let mut accel = Accelerator::new(port, TimerDelay(timer), PollTimeout::DEFAULT);
-    accel.probe().map_err(NoFpga::Probe)?;
-    Ok(FpgaRows(accel))
+    let mut accel = crate::render::accelerator(port, timer);
+    let caps = accel.probe().map_err(NoFpga::Probe)?;
+    Ok((accel, caps.version))
 }
 
 /// Read one 32-bit word at `addr` with a single A32 `ldr` whose destination

@@ -6,9 +6,11 @@ use core::fmt::Write;
 use core::ops::Range;
 
 use dwmac::phy::PhyConfig;
+use hal_avalon::RegisterPort;
 use soc::global_timer::GlobalTimer;
+use soc::mmu::PagedSection;
 
-use crate::render::Renderer;
+use crate::render::Frames;
 
 #[cfg(all(feature = "qemu-npcm750", feature = "de1-soc"))]
 compile_error!("select exactly one board feature: qemu-npcm750 or de1-soc");
@@ -46,6 +48,9 @@ pub trait Board {
     /// Sections (MiB indexes) mapped Strongly-ordered: the FPGA bridge
     /// windows.
     const STRONGLY_ORDERED: &'static [Range<u32>];
+    /// A section mapped page by page (the accelerator's: its line-buffer
+    /// page Normal non-cacheable for burst reads).
+    const PAGED: Option<PagedSection<'static>>;
     /// The interface's Ethernet address.
     const MAC_ADDR: [u8; 6];
     /// IPv4 address with prefix length (overridable with `FW_IPV4`).
@@ -60,6 +65,11 @@ pub trait Board {
     fn timer_hz(log: &mut impl Write) -> u32;
     /// Board set-up before the MAC: resets, watchdog, pin routing.
     fn init(log: &mut impl Write);
-    /// The row source: the FPGA accelerator if one answers, else software.
-    fn renderer(log: &mut impl Write, timer: &'static GlobalTimer) -> Renderer;
+    /// How the accelerator's registers are reached.
+    type Port: RegisterPort;
+
+    /// The frames: the FPGA accelerator's if one answers (frame mode when
+    /// its register map has the frame DMA, else row mode), else the
+    /// software renderer's.
+    fn renderer(log: &mut impl Write, timer: &'static GlobalTimer) -> Frames<Self::Port>;
 }

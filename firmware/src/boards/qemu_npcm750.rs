@@ -6,10 +6,12 @@ use core::fmt::Write;
 use core::ops::Range;
 
 use dwmac::phy::PhyConfig;
+use hal_avalon::sim::SimAccelerator;
 use soc::global_timer::GlobalTimer;
+use soc::mmu::PagedSection;
 
 use super::Board;
-use crate::render::Renderer;
+use crate::render::{Frames, Uncached};
 
 /// QEMU's npcm750-evb.
 pub enum QemuNpcm750 {}
@@ -32,6 +34,7 @@ impl Board for QemuNpcm750 {
     const DRAM_MIB: u32 = 512;
     /// No FPGA.
     const STRONGLY_ORDERED: &'static [Range<u32>] = &[];
+    const PAGED: Option<PagedSection<'static>> = None;
     /// QEMU's conventional NIC address 52:54:00:12:34:56 (slirp does not care).
     const MAC_ADDR: [u8; 6] = [0x52, 0x54, 0x00, 0x12, 0x34, 0x56];
     /// Slirp's default guest address (QEMU documentation, "Network
@@ -48,8 +51,21 @@ impl Board for QemuNpcm750 {
     /// Nothing to set up: QEMU's MAC comes out of reset ready.
     fn init(_log: &mut impl Write) {}
 
-    fn renderer(log: &mut impl Write, _timer: &'static GlobalTimer) -> Renderer {
-        let _ = writeln!(log, "renderer: software (model on the A9)");
-        Renderer::new(None)
+    /// No FPGA; the `sim-accelerator` build puts hal-avalon's simulated
+    /// accelerator behind the real driver (its frame DMA writing the same
+    /// ring), so the emulated board runs the FPGA's code paths.
+    type Port = SimAccelerator<Uncached>;
+
+    /// Frame mode, or row mode with the `row-mode` feature.
+    fn renderer(log: &mut impl Write, timer: &'static GlobalTimer) -> Frames<Self::Port> {
+        let fpga = cfg!(feature = "sim-accelerator").then(|| {
+            let mut sim = SimAccelerator::with_memory(Uncached::frames(), 2);
+            // A row per status read: the main loop stays responsive.
+            sim.set_frame_rows_per_poll(1);
+            crate::render::accelerator(sim, timer)
+        });
+        let mut frames = if cfg!(feature = "row-mode") { Frames::rows(fpga) } else { Frames::ring(fpga) };
+        let _ = writeln!(log, "renderer: {}", frames.describe());
+        frames
     }
 }

@@ -7,8 +7,8 @@
 use std::net::SocketAddr;
 use std::process::ExitCode;
 
-use clap::Parser;
-use hps_sim::HpsSim;
+use clap::{Parser, ValueEnum};
+use hps_sim::{HpsSim, RenderMode};
 
 #[derive(Parser)]
 #[command(name = "hps-sim", about = "The ray tracer board simulated on the host")]
@@ -16,14 +16,30 @@ struct Args {
     /// Address of the seed-protocol port; the persistent port is the next one.
     #[arg(long, default_value_t = SocketAddr::from(([127, 0, 0, 1], rt_protocol::FRAME_PORT)))]
     listen: SocketAddr,
+    /// How the simulated accelerator renders: whole frames by DMA into
+    /// memory (the board's main mode) or one row per start.
+    #[arg(long, value_enum, default_value_t = Mode::Frames)]
+    mode: Mode,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Mode {
+    /// Frame DMA into a ring of frame slots.
+    Frames,
+    /// Row by row through the line buffer.
+    Rows,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    match HpsSim::start(args.listen) {
+    let render = match args.mode {
+        Mode::Frames => RenderMode::Frames,
+        Mode::Rows => RenderMode::Rows,
+    };
+    match HpsSim::start_with(args.listen, render, true) {
         Ok(sim) => {
             eprintln!(
-                "hps-sim: frames on {} (one per connection), persistent on {}",
+                "hps-sim: {render:?} mode; frames on {} (one per connection), persistent on {}",
                 sim.frame_addr(),
                 sim.persistent_addr()
             );

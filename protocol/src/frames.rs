@@ -1,0 +1,728 @@
+//! Where the frames a session sends come from.
+//!
+//! A [`FrameSource`] hands out frames, reports how many of a frame's rows can
+//! be read, and copies row bytes straight into the transport's buffer (the
+//! socket's), so a row is copied by the CPU once. Two sources:
+//!
+//! * [`RowFrames`] (row mode): renders one row at a time with a
+//!   [`RowSource`] (the model, the FPGA's row registers) into a single row
+//!   buffer per frame. A session's rows are rendered as it sends them.
+//! * [`FrameRing`] (frame mode): whole frames in `SLOTS` slots of a
+//!   [`FrameMemory`] (the FPGA-to-SDRAM frame buffers on the board), filled
+//!   by a [`FrameEngine`] (the FPGA's frame DMA, or a software renderer that
+//!   writes the same memory) one frame after another; rows become readable
+//!   as the engine's rows-done counter covers them.
+
+use core::fmt;
+
+use model::{row_to_rgb888, Light, FRAME_BYTES, HEIGHT, ROW_BYTES, WIDTH};
+
+use crate::server::RowSource;
+
+/// Rows of a frame.
+pub const ROWS: u16 = HEIGHT as u16;
+
+/// Frames for sessions.
+pub trait FrameSource {
+    /// A frame a session holds.
+    type Frame: Copy + Eq + fmt::Debug;
+    /// Why a frame could not be rendered.
+    type Error: fmt::Display + fmt::Debug;
+
+    /// Begin a frame for `light`; `Ok(None)` while no slot is free (ask
+    /// again later).
+    fn begin(&mut self, light: &Light) -> Result<Option<Self::Frame>, Self::Error>;
+
+    /// Rows `0..n` of `frame` that can be copied now. May do work (render a
+    /// row, read the accelerator's counter); never blocks for long.
+    fn rows_ready(&mut self, frame: Self::Frame) -> Result<u16, Self::Error>;
+
+    /// Copy bytes `offset..` of row `y` of `frame` into `out` (as many as fit
+    /// and the row has); returns how many. Only for rows below what
+    /// [`rows_ready`](Self::rows_ready) reported.
+    fn copy_row(&mut self, frame: Self::Frame, y: u16, offset: usize, out: &mut [u8]) -> usize;
+
+    /// The session is done with `frame` (sent, or abandoned): its slot may
+    /// be reused.
+    fn end(&mut self, frame: Self::Frame);
+}
+
+// ---- Row mode -------------------------------------------------------------------
+
+/// One frame of [`RowFrames`]: its light and its newest row.
+struct RowSlot {
+    light: Light,
+    rendered: u16,
+    bytes: [u8; ROW_BYTES],
+}
+
+/// Row mode: frames rendered a row at a time by `R`, each holding only its
+/// newest row (1,440 bytes), for up to `N` frames at once.
+pub struct RowFrames<R, const N: usize> {
+    rows: R,
+    slots: [Option<RowSlot>; N],
+    words: [u32; WIDTH],
+}
+
+impl<R: RowSource, const N: usize> RowFrames<R, N> {
+    /// Frames rendered by `rows`.
+    pub fn new(rows: R) -> RowFrames<R, N> {
+        RowFrames { rows, slots: [const { None }; N], words: [0; WIDTH] }
+    }
+
+    /// The row source.
+    pub fn rows(&mut self) -> &mut R {
+        &mut self.rows
+    }
+}
+
+impl<R: RowSource, const N: usize> FrameSource for RowFrames<R, N>
+where
+    R::Error: fmt::Display,
+{
+    type Frame = usize;
+    type Error = R::Error;
+
+    fn begin(&mut self, light: &Light) -> Result<Option<usize>, R::Error> {
+        let Some(i) = self.slots.iter().position(Option::is_none) else {
+            return Ok(None);
+        };
+        self.slots[i] = Some(RowSlot { light: *light, rendered: 0, bytes: [0; ROW_BYTES] });
+        Ok(Some(i))
+    }
+
+    /// Renders the next row when asked: a session asks once it has sent
+    /// every row rendered so far, so the single row buffer is free again.
+    fn rows_ready(&mut self, frame: usize) -> Result<u16, R::Error> {
+        let Some(slot) = self.slots.get_mut(frame).and_then(Option::as_mut) else {
+            return Ok(0);
+        };
+        if slot.rendered < ROWS {
+            self.rows.render_row(slot.rendered, &slot.light, &mut self.words)?;
+            row_to_rgb888(&self.words, &mut slot.bytes);
+            slot.rendered += 1;
+        }
+        Ok(slot.rendered)
+    }
+
+    fn copy_row(&mut self, frame: usize, y: u16, offset: usize, out: &mut [u8]) -> usize {
+        match self.slots.get(frame).and_then(Option::as_ref) {
+            Some(slot) if slot.rendered == y + 1 => copy_from(&slot.bytes, offset, out),
+            _ => 0,
+        }
+    }
+
+    fn end(&mut self, frame: usize) {
+        if let Some(s) = self.slots.get_mut(frame) {
+            *s = None;
+        }
+    }
+}
+
+/// Copy `row[offset..]` into the front of `out`; bytes copied.
+fn copy_from(row: &[u8], offset: usize, out: &mut [u8]) -> usize {
+    let src = row.get(offset..).unwrap_or(&[]);
+    let n = src.len().min(out.len());
+    out[..n].copy_from_slice(&src[..n]);
+    n
+}
+
+// ---- Frame mode -----------------------------------------------------------------
+
+/// The memory frame slots live in.
+pub trait FrameMemory {
+    /// Bus address of slot `slot`, for an engine that writes by DMA.
+    fn slot_address(&self, slot: usize) -> u32;
+
+    /// Copy bytes `offset..offset + out.len()` of row `y` of `slot` into
+    /// `out`. The engine's counter covered the row; an implementation on
+    /// real memory issues the barrier that orders this read after the
+    /// counter's.
+    fn read_row(&mut self, slot: usize, y: u16, offset: usize, out: &mut [u8]);
+
+    /// Write a whole row of `slot` (for a software engine).
+    fn write_row(&mut self, slot: usize, y: u16, row: &[u8; ROW_BYTES]);
+}
+
+/// What renders frames into a [`FrameMemory`], one at a time.
+pub trait FrameEngine<M: FrameMemory> {
+    /// Why a frame failed.
+    type Error: fmt::Display + fmt::Debug + Copy;
+
+    /// Start rendering `light` into `slot`; the previous frame is finished.
+    fn start(&mut self, mem: &mut M, slot: usize, light: &Light) -> Result<(), Self::Error>;
+
+    /// Rows `0..n` of the frame in progress that have landed. May do work
+    /// (a software engine renders a row per call); never blocks for long.
+    fn progress(&mut self, mem: &mut M) -> Result<u16, Self::Error>;
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum SlotState<E> {
+    Free,
+    /// Waiting for the engine.
+    Queued(Light),
+    /// Being rendered; `rows` landed so far.
+    Rendering(u16),
+    /// All rows landed.
+    Ready,
+    /// Released while the engine still writes it: freed when it finishes.
+    Abandoned,
+    /// The engine failed it.
+    Failed(E),
+}
+
+/// Frame mode: `SLOTS` whole frames in `M`, rendered by `E` in the order
+/// they were begun.
+pub struct FrameRing<M, E: FrameEngine<M>, const SLOTS: usize>
+where
+    M: FrameMemory,
+{
+    mem: M,
+    engine: E,
+    slots: [SlotState<E::Error>; SLOTS],
+    /// Begin order of the queued slots (a slot number per entry).
+    queue: heapless::Deque<usize, SLOTS>,
+    rendering: Option<usize>,
+}
+
+impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOTS> {
+    /// A ring over `mem` rendered by `engine`, every slot free.
+    pub fn new(mem: M, engine: E) -> FrameRing<M, E, SLOTS> {
+        FrameRing { mem, engine, slots: [SlotState::Free; SLOTS], queue: heapless::Deque::new(), rendering: None }
+    }
+
+    /// The engine.
+    pub fn engine(&mut self) -> &mut E {
+        &mut self.engine
+    }
+
+    /// The memory.
+    pub fn memory(&mut self) -> &mut M {
+        &mut self.mem
+    }
+
+    /// Slots not held by a frame (free for `begin`).
+    pub fn free_slots(&self) -> usize {
+        self.slots.iter().filter(|s| matches!(s, SlotState::Free)).count()
+    }
+
+    /// Advance the engine: progress of the frame in progress, the next
+    /// queued frame started when it is done (or failed).
+    fn pump(&mut self) {
+        if let Some(slot) = self.rendering {
+            let result = self.engine.progress(&mut self.mem);
+            let finished = match (result, &mut self.slots[slot]) {
+                (Ok(rows), SlotState::Rendering(r)) => {
+                    *r = rows.min(ROWS);
+                    rows >= ROWS
+                }
+                (Ok(rows), _) => rows >= ROWS,
+                (Err(e), state) => {
+                    if !matches!(state, SlotState::Abandoned) {
+                        *state = SlotState::Failed(e);
+                    }
+                    true
+                }
+            };
+            if !finished {
+                return;
+            }
+            self.slots[slot] = match self.slots[slot] {
+                SlotState::Rendering(_) => SlotState::Ready,
+                SlotState::Abandoned => SlotState::Free,
+                other => other,
+            };
+            self.rendering = None;
+        }
+        while let Some(slot) = self.queue.pop_front() {
+            let SlotState::Queued(light) = self.slots[slot] else {
+                continue;
+            };
+            match self.engine.start(&mut self.mem, slot, &light) {
+                Ok(()) => {
+                    self.slots[slot] = SlotState::Rendering(0);
+                    self.rendering = Some(slot);
+                    return;
+                }
+                Err(e) => self.slots[slot] = SlotState::Failed(e),
+            }
+        }
+    }
+}
+
+impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameSource for FrameRing<M, E, SLOTS> {
+    type Frame = usize;
+    type Error = E::Error;
+
+    fn begin(&mut self, light: &Light) -> Result<Option<usize>, E::Error> {
+        let Some(slot) = self.slots.iter().position(|s| matches!(s, SlotState::Free)) else {
+            return Ok(None);
+        };
+        self.slots[slot] = SlotState::Queued(*light);
+        // A free slot is in no queue entry, so there is room.
+        let _ = self.queue.push_back(slot);
+        if self.rendering.is_none() {
+            self.pump();
+        }
+        Ok(Some(slot))
+    }
+
+    fn rows_ready(&mut self, frame: usize) -> Result<u16, E::Error> {
+        self.pump();
+        match self.slots.get(frame) {
+            Some(SlotState::Rendering(rows)) => Ok(*rows),
+            Some(SlotState::Ready) => Ok(ROWS),
+            Some(SlotState::Failed(e)) => Err(*e),
+            _ => Ok(0),
+        }
+    }
+
+    fn copy_row(&mut self, frame: usize, y: u16, offset: usize, out: &mut [u8]) -> usize {
+        let landed = match self.slots.get(frame) {
+            Some(SlotState::Rendering(rows)) => y < *rows,
+            Some(SlotState::Ready) => y < ROWS,
+            _ => false,
+        };
+        if !landed || offset >= ROW_BYTES {
+            return 0;
+        }
+        let n = out.len().min(ROW_BYTES - offset);
+        self.mem.read_row(frame, y, offset, &mut out[..n]);
+        n
+    }
+
+    fn end(&mut self, frame: usize) {
+        let Some(state) = self.slots.get_mut(frame) else {
+            return;
+        };
+        *state = match state {
+            SlotState::Rendering(_) => SlotState::Abandoned,
+            _ => SlotState::Free,
+        };
+    }
+}
+
+/// Frame slots in a byte slice (host memory: tests, host simulations):
+/// slot `i` at byte `i * FRAME_BYTES`, bus address `base` + that.
+pub struct SliceMemory<'a> {
+    base: u32,
+    bytes: &'a mut [u8],
+}
+
+impl<'a> SliceMemory<'a> {
+    /// Slots in `bytes` (whole frames only), at bus address `base`.
+    pub fn new(base: u32, bytes: &'a mut [u8]) -> SliceMemory<'a> {
+        SliceMemory { base, bytes }
+    }
+
+    /// How many whole slots the slice holds.
+    pub fn slots(&self) -> usize {
+        self.bytes.len() / FRAME_BYTES
+    }
+
+    /// The bytes.
+    pub fn bytes(&self) -> &[u8] {
+        self.bytes
+    }
+}
+
+impl FrameMemory for SliceMemory<'_> {
+    fn slot_address(&self, slot: usize) -> u32 {
+        self.base.wrapping_add((slot * FRAME_BYTES) as u32)
+    }
+
+    fn read_row(&mut self, slot: usize, y: u16, offset: usize, out: &mut [u8]) {
+        let at = slot * FRAME_BYTES + usize::from(y) * ROW_BYTES + offset;
+        if let Some(src) = self.bytes.get(at..at + out.len()) {
+            out.copy_from_slice(src);
+        }
+    }
+
+    fn write_row(&mut self, slot: usize, y: u16, row: &[u8; ROW_BYTES]) {
+        let at = slot * FRAME_BYTES + usize::from(y) * ROW_BYTES;
+        if let Some(dst) = self.bytes.get_mut(at..at + ROW_BYTES) {
+            dst.copy_from_slice(row);
+        }
+    }
+}
+
+/// A software frame engine: renders one row per [`FrameEngine::progress`]
+/// call with `R` into the slot, so rows become readable through the same
+/// counter the FPGA's frame DMA keeps.
+pub struct RowEngine<R> {
+    rows: R,
+    job: Option<(usize, Light, u16)>,
+    words: [u32; WIDTH],
+    bytes: [u8; ROW_BYTES],
+}
+
+impl<R: RowSource> RowEngine<R> {
+    /// An engine rendering with `rows`.
+    pub fn new(rows: R) -> RowEngine<R> {
+        RowEngine { rows, job: None, words: [0; WIDTH], bytes: [0; ROW_BYTES] }
+    }
+
+    /// The row source.
+    pub fn rows(&mut self) -> &mut R {
+        &mut self.rows
+    }
+}
+
+impl<R: RowSource, M: FrameMemory> FrameEngine<M> for RowEngine<R>
+where
+    R::Error: fmt::Display + Copy,
+{
+    type Error = R::Error;
+
+    fn start(&mut self, _mem: &mut M, slot: usize, light: &Light) -> Result<(), R::Error> {
+        self.job = Some((slot, *light, 0));
+        Ok(())
+    }
+
+    fn progress(&mut self, mem: &mut M) -> Result<u16, R::Error> {
+        let Some((slot, light, rows)) = &mut self.job else {
+            return Ok(ROWS);
+        };
+        if *rows < ROWS {
+            self.rows.render_row(*rows, light, &mut self.words)?;
+            row_to_rgb888(&self.words, &mut self.bytes);
+            mem.write_row(*slot, *rows, &self.bytes);
+            *rows += 1;
+        }
+        Ok(*rows)
+    }
+}
+
+/// An engine used for a frame: the primary or the fallback.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Using {
+    Primary,
+    Fallback,
+}
+
+/// A failure of [`FallbackEngine`]'s primary or fallback engine.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EngineError<P, F> {
+    /// The primary engine failed the frame.
+    Primary(P),
+    /// The fallback engine failed the frame.
+    Fallback(F),
+}
+
+impl<P: fmt::Display, F: fmt::Display> fmt::Display for EngineError<P, F> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            EngineError::Primary(e) => fmt::Display::fmt(e, f),
+            EngineError::Fallback(e) => write!(f, "fallback renderer: {e}"),
+        }
+    }
+}
+
+/// Frames from a primary engine (the FPGA's frame DMA) with a fallback (the
+/// model on the CPU): a frame the primary cannot start is rendered by the
+/// fallback; a frame that fails under way fails (its client sees the
+/// connection close, not a wrong frame). After
+/// [`WEDGED_AFTER`](crate::fallback::WEDGED_AFTER) failed frames in a row
+/// the primary is switched off for good.
+pub struct FallbackEngine<P, F> {
+    primary: Option<P>,
+    fallback: F,
+    using: Using,
+    consecutive: u32,
+    switched_off: bool,
+}
+
+impl<P, F> FallbackEngine<P, F> {
+    /// `primary` first (none: the fallback only), `fallback` where it fails.
+    pub fn new(primary: Option<P>, fallback: F) -> FallbackEngine<P, F> {
+        FallbackEngine { primary, fallback, using: Using::Fallback, consecutive: 0, switched_off: false }
+    }
+
+    /// Whether the primary engine is still in use.
+    pub fn primary_active(&self) -> bool {
+        self.primary.is_some()
+    }
+
+    /// The primary engine, while it is in use.
+    pub fn primary(&mut self) -> Option<&mut P> {
+        self.primary.as_mut()
+    }
+
+    /// `true` once, right after the primary was switched off.
+    pub fn take_switched_off(&mut self) -> bool {
+        core::mem::take(&mut self.switched_off)
+    }
+
+    fn failed(&mut self) {
+        self.consecutive += 1;
+        if self.consecutive >= crate::fallback::WEDGED_AFTER && self.primary.is_some() {
+            self.primary = None;
+            self.switched_off = true;
+        }
+    }
+}
+
+impl<M: FrameMemory, P: FrameEngine<M>, F: FrameEngine<M>> FrameEngine<M> for FallbackEngine<P, F> {
+    type Error = EngineError<P::Error, F::Error>;
+
+    fn start(&mut self, mem: &mut M, slot: usize, light: &Light) -> Result<(), Self::Error> {
+        if let Some(p) = &mut self.primary {
+            match p.start(mem, slot, light) {
+                Ok(()) => {
+                    self.using = Using::Primary;
+                    return Ok(());
+                }
+                Err(_) => self.failed(),
+            }
+        }
+        self.using = Using::Fallback;
+        self.fallback.start(mem, slot, light).map_err(EngineError::Fallback)
+    }
+
+    fn progress(&mut self, mem: &mut M) -> Result<u16, Self::Error> {
+        match (self.using, &mut self.primary) {
+            (Using::Primary, Some(p)) => match p.progress(mem) {
+                Ok(rows) => {
+                    if rows >= ROWS {
+                        self.consecutive = 0;
+                    }
+                    Ok(rows)
+                }
+                Err(e) => {
+                    self.failed();
+                    Err(EngineError::Primary(e))
+                }
+            },
+            _ => self.fallback.progress(mem).map_err(EngineError::Fallback),
+        }
+    }
+}
+
+/// An engine error, or a frame that stopped making progress.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WatchdogError<E> {
+    /// The engine reported an error.
+    Engine(E),
+    /// No new row landed within the watchdog's limit.
+    Stalled {
+        /// Rows that had landed.
+        rows: u16,
+    },
+}
+
+impl<E: fmt::Display> fmt::Display for WatchdogError<E> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            WatchdogError::Engine(e) => fmt::Display::fmt(e, f),
+            WatchdogError::Stalled { rows } => write!(f, "frame stalled after {rows} rows"),
+        }
+    }
+}
+
+/// An engine whose frames must keep landing rows: no new row for `limit`
+/// of `clock` time fails the frame instead of leaving its client waiting.
+pub struct Watchdog<E, C> {
+    engine: E,
+    clock: C,
+    limit: core::time::Duration,
+    rows: u16,
+    since: crate::time::Instant,
+}
+
+impl<E, C: FnMut() -> crate::time::Instant> Watchdog<E, C> {
+    /// Watch `engine` with `clock`, allowing `limit` between rows.
+    pub fn new(engine: E, mut clock: C, limit: core::time::Duration) -> Watchdog<E, C> {
+        let since = clock();
+        Watchdog { engine, clock, limit, rows: 0, since }
+    }
+
+    /// The engine.
+    pub fn engine(&mut self) -> &mut E {
+        &mut self.engine
+    }
+}
+
+impl<M: FrameMemory, E: FrameEngine<M>, C: FnMut() -> crate::time::Instant> FrameEngine<M> for Watchdog<E, C> {
+    type Error = WatchdogError<E::Error>;
+
+    fn start(&mut self, mem: &mut M, slot: usize, light: &Light) -> Result<(), Self::Error> {
+        self.rows = 0;
+        self.since = (self.clock)();
+        self.engine.start(mem, slot, light).map_err(WatchdogError::Engine)
+    }
+
+    fn progress(&mut self, mem: &mut M) -> Result<u16, Self::Error> {
+        let rows = self.engine.progress(mem).map_err(WatchdogError::Engine)?;
+        let now = (self.clock)();
+        if rows != self.rows {
+            self.rows = rows;
+            self.since = now;
+        } else if rows < ROWS && now.saturating_duration_since(self.since) > self.limit {
+            return Err(WatchdogError::Stalled { rows });
+        }
+        Ok(rows)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::server::SoftwareRenderer;
+
+    /// An engine that lands `step` rows per progress call, failing the
+    /// frame of a chosen light.
+    struct Dma {
+        started: Vec<usize>,
+        rows: u16,
+        step: u16,
+        fail_light: Option<Light>,
+        current: Option<Light>,
+    }
+
+    impl FrameEngine<SliceMemory<'_>> for Dma {
+        type Error = &'static str;
+        fn start(&mut self, _: &mut SliceMemory<'_>, slot: usize, light: &Light) -> Result<(), &'static str> {
+            self.started.push(slot);
+            self.rows = 0;
+            self.current = Some(*light);
+            Ok(())
+        }
+        fn progress(&mut self, _: &mut SliceMemory<'_>) -> Result<u16, &'static str> {
+            if self.current == self.fail_light {
+                return Err("bus error");
+            }
+            self.rows = (self.rows + self.step).min(ROWS);
+            Ok(self.rows)
+        }
+    }
+
+    fn light(x: f64) -> Light {
+        Light::from_world(x, 4.0, -2.0).unwrap()
+    }
+
+    #[test]
+    fn frames_render_in_begin_order_and_rows_appear_as_they_land() {
+        let mut mem = vec![0u8; 3 * FRAME_BYTES];
+        let dma = Dma { started: vec![], rows: 0, step: 100, fail_light: None, current: None };
+        let mut ring = FrameRing::<_, _, 3>::new(SliceMemory::new(0x1000, &mut mem), dma);
+        let (a, b) = (ring.begin(&light(1.0)).unwrap().unwrap(), ring.begin(&light(2.0)).unwrap().unwrap());
+        assert_eq!(ring.rows_ready(b).unwrap(), 0, "queued behind a");
+        assert_eq!(ring.rows_ready(a).unwrap(), 200, "a progressed on each call");
+        assert_eq!(ring.rows_ready(a).unwrap(), 300);
+        assert_eq!(ring.rows_ready(a).unwrap(), ROWS, "a done, b started");
+        assert_eq!(ring.rows_ready(b).unwrap(), 100);
+        assert_eq!(ring.engine().started, [a, b]);
+        assert_eq!(ring.copy_row(b, 99, 0, &mut [0; 8]), 8);
+        assert_eq!(ring.copy_row(b, 100, 0, &mut [0; 8]), 0, "a row not landed is not copied");
+        assert_eq!(ring.copy_row(a, 359, ROW_BYTES - 3, &mut [0; 8]), 3, "the row's end");
+    }
+
+    #[test]
+    fn a_slot_released_mid_render_is_freed_only_when_the_engine_is_done() {
+        let mut mem = vec![0u8; 2 * FRAME_BYTES];
+        let dma = Dma { started: vec![], rows: 0, step: 150, fail_light: None, current: None };
+        let mut ring = FrameRing::<_, _, 2>::new(SliceMemory::new(0, &mut mem), dma);
+        let a = ring.begin(&light(1.0)).unwrap().unwrap();
+        let b = ring.begin(&light(2.0)).unwrap().unwrap();
+        assert_eq!(ring.begin(&light(3.0)).unwrap(), None, "both slots taken");
+        ring.end(a); // the client left while the DMA writes a
+        assert_eq!(ring.free_slots(), 0, "a is still being written");
+        assert_eq!(ring.begin(&light(3.0)).unwrap(), None);
+        while ring.rows_ready(b).unwrap() < ROWS {}
+        assert_eq!(ring.free_slots(), 1, "a freed once finished");
+        let c = ring.begin(&light(3.0)).unwrap().unwrap();
+        assert_eq!(c, a);
+    }
+
+    #[test]
+    fn a_failed_frame_reports_its_error_and_the_next_one_renders() {
+        let mut mem = vec![0u8; 2 * FRAME_BYTES];
+        let dma = Dma { started: vec![], rows: 0, step: 360, fail_light: Some(light(1.0)), current: None };
+        let mut ring = FrameRing::<_, _, 2>::new(SliceMemory::new(0, &mut mem), dma);
+        let a = ring.begin(&light(1.0)).unwrap().unwrap();
+        let b = ring.begin(&light(2.0)).unwrap().unwrap();
+        assert_eq!(ring.rows_ready(a), Err("bus error"));
+        assert_eq!(ring.rows_ready(b), Ok(ROWS));
+        ring.end(a);
+        ring.end(b);
+        assert_eq!(ring.free_slots(), 2);
+    }
+
+    #[test]
+    fn the_software_engine_fills_the_slot_with_the_models_frame() {
+        let mut mem = vec![0u8; FRAME_BYTES];
+        let mut ring = FrameRing::<_, _, 1>::new(SliceMemory::new(0, &mut mem), RowEngine::new(SoftwareRenderer));
+        let l = light(3.0);
+        let f = ring.begin(&l).unwrap().unwrap();
+        let mut rows = 0;
+        let mut calls = 0;
+        while rows < ROWS {
+            rows = ring.rows_ready(f).unwrap();
+            calls += 1;
+        }
+        assert_eq!(calls, 360, "one row per call: the main loop stays responsive");
+        let mut out = vec![0u8; FRAME_BYTES];
+        for y in 0..ROWS {
+            ring.copy_row(f, y, 0, &mut out[usize::from(y) * ROW_BYTES..][..ROW_BYTES]);
+        }
+        assert!(out == model::render_frame(&l));
+    }
+
+    #[test]
+    fn row_frames_hold_one_row_per_frame() {
+        let mut frames = RowFrames::<SoftwareRenderer, 2>::new(SoftwareRenderer);
+        let l = light(-2.0);
+        let a = frames.begin(&l).unwrap().unwrap();
+        assert!(frames.begin(&l).unwrap().is_some());
+        assert_eq!(frames.begin(&l).unwrap(), None, "two frames at most");
+        assert_eq!(frames.copy_row(a, 0, 0, &mut [0; 4]), 0, "nothing rendered yet");
+        assert_eq!(frames.rows_ready(a).unwrap(), 1);
+        let mut row = vec![0u8; ROW_BYTES];
+        assert_eq!(frames.copy_row(a, 0, 0, &mut row), ROW_BYTES);
+        assert_eq!(row, model::render_frame(&l)[..ROW_BYTES]);
+        assert_eq!(frames.rows_ready(a).unwrap(), 2);
+        assert_eq!(frames.copy_row(a, 0, 0, &mut row), 0, "row 0 is gone once row 1 is rendered");
+        frames.end(a);
+        assert!(frames.begin(&l).unwrap().is_some());
+    }
+
+    #[test]
+    fn a_failing_primary_engine_falls_back_and_is_switched_off_after_three_frames() {
+        let mut mem = vec![0u8; FRAME_BYTES];
+        let bad = light(1.0);
+        let dma = Dma { started: vec![], rows: 0, step: 360, fail_light: Some(bad), current: None };
+        let engine = FallbackEngine::new(Some(dma), RowEngine::new(SoftwareRenderer));
+        let mut ring = FrameRing::<_, _, 1>::new(SliceMemory::new(0, &mut mem), engine);
+        for _ in 0..3 {
+            let f = ring.begin(&bad).unwrap().unwrap();
+            assert!(matches!(ring.rows_ready(f), Err(EngineError::Primary("bus error"))));
+            ring.end(f);
+        }
+        assert!(!ring.engine().primary_active(), "wedged: off");
+        assert!(ring.engine().take_switched_off());
+        assert!(!ring.engine().take_switched_off(), "reported once");
+        // The software engine renders from now on, right.
+        let f = ring.begin(&bad).unwrap().unwrap();
+        while ring.rows_ready(f).unwrap() < ROWS {}
+        let mut row = vec![0u8; ROW_BYTES];
+        ring.copy_row(f, 200, 0, &mut row);
+        assert_eq!(row, model::render_frame(&bad)[200 * ROW_BYTES..201 * ROW_BYTES]);
+    }
+
+    #[test]
+    fn a_stalled_frame_fails_after_the_watchdog_limit() {
+        use core::cell::Cell;
+        let now = Cell::new(0u64);
+        let clock = || crate::time::Instant::from_millis(now.get());
+        let dma = Dma { started: vec![], rows: 0, step: 0, fail_light: None, current: None };
+        let mut mem = vec![0u8; FRAME_BYTES];
+        let engine = Watchdog::new(dma, clock, core::time::Duration::from_millis(500));
+        let mut ring = FrameRing::<_, _, 1>::new(SliceMemory::new(0, &mut mem), engine);
+        let f = ring.begin(&light(2.0)).unwrap().unwrap();
+        now.set(400);
+        assert_eq!(ring.rows_ready(f), Ok(0), "within the limit");
+        now.set(501);
+        assert_eq!(ring.rows_ready(f), Err(WatchdogError::Stalled { rows: 0 }));
+    }
+}
