@@ -19,7 +19,7 @@ use smoltcp::time::Instant;
 use crate::desc::{self, ChecksumInsertion, RxStatus, OWN};
 use crate::mac::{Dwmac, RxState, Shared, TxState, MAX_FRAME};
 use crate::regs::DmaStatus;
-use crate::ring::{BUFFER_SIZE, RX_RING, TX_RING};
+use crate::ring::{BUFFER_SIZE, RX_RING, TX_RING, TX_SKEW};
 use crate::sync::DmaSync;
 
 impl RxState {
@@ -83,16 +83,16 @@ impl TxState {
     /// `f` and hand it to the DMA.
     fn send<S: DmaSync, R>(&mut self, shared: &Shared<'_, S>, len: usize, f: impl FnOnce(&mut [u8]) -> R) -> R {
         let i = self.next;
-        let len = len.min(BUFFER_SIZE);
+        let len = len.min(BUFFER_SIZE - TX_SKEW);
         let (desc, buffer) = (shared.area.tx_descriptor(i), shared.area.tx_buffer(i));
         // OWN was seen clear (`free`): the MAC is done with the buffer.
         shared.sync.dmb();
         // SAFETY: the CPU owns descriptor `i` and its buffer until OWN is set
         // below, and this is the only slice of the buffer.
-        let r = f(unsafe { buffer.bytes_mut(len) });
+        let r = f(unsafe { buffer.bytes_mut(TX_SKEW, len) });
         let [tdes0, tdes1] = desc::tx_control(shared.format, len, i == TX_RING - 1, shared.csum);
         desc.set_word(1, tdes1);
-        desc.set_word(2, buffer.bus_address());
+        desc.set_word(2, buffer.bus_address() + TX_SKEW as u32);
         desc.set_word(3, 0);
         // Buffer and control words before OWN; OWN visible before the poll.
         shared.sync.dsb();
@@ -126,6 +126,7 @@ impl<S: DmaSync> smoltcp::phy::RxToken for DwmacRxToken<'_, '_, S> {
         // until `recycle` below hands it back; no mutable slice exists.
         let r = f(unsafe { buffer.bytes(self.len) });
         self.rx.frames = self.rx.frames.saturating_add(1);
+        self.rx.bytes = self.rx.bytes.saturating_add(self.len as u64);
         self.rx.recycle(self.shared);
         r
     }

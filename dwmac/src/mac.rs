@@ -95,6 +95,8 @@ pub struct ResetTimeout;
 pub struct Stats {
     /// Good frames handed to the stack.
     pub rx_frames: u32,
+    /// Bytes of those frames (the stack reads them from the uncached ring).
+    pub rx_bytes: u64,
     /// Frames dropped: error bit, split over descriptors, or too long.
     pub rx_dropped: u32,
     /// Frames handed to the DMA.
@@ -130,6 +132,7 @@ impl<S: DmaSync> Shared<'_, S> {
 pub(crate) struct RxState {
     pub(crate) next: usize,
     pub(crate) frames: u32,
+    pub(crate) bytes: u64,
     pub(crate) dropped: u32,
 }
 
@@ -238,6 +241,7 @@ impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
     pub fn stats(&self) -> Stats {
         Stats {
             rx_frames: self.rx.frames,
+            rx_bytes: self.rx.bytes,
             rx_dropped: self.rx.dropped,
             tx_frames: self.tx.frames,
             tx_bytes: self.tx.bytes,

@@ -18,7 +18,17 @@ pub const TX_RING: usize = 32;
 /// a multiple of the bus width; fits both formats' buffer-1 size fields.
 pub const BUFFER_SIZE: usize = 1536;
 
+/// Where a transmitted frame starts in its buffer: two bytes in, so that
+/// behind the 14-byte Ethernet header the IP header and a TCP segment's
+/// payload (54 bytes in) are word aligned and smoltcp's payload copy takes
+/// the word-by-word path instead of the shifting one (the `NET_IP_ALIGN`
+/// idea of Linux, on transmit). The DMA takes transmit buffers at any byte
+/// address (Stratix 10 HPS TRM, the same Synopsys GMAC: "Host Data Buffer
+/// Alignment"; Linux `stmmac_xmit` maps `skb->data` as it is).
+pub const TX_SKEW: usize = 2;
+
 const _: () = assert!(BUFFER_SIZE <= crate::desc::DescFormat::Normal.max_buffer());
+const _: () = assert!(1514 + TX_SKEW <= BUFFER_SIZE);
 const _: () = assert!(BUFFER_SIZE.is_multiple_of(8));
 
 /// One 4-word DMA descriptor (bus mode ATDS off: 16 bytes, contiguous).
@@ -85,15 +95,18 @@ impl Buffer {
         unsafe { core::slice::from_raw_parts(self.0.get().cast::<u8>(), len.min(BUFFER_SIZE)) }
     }
 
-    /// The first `len` bytes (at most [`BUFFER_SIZE`]), writable.
+    /// `len` bytes from byte `skew` on (at most to the end), writable.
     ///
     /// # Safety
     ///
     /// As [`Buffer::bytes`], and no other slice of the buffer exists.
     #[allow(clippy::mut_from_ref)] // interior mutability: the CPU owns the buffer
-    pub unsafe fn bytes_mut(&self, len: usize) -> &mut [u8] {
-        // SAFETY: as in `bytes`; the caller also excludes every other slice.
-        unsafe { core::slice::from_raw_parts_mut(self.0.get().cast::<u8>(), len.min(BUFFER_SIZE)) }
+    pub unsafe fn bytes_mut(&self, skew: usize, len: usize) -> &mut [u8] {
+        let skew = skew.min(BUFFER_SIZE);
+        let len = len.min(BUFFER_SIZE - skew);
+        // SAFETY: as in `bytes`; the caller also excludes every other slice;
+        // `skew + len` stays within the buffer.
+        unsafe { core::slice::from_raw_parts_mut(self.0.get().cast::<u8>().add(skew), len) }
     }
 }
 

@@ -15,7 +15,7 @@ use crate::mac::{
 };
 use crate::phy::{Link, Mdio, MdioTimeout, PhyConfig, PhyId, Speed, BMCR, BMCR_RESET};
 use crate::regs::{RegisterBlock, Regs};
-use crate::ring::{DmaArea, BUFFER_SIZE, RX_RING, TX_RING};
+use crate::ring::{DmaArea, BUFFER_SIZE, RX_RING, TX_RING, TX_SKEW};
 use crate::sync::DmaSync;
 
 const BLOCK_WORDS: usize = size_of::<RegisterBlock>() / 4;
@@ -157,7 +157,7 @@ impl TestMac<'_> {
     /// write RDES0 (OWN clear) with `flags`.
     fn dma_receive(&self, i: usize, frame: &[u8], flags: u32) {
         // SAFETY: the test plays the DMA, which owns the buffer here.
-        unsafe { self.shared.area.rx_buffer(i).bytes_mut(frame.len()) }.copy_from_slice(frame);
+        unsafe { self.shared.area.rx_buffer(i).bytes_mut(0, frame.len()) }.copy_from_slice(frame);
         let fl = (frame.len() + 4) as u32;
         self.shared.area.rx_descriptor(i).set_word(0, (fl << 16) | flags);
     }
@@ -260,8 +260,10 @@ fn transmit_fills_a_normal_descriptor_and_wraps() {
     assert_eq!(w[0], OWN);
     assert_eq!(w[1], (1 << 30) | (1 << 29) | (3 << 27) | 60, "normal: FS, LS, CIC full, TBS1 in TDES1");
     // SAFETY: the test plays the DMA and only reads.
-    assert_eq!(unsafe { mac.shared.area.tx_buffer(0).bytes(60) }, [0xab; 60]);
-    assert_eq!(w[2], mac.shared.area.tx_buffer(0).bus_address());
+    let buffer = unsafe { mac.shared.area.tx_buffer(0).bytes(62) };
+    assert_eq!(buffer[TX_SKEW..], [0xab; 60], "the frame starts TX_SKEW bytes in");
+    assert_eq!(w[2], mac.shared.area.tx_buffer(0).bus_address() + TX_SKEW as u32, "and so does its address");
+    assert_eq!((w[2] as usize + 14) % 4, 0, "IP header word aligned");
     // The ring is full once every descriptor is owned by the DMA.
     for i in 1..TX_RING {
         transmit_one(&mut mac, 100, i as u8);
@@ -321,7 +323,17 @@ fn receive_hands_over_good_frames_and_returns_descriptors() {
     mac.dma_receive(2, &frame[..20], FS_LS);
     let (rx, _tx) = mac.receive(Instant::ZERO).expect("the good frame");
     assert_eq!(rx.consume(|b| b.len()), 20);
-    assert_eq!(mac.stats(), Stats { rx_frames: 2, rx_dropped: 1, tx_frames: 0, tx_bytes: 0, tx_ring_full: 0 });
+    assert_eq!(
+        mac.stats(),
+        Stats {
+            rx_frames: 2,
+            rx_bytes: frame.len() as u64 + 20,
+            rx_dropped: 1,
+            tx_frames: 0,
+            tx_bytes: 0,
+            tx_ring_full: 0
+        }
+    );
 
     // A frame split over descriptors 3 and 4 is dropped once the DMA moved on.
     mac.dma_receive(3, &frame, desc::RDES0_FS);

@@ -1,7 +1,18 @@
 //! The bench build's measurements (`cargo xtask bench-fw`, feature
-//! `bench`): the guest time of each frame's start and of its rendering, and
-//! per frame the bytes the CPU copied and read from uncached memory. Under
-//! QEMU's `-icount shift=0` a guest nanosecond is a guest instruction.
+//! `bench`). Under QEMU's `-icount shift=0` a guest nanosecond is a guest
+//! instruction, so the times below are instruction counts.
+//!
+//! * per frame: the guest time of its start and of its rendering (the
+//!   software renderer, or the simulated accelerator: FPGA work, not the
+//!   board's CPU);
+//! * busy time: main-loop iterations that moved anything (a frame sent or
+//!   received, bytes copied, rendering). The rest is waiting for the peer's
+//!   ACKs, which on the emulated link takes guest time that a board at
+//!   line rate would spend waiting on the wire;
+//! * counts for the board's cost model: accelerator bus accesses, bytes the
+//!   CPU copied, cache lines maintained, bytes it read from uncached memory
+//!   and bytes the MAC sent (written by the CPU into uncached buffers).
+//!
 //! Without the feature every hook here compiles to nothing.
 
 use core::fmt::Write;
@@ -12,14 +23,50 @@ use model::{Light, WIDTH};
 use rt_protocol::frames::ROWS;
 use rt_protocol::{FrameEngine, FrameMemory, RowSource};
 
+// Times are kept in timer ticks (no division on the measured path) and
+// converted to nanoseconds when printed.
 #[cfg(feature = "bench")]
-static RENDER_NS: AtomicU64 = AtomicU64::new(0);
+static RENDER_TICKS: AtomicU64 = AtomicU64::new(0);
+#[cfg(feature = "bench")]
+static RENDER_TOTAL_TICKS: AtomicU64 = AtomicU64::new(0);
+#[cfg(feature = "bench")]
+static BUSY_TICKS: AtomicU64 = AtomicU64::new(0);
+#[cfg(feature = "bench")]
+static BUSY_LOOPS: AtomicU64 = AtomicU64::new(0);
 #[cfg(feature = "bench")]
 static FRAMES: AtomicU32 = AtomicU32::new(0);
 #[cfg(feature = "bench")]
 static COPIED: AtomicU64 = AtomicU64::new(0);
 #[cfg(feature = "bench")]
-static UNCACHED: AtomicU64 = AtomicU64::new(0);
+static INVALIDATED: AtomicU64 = AtomicU64::new(0);
+#[cfg(feature = "bench")]
+static CLEANED: AtomicU64 = AtomicU64::new(0);
+
+/// Accelerator bus accesses (from hal-avalon's `Counted` port).
+#[derive(Clone, Copy, Default)]
+#[cfg_attr(not(feature = "bench"), allow(dead_code))] // read by the bench build only
+pub struct Bus {
+    /// Single register reads.
+    pub reads: u32,
+    /// Line-buffer words read in bursts.
+    pub line_words: u32,
+    /// Register writes.
+    pub writes: u32,
+}
+
+/// What the MAC moved (from its statistics).
+#[derive(Clone, Copy, Default)]
+#[cfg_attr(not(feature = "bench"), allow(dead_code))] // read by the bench build only
+pub struct Mac {
+    /// Frames sent plus frames received.
+    pub frames: u32,
+    /// Frames sent.
+    pub tx_frames: u32,
+    /// Bytes sent.
+    pub tx_bytes: u64,
+    /// Bytes received.
+    pub rx_bytes: u64,
+}
 
 /// The CPU copied `n` bytes of a row into the socket.
 #[inline(always)]
@@ -29,24 +76,37 @@ pub fn copied(n: usize) {
     let _ = n;
 }
 
-/// The CPU read `n` bytes from uncached memory.
+/// `n` cache lines invalidated (both levels) before a read.
 #[inline(always)]
-pub fn uncached_read(n: usize) {
+pub fn invalidated(n: usize) {
     #[cfg(feature = "bench")]
-    UNCACHED.fetch_add(n as u64, Ordering::Relaxed);
+    INVALIDATED.fetch_add(n as u64, Ordering::Relaxed);
+    let _ = n;
+}
+
+/// `n` cache lines cleaned (both levels) after a CPU write.
+#[inline(always)]
+pub fn cleaned(n: usize) {
+    #[cfg(feature = "bench")]
+    CLEANED.fetch_add(n as u64, Ordering::Relaxed);
     let _ = n;
 }
 
 #[cfg(feature = "bench")]
 fn frame_started() {
-    RENDER_NS.store(0, Ordering::Relaxed);
+    RENDER_TICKS.store(0, Ordering::Relaxed);
     let _ = writeln!(crate::log::Log, "bench: frame start {}", crate::TIMER.now_ns());
 }
 
 #[cfg(feature = "bench")]
 fn frame_rendered() {
-    let _ = writeln!(crate::log::Log, "bench: frame rendered {}", RENDER_NS.load(Ordering::Relaxed));
+    let _ = writeln!(crate::log::Log, "bench: frame rendered {}", ns(RENDER_TICKS.load(Ordering::Relaxed)));
     FRAMES.fetch_add(1, Ordering::Relaxed);
+}
+
+#[cfg(feature = "bench")]
+fn ns(ticks: u64) -> u64 {
+    soc::global_timer::ticks_to_ns(ticks, crate::TIMER.hz())
 }
 
 /// Run `f`, adding its guest time to the frame's rendering.
@@ -54,13 +114,53 @@ fn frame_rendered() {
 fn timed<R>(f: impl FnOnce() -> R) -> R {
     #[cfg(feature = "bench")]
     {
-        let t0 = crate::TIMER.now_ns();
+        let t0 = crate::TIMER.ticks();
         let r = f();
-        RENDER_NS.fetch_add(crate::TIMER.now_ns().saturating_sub(t0), Ordering::Relaxed);
+        let dt = crate::TIMER.ticks().wrapping_sub(t0);
+        RENDER_TICKS.fetch_add(dt, Ordering::Relaxed);
+        RENDER_TOTAL_TICKS.fetch_add(dt, Ordering::Relaxed);
         r
     }
     #[cfg(not(feature = "bench"))]
     f()
+}
+
+/// One main-loop iteration: counts as busy if it moved anything.
+pub struct Iteration {
+    #[cfg(feature = "bench")]
+    t0: u64,
+    #[cfg(feature = "bench")]
+    before: (u32, u64, u64),
+}
+
+impl Iteration {
+    #[cfg(feature = "bench")]
+    fn marks(mac_frames: u32) -> (u32, u64, u64) {
+        (mac_frames, COPIED.load(Ordering::Relaxed), RENDER_TOTAL_TICKS.load(Ordering::Relaxed))
+    }
+
+    /// At the top of the loop; `mac_frames` from [`Mac::frames`].
+    #[inline(always)]
+    pub fn start(mac_frames: u32) -> Iteration {
+        let _ = mac_frames;
+        Iteration {
+            #[cfg(feature = "bench")]
+            t0: crate::TIMER.ticks(),
+            #[cfg(feature = "bench")]
+            before: Self::marks(mac_frames),
+        }
+    }
+
+    /// At the bottom.
+    #[inline(always)]
+    pub fn end(self, mac_frames: u32) {
+        #[cfg(feature = "bench")]
+        if Self::marks(mac_frames) != self.before {
+            BUSY_TICKS.fetch_add(crate::TIMER.ticks().wrapping_sub(self.t0), Ordering::Relaxed);
+            BUSY_LOOPS.fetch_add(1, Ordering::Relaxed);
+        }
+        let _ = mac_frames;
+    }
 }
 
 /// Counters the main loop prints once per frame.
@@ -69,14 +169,13 @@ pub struct Counts {
     #[cfg(feature = "bench")]
     seen: u32,
     #[cfg(feature = "bench")]
-    last: [u64; 5],
+    last: [u64; 12],
 }
 
 impl Counts {
-    /// After a frame's rendering finished: one line with what the CPU and
-    /// the bus did since the previous one (LW-bridge accesses, the MAC's TX
-    /// bytes come from the caller).
-    pub fn report(&mut self, bus: (u32, u32), tx_bytes: u64, log: &mut impl Write) {
+    /// After a frame's rendering finished: one line with what the CPU, the
+    /// bus and the MAC did since the previous one.
+    pub fn report(&mut self, bus: Bus, mac: Mac, log: &mut impl Write) {
         #[cfg(feature = "bench")]
         {
             let frames = FRAMES.load(Ordering::Relaxed);
@@ -85,21 +184,28 @@ impl Counts {
             }
             self.seen = frames;
             let now = [
-                u64::from(bus.0),
-                u64::from(bus.1),
+                u64::from(bus.reads),
+                u64::from(bus.line_words),
+                u64::from(bus.writes),
                 COPIED.load(Ordering::Relaxed),
-                UNCACHED.load(Ordering::Relaxed),
-                tx_bytes,
+                INVALIDATED.load(Ordering::Relaxed),
+                CLEANED.load(Ordering::Relaxed),
+                mac.rx_bytes,
+                mac.tx_bytes,
+                u64::from(mac.tx_frames),
+                ns(BUSY_TICKS.load(Ordering::Relaxed)),
+                ns(RENDER_TOTAL_TICKS.load(Ordering::Relaxed)),
+                BUSY_LOOPS.load(Ordering::Relaxed),
             ];
-            let d: [u64; 5] = core::array::from_fn(|i| now[i].wrapping_sub(self.last[i]));
+            let d: [u64; 12] = core::array::from_fn(|i| now[i].wrapping_sub(self.last[i]));
             self.last = now;
             let _ = writeln!(
                 log,
-                "bench: counts lw_reads={} lw_writes={} cpu_copied={} uncached_read={} mac_tx={}",
-                d[0], d[1], d[2], d[3], d[4]
+                "bench: counts lw_reads={} lw_line_words={} lw_writes={} cpu_copied={} lines_invalidated={} lines_cleaned={} uncached_read={} mac_tx={} tx_frames={} busy_ns={} render_ns={} busy_loops={}",
+                d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], d[8], d[9], d[10], d[11]
             );
         }
-        let _ = (bus, tx_bytes, log);
+        let _ = (bus, mac, log);
     }
 }
 

@@ -13,6 +13,7 @@ use aarch32_cpu::asm::{dmb, dsb, isb};
 use aarch32_cpu::cache::invalidate_l1_data_cache;
 use aarch32_cpu::register::{BpIAll, Dacr, Iciallu, Sctlr, TlbIAll, Ttbr0};
 use dwmac::DmaSync;
+use soc::cache::CacheOps;
 use soc::l2c310::L2c310;
 use soc::mmu::{sections_of, MemoryMap, PageTable, PAGES, SECTIONS};
 use static_cell::ConstStaticCell;
@@ -45,6 +46,43 @@ impl DmaSync for Barriers<'_> {
     }
 }
 
+/// By-address cache maintenance on both levels, for the frame ring
+/// (`soc::cache` has the sequences). The map is flat: an address is both
+/// the virtual one CP15 takes and the physical one the L2C-310 takes.
+#[derive(Clone, Copy)]
+pub struct Caches {
+    /// The L2 cache controller.
+    pub l2: &'static L2c310,
+}
+
+impl CacheOps for Caches {
+    fn l1_invalidate(&self, addr: usize) {
+        aarch32_cpu::cache::invalidate_data_cache_line_to_poc(addr as u32)
+    }
+
+    fn l1_clean(&self, addr: usize) {
+        aarch32_cpu::cache::clean_data_cache_line_to_poc(addr as u32)
+    }
+
+    fn l2_invalidate(&self, addr: usize) {
+        // SAFETY: `soc::cache::invalidate_for_cpu`'s contract: the line is
+        // clean.
+        unsafe { self.l2.invalidate_line(addr as u32) }
+    }
+
+    fn l2_clean(&self, addr: usize) {
+        self.l2.clean_line(addr as u32)
+    }
+
+    fn l2_sync(&self) {
+        self.l2.cache_sync()
+    }
+
+    fn dsb(&self) {
+        dsb()
+    }
+}
+
 /// The first-level table: 4096 section entries, 16 KiB aligned (ARM ARM
 /// B3.5.1: TTBR0 with TTBCR.N = 0). Not aarch32-cpu's `L1Table`, which is
 /// aligned to 1 MiB.
@@ -71,7 +109,9 @@ pub fn enable_mmu_and_caches<B: Board>(log: &mut impl Write) -> L2c310 {
     // Only the symbols' addresses are taken, never their contents.
     let dma = sections_of(&raw const __sdma as usize..&raw const __edma as usize);
     let frames = sections_of(&raw const __sframes as usize..&raw const __eframes as usize);
-    let uncached = [dma.clone(), frames.clone()];
+    // The frame ring stays cacheable: it is read through the caches after
+    // an invalidation by address (render.rs, docs/frame-dma.md#caches).
+    let uncached = [dma.clone()];
     let map = MemoryMap {
         dram_mib: B::DRAM_MIB,
         uncached: &uncached,
@@ -131,12 +171,12 @@ pub fn enable_mmu_and_caches<B: Board>(log: &mut impl Write) -> L2c310 {
     let s = Sctlr::read();
     let _ = writeln!(
         log,
-        "mmu: on; {} MiB cached, DMA {:#010x}..{:#010x} and frames {:#010x}..{:#010x} uncached, {} FPGA window(s) strongly-ordered, L1 I/D {}, L2 {} (ID {:#010x})",
+        "mmu: on; {} MiB cached (frames {:#010x}..{:#010x} too), DMA {:#010x}..{:#010x} uncached, {} FPGA window(s) strongly-ordered, L1 I/D {}, L2 {} (ID {:#010x})",
         B::DRAM_MIB,
-        dma.start << 20,
-        dma.end << 20,
         frames.start << 20,
         frames.end << 20,
+        dma.start << 20,
+        dma.end << 20,
         B::STRONGLY_ORDERED.len(),
         if s.c() && s.i() { "on" } else { "off" },
         if l2_on { "on" } else { "off" },

@@ -20,6 +20,7 @@ mod boards;
 mod copy;
 mod cpu;
 mod log;
+mod mem;
 mod net;
 mod render;
 mod start;
@@ -29,6 +30,8 @@ use core::ptr::NonNull;
 
 use soc::abort::ProbeGuard;
 use soc::global_timer::{GlobalTimer, PERIPHBASE_OFFSET};
+use soc::l2c310::L2c310;
+use static_cell::StaticCell;
 
 use crate::boards::{Active, Board};
 
@@ -61,14 +64,15 @@ fn main() -> ! {
     TIMER.set_rate(hz);
     let _ = writeln!(log, "timer: global timer at {hz} Hz");
     log::flush();
-    let l2 = cpu::enable_mmu_and_caches::<Active>(&mut log);
+    static L2: StaticCell<L2c310> = StaticCell::new();
+    let l2: &'static L2c310 = L2.init(cpu::enable_mmu_and_caches::<Active>(&mut log));
     log::flush();
     #[cfg(feature = "reentry-test")]
     reentry_test::maybe_reenter(&mut log);
     Active::init(&mut log);
-    let mut frames = Active::renderer(&mut log, &TIMER);
+    let mut frames = Active::renderer(&mut log, &TIMER, cpu::Caches { l2 });
     log::flush();
-    match net::run::<Active>(&TIMER, &l2, &mut frames) {
+    match net::run::<Active>(&TIMER, l2, &mut frames) {
         Ok(never) => match never {},
         Err(why) => {
             let _ = writeln!(log, "network not started: {why}");

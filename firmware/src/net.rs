@@ -167,8 +167,11 @@ pub fn run<B: Board>(
     );
     log::flush();
 
+    let mac_moved = |m: &Dwmac<'_, _, _>| m.stats().tx_frames.wrapping_add(m.stats().rx_frames);
     loop {
-        if let Some(change) = link.poll(timer.now_us(), &mut mac) {
+        let iteration = crate::bench::Iteration::start(mac_moved(&mac));
+        let now_us = timer.now_us();
+        if let Some(change) = link.poll(now_us, &mut mac) {
             mac.set_link(change);
             match change {
                 Some(l) => {
@@ -179,11 +182,21 @@ pub fn run<B: Board>(
                 }
             }
         }
-        let now = instant(timer);
+        let now = Instant::from_micros(i64::try_from(now_us).unwrap_or(i64::MAX));
         iface.poll(now, &mut mac, &mut sockets);
         service.poll(now, &mut sockets, frames, &mut log);
         frames.report(&mut log);
-        counts.report(frames.bus_accesses(), mac.stats().tx_bytes, &mut log);
+        let stats = mac.stats();
+        let moved = crate::bench::Mac {
+            frames: mac_moved(&mac),
+            tx_frames: stats.tx_frames,
+            tx_bytes: stats.tx_bytes,
+            rx_bytes: stats.rx_bytes,
+        };
+        // The iteration ends before the report, so the report's window
+        // holds whole iterations.
+        iteration.end(moved.frames);
+        counts.report(frames.bus_accesses(), moved, &mut log);
         log::drain();
     }
 }

@@ -1,7 +1,7 @@
 //! Where the frame server's frames come from on the board.
 //!
-//! * Frame mode ([`Frames::Ring`]): four frame slots in the uncached
-//!   `.frames` region ([`Uncached`]); the FPGA's frame DMA renders into them
+//! * Frame mode ([`Frames::Ring`]): four frame slots in the cacheable
+//!   `.frames` region ([`RingMemory`]); the FPGA's frame DMA renders into them
 //!   (the software renderer where there is none, or where it failed), and
 //!   rows go out as its rows-done counter covers them.
 //! * Row mode ([`Frames::Rows`]): accelerators without the frame registers
@@ -24,9 +24,11 @@ use rt_protocol::{
     EngineError, FallbackEngine, FrameMemory, FrameRing, FrameSource, RowEngine, RowFrames, SoftwareRenderer, Watchdog,
     WatchdogError,
 };
+use soc::cache::{self, Lines};
 use soc::global_timer::TimerDelay;
 
 use crate::bench;
+use crate::cpu::Caches;
 use crate::net::SOCKETS;
 
 /// Frame slots of the ring: one being sent and three to render ahead, for
@@ -41,25 +43,30 @@ pub const STALL_LIMIT: Duration = Duration::from_millis(500);
 #[repr(C, align(4096))]
 struct Slots(UnsafeCell<[u8; RING_SLOTS * FRAME_BYTES]>);
 
-// SAFETY: only `Uncached` touches the slots, from the main loop on core 0;
+// SAFETY: only `RingMemory` touches the slots, from the main loop on core 0;
 // the ring hands each slot to one writer (engine) and then to readers.
 unsafe impl Sync for Slots {}
 
 #[unsafe(link_section = ".frames")]
 static SLOTS: Slots = Slots(UnsafeCell::new([0; RING_SLOTS * FRAME_BYTES]));
 
-/// The frame slots: Normal non-cacheable memory (the MMU map), so rows the
-/// FPGA-to-SDRAM port wrote are read from DRAM and never from a stale cache
-/// line, with no cache maintenance (docs/frame-dma.md#caches).
+/// The frame slots: Normal write-back memory, kept clean. The FPGA-to-SDRAM
+/// port writes DRAM behind both caches, so a row is invalidated by address
+/// (L2, then L1) right before the CPU first reads it, after the counter
+/// covered it; whatever the CPU writes (software renderer, simulated DMA)
+/// is cleaned at once, so no dirty line can ever be evicted over the
+/// FPGA's data (docs/frame-dma.md#caches). Rows are 1,440 bytes, 45 whole
+/// lines, and the slots are page aligned.
 #[derive(Clone, Copy)]
-pub struct Uncached {
+pub struct RingMemory {
     base: *mut u8,
+    caches: Caches,
 }
 
-impl Uncached {
+impl RingMemory {
     /// The `.frames` region.
-    pub fn frames() -> Uncached {
-        Uncached { base: SLOTS.0.get().cast() }
+    pub fn frames(caches: Caches) -> RingMemory {
+        RingMemory { base: SLOTS.0.get().cast(), caches }
     }
 
     fn at(&self, slot: usize, y: u16, offset: usize, len: usize) -> Option<*mut u8> {
@@ -68,20 +75,29 @@ impl Uncached {
     }
 }
 
-impl FrameMemory for Uncached {
+impl FrameMemory for RingMemory {
     fn slot_address(&self, slot: usize) -> u32 {
         self.base as u32 + (slot * FRAME_BYTES) as u32
     }
 
     fn read_row(&mut self, slot: usize, y: u16, offset: usize, out: &mut [u8]) {
         let Some(src) = self.at(slot, y, offset, out.len()) else { return };
-        // The engine's counter (read before) covers this row: order the
-        // row's loads after that read (docs/frame-dma.md#write-completion).
-        aarch32_cpu::asm::dmb();
+        if offset == 0 {
+            // First read of the row since the counter covered it: drop any
+            // copy the caches hold (the slot's previous frame, or a
+            // speculative fill). The invalidation's `dsb` also orders the
+            // row's loads after the counter read (docs/frame-dma.md).
+            let row = src as usize;
+            if let Some(lines) = Lines::exact(row, ROW_BYTES) {
+                // SAFETY: the ring's lines are never dirty (every CPU write
+                // is cleaned, see `write_row` and `DmaTarget::write`).
+                unsafe { cache::invalidate_for_cpu(&self.caches, &lines) };
+                bench::invalidated(lines.count());
+            }
+        }
         // SAFETY: `at` checked the range lies in the slots; the ring reads
         // only rows the engine has finished writing.
-        unsafe { crate::copy::from_uncached(out, src) };
-        bench::uncached_read(out.len());
+        unsafe { crate::copy::burst_copy(out, src) };
     }
 
     fn write_row(&mut self, slot: usize, y: u16, row: &[u8; ROW_BYTES]) {
@@ -89,12 +105,23 @@ impl FrameMemory for Uncached {
         // SAFETY: `at` checked the range; the ring gives a slot to one
         // engine at a time and reads only rows written before.
         unsafe { core::ptr::copy_nonoverlapping(row.as_ptr(), dst, ROW_BYTES) };
+        bench::cleaned(self.clean(dst as usize, ROW_BYTES));
+    }
+}
+
+impl RingMemory {
+    /// Keep the ring clean after the CPU wrote `start..start + len`; the
+    /// lines cleaned.
+    fn clean(&self, start: usize, len: usize) -> usize {
+        let Some(lines) = Lines::covering(start, len) else { return 0 };
+        cache::clean_for_device(&self.caches, &lines);
+        lines.count()
     }
 }
 
 /// The simulated accelerator's frame DMA on the emulated board writes the
 /// same slots.
-impl DmaTarget for Uncached {
+impl DmaTarget for RingMemory {
     fn write(&mut self, addr: u32, bytes: &[u8]) -> bool {
         let Some(off) = addr.checked_sub(self.base as u32).map(|o| o as usize) else { return false };
         if off + bytes.len() > RING_SLOTS * FRAME_BYTES {
@@ -102,6 +129,9 @@ impl DmaTarget for Uncached {
         }
         // SAFETY: checked to lie in the slots, written by one engine at a time.
         unsafe { core::ptr::copy_nonoverlapping(bytes.as_ptr(), self.base.add(off), bytes.len()) };
+        // Not counted: on the board the FPGA writes DRAM, the CPU cleans
+        // nothing.
+        self.clean(self.base as usize + off, bytes.len());
         true
     }
 }
@@ -130,7 +160,7 @@ type RowSources<P> = Fallback<bench::TimedRows<PipelinedRows<Counted<P>, TimerDe
 #[allow(clippy::large_enum_variant)]
 pub enum Frames<P: RegisterPort> {
     /// Frame mode: whole frames in the ring.
-    Ring(FrameRing<Uncached, RingEngine<P>, RING_SLOTS>),
+    Ring(FrameRing<RingMemory, RingEngine<P>, RING_SLOTS>),
     /// Row mode: a row per start.
     Rows(RowFrames<RowSources<P>, SOCKETS>),
 }
@@ -155,11 +185,11 @@ impl core::error::Error for RenderError {}
 
 impl<P: RegisterPort> Frames<P> {
     /// Frame mode with the accelerator `fpga` (none: the software renderer
-    /// fills the ring).
-    pub fn ring(fpga: Option<Accel<P>>) -> Frames<P> {
+    /// fills the ring), the ring's cache maintenance done with `caches`.
+    pub fn ring(fpga: Option<Accel<P>>, caches: Caches) -> Frames<P> {
         let primary = fpga.map(|a| bench::TimedEngine::new(Watchdog::new(a, now as Clock, STALL_LIMIT)));
         let engine = FallbackEngine::new(primary, RowEngine::new(bench::TimedRows::new(SoftwareRenderer)));
-        Frames::Ring(FrameRing::new(Uncached::frames(), engine))
+        Frames::Ring(FrameRing::new(RingMemory::frames(caches), engine))
     }
 
     /// Row mode with the accelerator `fpga` (none: the software renderer).
@@ -182,13 +212,17 @@ impl<P: RegisterPort> Frames<P> {
         }
     }
 
-    /// Bus accesses to the accelerator so far: (reads, writes).
-    pub fn bus_accesses(&mut self) -> (u32, u32) {
+    /// Bus accesses to the accelerator so far.
+    pub fn bus_accesses(&mut self) -> bench::Bus {
         let port = match self {
             Frames::Ring(r) => r.engine().primary().map(|t| t.inner().engine().port()),
             Frames::Rows(r) => r.rows().primary().map(|p| p.inner().accelerator().port()),
         };
-        port.map_or((0, 0), |c| (c.reads, c.writes))
+        port.map_or(bench::Bus::default(), |c| bench::Bus {
+            reads: c.reads,
+            line_words: c.line_words,
+            writes: c.writes,
+        })
     }
 
     /// Report (once) what the accelerator did since the last call.

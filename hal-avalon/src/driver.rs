@@ -7,9 +7,9 @@ use embedded_hal::delay::DelayNs;
 use model::{Light, LightError};
 
 use crate::map::{
-    light_to_register, line_word_offset, Csr, CONTROL_CLEAR_DONE, CONTROL_START, CSR_OFFSET, FRAME_BASE_MASK,
-    FRAME_CONTROL_START, FRAME_STATUS_BUSY, FRAME_STATUS_DONE, FRAME_STATUS_ERROR, FRAME_STATUS_MASK, ID_MAGIC,
-    ID_VALUE, ID_VERSION_FRAMES, LINE_WORDS, PIXEL_RESERVED_MASK, ROWS, STATUS_BUSY, STATUS_DONE, STATUS_MASK,
+    light_to_register, line_word_offset, Csr, CONTROL_START, CSR_OFFSET, FRAME_BASE_MASK, FRAME_CONTROL_START,
+    FRAME_STATUS_BUSY, FRAME_STATUS_DONE, FRAME_STATUS_ERROR, FRAME_STATUS_MASK, ID_MAGIC, ID_VALUE, ID_VERSION_FRAMES,
+    LINE_WORDS, PIXEL_RESERVED_MASK, ROWS, STATUS_BUSY, STATUS_DONE, STATUS_MASK,
 };
 use crate::port::RegisterPort;
 
@@ -174,12 +174,16 @@ pub struct Accelerator<P, D> {
     delay: D,
     timeout: PollTimeout,
     caps: Option<Capabilities>,
+    /// The LIGHT_* values last written, if they are known to be in the
+    /// registers: rows and frames of one light write them once. Forgotten
+    /// on any error, so a reset or reconfigured accelerator gets them again.
+    light_written: Option<[u32; 3]>,
 }
 
 impl<P: RegisterPort, D: DelayNs> Accelerator<P, D> {
     /// A driver for the accelerator behind `port`. Touches nothing yet.
     pub fn new(port: P, delay: D, timeout: PollTimeout) -> Accelerator<P, D> {
-        Accelerator { port, delay, timeout, caps: None }
+        Accelerator { port, delay, timeout, caps: None, light_written: None }
     }
 
     /// Check that a ray tracer answers: the ID register holds the magic
@@ -219,7 +223,7 @@ impl<P: RegisterPort, D: DelayNs> Accelerator<P, D> {
         self.poll_status(|s| s & STATUS_BUSY == 0)?;
         self.port.write(Csr::RowY, u32::from(row_y));
         self.write_light(light);
-        self.port.write(Csr::Control, CONTROL_CLEAR_DONE);
+        // A start also clears a latched done (register map): one write.
         self.port.write(Csr::Control, CONTROL_START);
         Ok(())
     }
@@ -232,7 +236,7 @@ impl<P: RegisterPort, D: DelayNs> Accelerator<P, D> {
         self.poll_status(|s| s & STATUS_DONE != 0)?;
         self.port.read_line(out);
         match (0..).zip(out.iter()).find(|(_, w)| **w & PIXEL_RESERVED_MASK != 0) {
-            Some((x, &value)) => Err(Error::BusFault { offset: line_word_offset(x), value }),
+            Some((x, &value)) => self.fail(Error::BusFault { offset: line_word_offset(x), value }),
             None => Ok(()),
         }
     }
@@ -266,24 +270,28 @@ impl<P: RegisterPort, D: DelayNs> Accelerator<P, D> {
     pub fn frame_progress(&mut self) -> Result<FrameProgress, Error> {
         let status = self.port.read(Csr::FrameStatus);
         if status & !FRAME_STATUS_MASK != 0 {
-            return Err(Error::BusFault { offset: CSR_OFFSET + Csr::FrameStatus.offset(), value: status });
+            return self.fail(Error::BusFault { offset: CSR_OFFSET + Csr::FrameStatus.offset(), value: status });
         }
         let rows = self.port.read(Csr::RowsDone);
         if rows > u32::from(ROWS) {
-            return Err(Error::BusFault { offset: CSR_OFFSET + Csr::RowsDone.offset(), value: rows });
+            return self.fail(Error::BusFault { offset: CSR_OFFSET + Csr::RowsDone.offset(), value: rows });
         }
         let rows = rows as u16;
         if status & FRAME_STATUS_ERROR != 0 {
-            return Err(Error::DmaError { rows });
+            return self.fail(Error::DmaError { rows });
         }
         Ok(FrameProgress { rows, done: status & FRAME_STATUS_DONE != 0 && status & FRAME_STATUS_BUSY == 0 })
     }
 
     fn write_light(&mut self, light: &Light) {
-        let [x, y, z] = light.raw();
-        self.port.write(Csr::LightX, light_to_register(x));
-        self.port.write(Csr::LightY, light_to_register(y));
-        self.port.write(Csr::LightZ, light_to_register(z));
+        let words = light.raw().map(light_to_register);
+        if self.light_written == Some(words) {
+            return;
+        }
+        self.port.write(Csr::LightX, words[0]);
+        self.port.write(Csr::LightY, words[1]);
+        self.port.write(Csr::LightZ, words[2]);
+        self.light_written = Some(words);
     }
 
     /// [`run_row`](Self::run_row) with the light as raw Q13.10 components
@@ -304,7 +312,7 @@ impl<P: RegisterPort, D: DelayNs> Accelerator<P, D> {
             let status = self.port.read(Csr::Status);
             if status & !STATUS_MASK != 0 {
                 let offset = CSR_OFFSET + Csr::Status.offset();
-                return Err(Error::BusFault { offset, value: status });
+                return self.fail(Error::BusFault { offset, value: status });
             }
             if ready(status) {
                 return Ok(());
@@ -312,10 +320,17 @@ impl<P: RegisterPort, D: DelayNs> Accelerator<P, D> {
             // `PollTimeout` keeps `max_polls >= 1`: this is a real read's count.
             polls_left = polls_left.saturating_sub(1);
             if polls_left == 0 {
-                return Err(Error::Timeout { status });
+                return self.fail(Error::Timeout { status });
             }
             self.delay.delay_ns(self.timeout.poll_interval_ns);
         }
+    }
+
+    /// An error: the accelerator's state is unknown from here on, so the
+    /// light is written again next time.
+    fn fail<T>(&mut self, e: Error) -> Result<T, Error> {
+        self.light_written = None;
+        Err(e)
     }
 
     /// The polling bound in use.

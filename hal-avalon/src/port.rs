@@ -38,13 +38,17 @@ impl<P: RegisterPort + ?Sized> RegisterPort for &mut P {
     }
 }
 
-/// A port that counts its bus accesses (bench builds and cost models): a
-/// line-buffer read counts as [`LINE_WORDS`] reads.
+/// A port that counts its bus accesses (bench builds and cost models).
+/// Single register reads and line-buffer words are counted apart: on the
+/// board one is a full round trip over the bridge, the other part of a
+/// burst.
 #[derive(Debug, Default)]
 pub struct Counted<P> {
     port: P,
-    /// Register and line-buffer words read.
+    /// Registers read.
     pub reads: u32,
+    /// Line-buffer words read ([`LINE_WORDS`] per line).
+    pub line_words: u32,
     /// Registers written.
     pub writes: u32,
 }
@@ -52,7 +56,7 @@ pub struct Counted<P> {
 impl<P> Counted<P> {
     /// Count the accesses to `port`.
     pub fn new(port: P) -> Counted<P> {
-        Counted { port, reads: 0, writes: 0 }
+        Counted { port, reads: 0, line_words: 0, writes: 0 }
     }
 
     /// The port.
@@ -78,7 +82,7 @@ impl<P: RegisterPort> RegisterPort for Counted<P> {
     }
 
     fn read_line(&mut self, out: &mut [u32; LINE_WORDS]) {
-        self.reads = self.reads.wrapping_add(LINE_WORDS as u32);
+        self.line_words = self.line_words.wrapping_add(LINE_WORDS as u32);
         self.port.read_line(out)
     }
 }

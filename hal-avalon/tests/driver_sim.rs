@@ -1,7 +1,7 @@
 //! The row driver over the simulated accelerator: whole frames against the
 //! model, the protocol on the bus, every error path and its bound.
 
-use hal_avalon::map::{line_word_offset, Csr, CONTROL_CLEAR_DONE, CONTROL_START, LINE_WORDS, ROWS, STATUS_BUSY};
+use hal_avalon::map::{line_word_offset, Csr, CONTROL_START, LINE_WORDS, ROWS, STATUS_BUSY};
 use hal_avalon::sim::{CountingDelay, Fault, SimAccelerator, LINE_POISON};
 use hal_avalon::{Accelerator, Capabilities, Error, PollTimeout, RegisterPort};
 use model::light::Axis;
@@ -279,7 +279,6 @@ fn protocol_on_the_bus() {
         ('W', LightX, 0x00FF_FFFF),
         ('W', LightY, 0x0000_0400),
         ('W', LightZ, 0x0080_0000),
-        ('W', Control, CONTROL_CLEAR_DONE),
         ('W', Control, CONTROL_START),
         ('R', Status, STATUS_BUSY),
         ('R', Status, STATUS_BUSY),
@@ -289,13 +288,34 @@ fn protocol_on_the_bus() {
     assert_eq!(row, model_row(359, &l));
     assert_eq!(accel.delay().calls, 2);
 
-    // A second row starts with done still set from the first: it is cleared
-    // before the start, and the new row (not the stale one) comes back.
+    // A second row of the same light starts with done still set from the
+    // first: ROW_Y and the start (which clears done) only, no light writes,
+    // and the new row (not the stale one) comes back.
     accel.port_mut().log.clear();
     accel.run_row(0, &l, &mut row).unwrap();
-    assert_eq!(accel.port().log[0], ('R', Status, hal_avalon::map::STATUS_DONE));
-    assert_eq!(accel.port().log[5], ('W', Control, CONTROL_CLEAR_DONE));
+    assert_eq!(
+        accel.port().log[..3],
+        [('R', Status, hal_avalon::map::STATUS_DONE), ('W', RowY, 0), ('W', Control, CONTROL_START)]
+    );
     assert_eq!(row, model_row(0, &l));
+
+    // A new light is written; after an error it is written again.
+    let other = light(5, 6, 7);
+    accel.port_mut().log.clear();
+    accel.run_row(1, &other, &mut row).unwrap();
+    assert_eq!(accel.port().log.iter().filter(|(rw, ..)| *rw == 'W').count(), 5, "ROW_Y, 3 lights, start");
+    accel.port_mut().sim.set_fault(Some(hal_avalon::sim::Fault::StuckBusy));
+    assert!(accel.run_row(2, &other, &mut row).is_err());
+    accel.port_mut().sim.set_fault(None);
+    accel.port_mut().sim.reset();
+    accel.port_mut().log.clear();
+    accel.run_row(2, &other, &mut row).unwrap();
+    assert_eq!(
+        accel.port().log.iter().filter(|(rw, ..)| *rw == 'W').count(),
+        5,
+        "light written again after the timeout"
+    );
+    assert_eq!(row, model_row(2, &other));
 }
 
 #[test]

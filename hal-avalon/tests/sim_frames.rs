@@ -207,6 +207,15 @@ fn pipelined_rows_start_the_next_row_before_returning_this_one() {
         assert!(rows.accelerator().port().inner().is_busy(), "row {} already started", y + 1);
     }
     assert_eq!(rows.accelerator().port().inner().starts(), 6, "rows 0..=5 started, each once");
+    // On the bus: the light once, then ROW_Y and a start per row; each line
+    // read in one burst of 480 words; a few STATUS reads, no ID probe.
+    let port = rows.accelerator().port();
+    assert_eq!(port.writes, 3 + 2 * 6, "light once, two writes per row");
+    assert_eq!(port.line_words, 5 * 480);
+    // STATUS: one "not busy" read per start, then the finish polls until
+    // done (the simulated row stays busy for DEFAULT_BUSY_POLLS reads).
+    let per_finish = hal_avalon::sim::DEFAULT_BUSY_POLLS + 1;
+    assert_eq!(port.reads, 6 + 5 * per_finish, "STATUS reads only");
     // Another light: the row started ahead is let finish, then this one runs.
     rows.render_row(9, &b, &mut got).unwrap();
     model::render_row(9, &b, &mut want);

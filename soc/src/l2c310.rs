@@ -12,6 +12,15 @@
 //! the same (see the `dwmac` crate's `sync` module). The Cyclone V reports
 //! CACHE_ID 0x4100_30c9 (r3p3), on which background operations are atomic,
 //! so no wait follows the sync.
+//!
+//! The by-address operations (invalidate 0x770, clean 0x7B0; also AMD
+//! UG585 Zynq-7000 TRM, `reg7_inv_pa`) take the physical address of a
+//! 32-byte line (the L2C-310's line length is fixed) and are atomic from
+//! r3p0 on (DDI 0246H, "Cache maintenance operations": they stall the
+//! slave ports until complete), so they are not polled either.
+//! None of the controller errata Linux works around applies to r3p3
+//! (`arch/arm/mm/cache-l2x0.c`: 588369 is r0p0-r1p0, 727915 r2p0, 753970
+//! r3p0, 769419 r0p0-r3p1).
 
 use core::mem::offset_of;
 use core::ptr::NonNull;
@@ -52,10 +61,16 @@ pub struct RegisterBlock {
     _r1: [u32; (0x730 - 0x108) / 4],
     /// 0x730 cache sync.
     pub cache_sync: RW<u32>,
-    _r2: [u32; (0x77c - 0x734) / 4],
+    _r2: [u32; (0x770 - 0x734) / 4],
+    /// 0x770 invalidate line by physical address.
+    pub invalidate_line_pa: RW<u32>,
+    _r3: [u32; (0x77c - 0x774) / 4],
     /// 0x77C invalidate by way.
     pub invalidate_way: RW<u32>,
-    _r3: [u32; (0x7fc - 0x780) / 4],
+    _r4: [u32; (0x7b0 - 0x780) / 4],
+    /// 0x7B0 clean line by physical address.
+    pub clean_line_pa: RW<u32>,
+    _r5: [u32; (0x7fc - 0x7b4) / 4],
     /// 0x7FC clean and invalidate by way.
     pub clean_invalidate_way: RW<u32>,
 }
@@ -64,7 +79,9 @@ const _: () = {
     assert!(offset_of!(RegisterBlock, control) == 0x100);
     assert!(offset_of!(RegisterBlock, aux_control) == 0x104);
     assert!(offset_of!(RegisterBlock, cache_sync) == 0x730);
+    assert!(offset_of!(RegisterBlock, invalidate_line_pa) == 0x770);
     assert!(offset_of!(RegisterBlock, invalidate_way) == 0x77c);
+    assert!(offset_of!(RegisterBlock, clean_line_pa) == 0x7b0);
     assert!(offset_of!(RegisterBlock, clean_invalidate_way) == 0x7fc);
     assert!(size_of::<RegisterBlock>() == 0x800);
 };
@@ -81,6 +98,9 @@ impl core::fmt::Display for WayOpTimeout {
 
 impl core::error::Error for WayOpTimeout {}
 
+/// The L2C-310's line length (fixed at 32 bytes; DDI 0246H).
+pub const LINE_BYTES: usize = 32;
+
 /// Register reads a whole-cache way operation may take (a 512 KiB cache is
 /// 16,384 lines; each read is tens of nanoseconds).
 pub const WAY_OP_POLLS: u32 = 1_000_000;
@@ -89,6 +109,11 @@ pub const WAY_OP_POLLS: u32 = 1_000_000;
 pub struct L2c310 {
     regs: NonNull<RegisterBlock>,
 }
+
+// SAFETY: the handle is the address of a fixed register block with no
+// per-core state; the core that holds it may change (the firmware keeps it
+// in a static cell).
+unsafe impl Send for L2c310 {}
 
 impl L2c310 {
     /// The controller whose registers are at `regs`.
@@ -131,6 +156,25 @@ impl L2c310 {
     pub fn cache_sync(&self) {
         // SAFETY: a cache sync only drains buffers.
         unsafe { self.regs().cache_sync.write(0) }
+    }
+
+    /// Invalidate the line holding physical address `pa` (its data is
+    /// discarded, dirty or not).
+    ///
+    /// # Safety
+    ///
+    /// The line holds no data the program still needs that only the cache
+    /// has (it is clean, or its memory is about to be overwritten).
+    pub unsafe fn invalidate_line(&self, pa: u32) {
+        // SAFETY: the caller's promise; the write only starts the operation.
+        unsafe { self.regs().invalidate_line_pa.write(pa & !(LINE_BYTES as u32 - 1)) }
+    }
+
+    /// Write the line holding physical address `pa` back to memory if dirty
+    /// (it stays valid).
+    pub fn clean_line(&self, pa: u32) {
+        // SAFETY: cleaning writes dirty data back; nothing is lost.
+        unsafe { self.regs().clean_line_pa.write(pa & !(LINE_BYTES as u32 - 1)) }
     }
 
     /// Invalidate every line (no write-back): before enabling, when the
@@ -207,5 +251,16 @@ mod tests {
         c.set_enabled(true);
         assert!(c.is_enabled());
         assert_eq!(w[0x100 / 4], 1);
+    }
+
+    #[test]
+    fn line_operations_write_the_line_address_to_their_registers() {
+        let mut w = block();
+        let c = l2(&mut w);
+        // SAFETY: a fake register block; no cache is involved.
+        unsafe { c.invalidate_line(0x0410_0025) };
+        c.clean_line(0x0410_1fff);
+        assert_eq!(w[0x770 / 4], 0x0410_0020);
+        assert_eq!(w[0x7b0 / 4], 0x0410_1fe0);
     }
 }

@@ -6,8 +6,9 @@
 //!
 //! * [`global_timer`]: the Cortex-A9 MPCore global timer, the firmware's
 //!   clock.
-//! * [`l2c310`]: the L2 cache controller (enable, maintenance by way, cache
-//!   sync).
+//! * [`l2c310`]: the L2 cache controller (enable, maintenance by way and
+//!   by line, cache sync), and [`cache`]: the order of by-address
+//!   maintenance on both levels for memory a device shares.
 //! * [`uart16550`]: the log UART, and [`log`]: a ring buffer that drains it
 //!   without waiting.
 //! * [`mmu`]: the short-descriptor section table of the flat map.
@@ -23,6 +24,7 @@
 #![cfg_attr(not(test), no_std)]
 
 pub mod abort;
+pub mod cache;
 pub mod cyclone_v;
 pub mod global_timer;
 pub mod l2c310;

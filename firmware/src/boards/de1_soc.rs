@@ -18,6 +18,7 @@ use soc::global_timer::GlobalTimer;
 use soc::mmu::{sections_of, MemType, PagedSection};
 
 use super::Board;
+use crate::cpu::Caches;
 use crate::render::{Accel, Frames};
 
 /// The Terasic DE1-SoC.
@@ -87,19 +88,19 @@ impl Board for De1Soc {
 
     type Port = MmioPort;
 
-    fn renderer(log: &mut impl Write, timer: &'static GlobalTimer) -> Frames<MmioPort> {
+    fn renderer(log: &mut impl Write, timer: &'static GlobalTimer, caches: Caches) -> Frames<MmioPort> {
         let mut frames = match fpga(timer) {
             Ok((accel, version)) => {
                 let _ = writeln!(log, "FPGA: ray tracer, register map version {version}");
                 if version >= hal_avalon::map::ID_VERSION_FRAMES {
-                    Frames::ring(Some(accel))
+                    Frames::ring(Some(accel), caches)
                 } else {
                     Frames::rows(Some(accel))
                 }
             }
             Err(why) => {
                 let _ = writeln!(log, "FPGA: {why}");
-                Frames::ring(None)
+                Frames::ring(None, caches)
             }
         };
         let _ = writeln!(log, "renderer: {}", frames.describe());

@@ -10,6 +10,7 @@ use hal_avalon::RegisterPort;
 use soc::global_timer::GlobalTimer;
 use soc::mmu::PagedSection;
 
+use crate::cpu::Caches;
 use crate::render::Frames;
 
 #[cfg(all(feature = "qemu-npcm750", feature = "de1-soc"))]
@@ -70,6 +71,6 @@ pub trait Board {
 
     /// The frames: the FPGA accelerator's if one answers (frame mode when
     /// its register map has the frame DMA, else row mode), else the
-    /// software renderer's.
-    fn renderer(log: &mut impl Write, timer: &'static GlobalTimer) -> Frames<Self::Port>;
+    /// software renderer's. `caches` maintains the frame ring.
+    fn renderer(log: &mut impl Write, timer: &'static GlobalTimer, caches: Caches) -> Frames<Self::Port>;
 }

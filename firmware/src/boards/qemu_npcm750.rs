@@ -11,7 +11,8 @@ use soc::global_timer::GlobalTimer;
 use soc::mmu::PagedSection;
 
 use super::Board;
-use crate::render::{Frames, Uncached};
+use crate::cpu::Caches;
+use crate::render::{Frames, RingMemory};
 
 /// QEMU's npcm750-evb.
 pub enum QemuNpcm750 {}
@@ -54,17 +55,17 @@ impl Board for QemuNpcm750 {
     /// No FPGA; the `sim-accelerator` build puts hal-avalon's simulated
     /// accelerator behind the real driver (its frame DMA writing the same
     /// ring), so the emulated board runs the FPGA's code paths.
-    type Port = SimAccelerator<Uncached>;
+    type Port = SimAccelerator<RingMemory>;
 
     /// Frame mode, or row mode with the `row-mode` feature.
-    fn renderer(log: &mut impl Write, timer: &'static GlobalTimer) -> Frames<Self::Port> {
+    fn renderer(log: &mut impl Write, timer: &'static GlobalTimer, caches: Caches) -> Frames<Self::Port> {
         let fpga = cfg!(feature = "sim-accelerator").then(|| {
-            let mut sim = SimAccelerator::with_memory(Uncached::frames(), 2);
+            let mut sim = SimAccelerator::with_memory(RingMemory::frames(caches), 2);
             // A row per status read: the main loop stays responsive.
             sim.set_frame_rows_per_poll(1);
             crate::render::accelerator(sim, timer)
         });
-        let mut frames = if cfg!(feature = "row-mode") { Frames::rows(fpga) } else { Frames::ring(fpga) };
+        let mut frames = if cfg!(feature = "row-mode") { Frames::rows(fpga) } else { Frames::ring(fpga, caches) };
         let _ = writeln!(log, "renderer: {}", frames.describe());
         frames
     }
