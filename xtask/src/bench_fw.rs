@@ -1,87 +1,280 @@
-//! `cargo xtask bench-fw`: guest instructions per frame on QEMU with
-//! `-icount shift=0` (one guest nanosecond per instruction), for the
-//! software renderer and for the network streaming alone.
+//! `cargo xtask bench-fw`: the firmware's cost per frame, measured on QEMU
+//! with `-icount shift=0` (one guest nanosecond per instruction, so the
+//! figures are deterministic instruction counts), and the board cost model
+//! ([`crate::cost_model`]) applied to the counts.
 //!
-//! The firmware's `bench` build logs, for every frame, the guest time when
-//! its first row starts and the guest time spent rendering its 360 rows.
-//! Frames are pipelined on the persistent port, so the time from one
-//! frame's start to the next is the whole cost of a frame; minus the
-//! rendering it is the network streaming alone (smoltcp, the MAC driver,
-//! the frame server, RGB packing).
+//! Three builds of the `bench` firmware serve pipelined frames on the
+//! persistent port:
+//!
+//! * frame mode, the simulated accelerator's frame DMA filling the ring:
+//!   the board's frame path;
+//! * row mode, the simulated accelerator rendering a row per start: the
+//!   board's row path;
+//! * frame mode with the software renderer: the renderer's cost.
+//!
+//! The firmware logs per frame what it did (see firmware/src/bench.rs):
+//! busy guest time (main-loop iterations that moved anything; the rest is
+//! waiting for the emulated peer's ACKs), rendering time (the simulated
+//! accelerator runs on the guest CPU, which the board's FPGA does not), and
+//! counts of bus accesses, copies, cache maintenance and MAC bytes.
+//! Streaming cost = busy time minus rendering time.
 
 use std::io::{Read, Write};
 use std::net::TcpStream;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use clap::Args;
 
+use crate::cost_model::{self, FrameCounts, CONSTANTS};
 use crate::firmware::{build, Guest};
 use crate::Result;
 
 /// `cargo xtask bench-fw` options.
 #[derive(Args)]
 pub struct BenchArgs {
-    /// Frames to request (the first is not counted).
-    #[arg(long, default_value_t = 4)]
+    /// Frames to request per mode (the first and the last are not counted).
+    #[arg(long, default_value_t = 6)]
     pub frames: usize,
 }
 
-fn parse(uart: &str, tag: &str) -> Vec<u64> {
-    uart.lines().filter_map(|l| l.trim().strip_prefix(tag)).filter_map(|v| v.trim().parse().ok()).collect()
+/// One `bench: counts` line.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Counts {
+    lw_reads: u64,
+    lw_line_words: u64,
+    lw_writes: u64,
+    cpu_copied: u64,
+    lines_invalidated: u64,
+    lines_cleaned: u64,
+    uncached_read: u64,
+    mac_tx: u64,
+    tx_frames: u64,
+    busy_ns: u64,
+    render_ns: u64,
+    busy_loops: u64,
 }
 
-/// Run the bench and print the two figures.
-pub fn run(args: &BenchArgs) -> Result<()> {
-    crate::tools::ensure_qemu()?;
-    let frames = args.frames.max(3);
-    let elf = build("qemu-npcm750", &["bench"])?;
+impl Counts {
+    const FIELDS: [&'static str; 12] = [
+        "lw_reads",
+        "lw_line_words",
+        "lw_writes",
+        "cpu_copied",
+        "lines_invalidated",
+        "lines_cleaned",
+        "uncached_read",
+        "mac_tx",
+        "tx_frames",
+        "busy_ns",
+        "render_ns",
+        "busy_loops",
+    ];
+
+    fn fields_mut(&mut self) -> [&mut u64; 12] {
+        [
+            &mut self.lw_reads,
+            &mut self.lw_line_words,
+            &mut self.lw_writes,
+            &mut self.cpu_copied,
+            &mut self.lines_invalidated,
+            &mut self.lines_cleaned,
+            &mut self.uncached_read,
+            &mut self.mac_tx,
+            &mut self.tx_frames,
+            &mut self.busy_ns,
+            &mut self.render_ns,
+            &mut self.busy_loops,
+        ]
+    }
+
+    /// Parse the text after `bench: counts`: every field, `name=value`.
+    pub fn parse(line: &str) -> Option<Counts> {
+        let mut c = Counts::default();
+        let mut seen = 0;
+        for pair in line.split_whitespace() {
+            let (k, v) = pair.split_once('=')?;
+            let i = Self::FIELDS.iter().position(|f| *f == k)?;
+            *c.fields_mut()[i] = v.parse().ok()?;
+            seen |= 1 << i;
+        }
+        (seen == (1 << Self::FIELDS.len()) - 1).then_some(c)
+    }
+
+    /// The mean of `lines`, per frame.
+    fn mean(lines: &[Counts]) -> [f64; 12] {
+        let mut sum = [0f64; 12];
+        for l in lines {
+            let mut l = *l;
+            for (s, v) in sum.iter_mut().zip(l.fields_mut()) {
+                *s += *v as f64;
+            }
+        }
+        sum.map(|s| s / lines.len() as f64)
+    }
+}
+
+/// What one mode measured, per frame.
+struct Measured {
+    counts: [f64; 12],
+    frames: usize,
+}
+
+impl Measured {
+    fn get(&self, field: &str) -> f64 {
+        Counts::FIELDS.iter().position(|f| *f == field).map_or(0.0, |i| self.counts[i])
+    }
+
+    fn streaming(&self) -> f64 {
+        (self.get("busy_ns") - self.get("render_ns")).max(0.0)
+    }
+
+    fn model_counts(&self) -> FrameCounts {
+        FrameCounts {
+            instructions: self.streaming(),
+            lw_reads: self.get("lw_reads"),
+            lw_line_words: self.get("lw_line_words"),
+            lw_writes: self.get("lw_writes"),
+            lines_invalidated: self.get("lines_invalidated"),
+            lines_cleaned: self.get("lines_cleaned"),
+            uncached_read: self.get("uncached_read"),
+            mac_tx: self.get("mac_tx"),
+            tx_frames: self.get("tx_frames"),
+        }
+    }
+}
+
+/// Boot a bench build with `features`, fetch `frames` pipelined frames,
+/// and average the counts of all but the first and the last.
+fn measure(features: &[&str], frames: usize) -> Result<Measured> {
+    let mut all = vec!["bench"];
+    all.extend_from_slice(features);
+    let elf = build("qemu-npcm750", &all)?;
     let mut g = Guest::boot(&elf, &["-icount", "shift=0"])?;
     let mut s = TcpStream::connect(("127.0.0.1", g.port_persistent)).map_err(|e| e.to_string())?;
     s.set_read_timeout(Some(Duration::from_secs(600))).map_err(|e| e.to_string())?;
     let light = rt_protocol::encode_raw_request([3 << 10, 4 << 10, -(2 << 10)]);
-    let wall = Instant::now();
     s.write_all(&light.repeat(frames)).map_err(|e| e.to_string())?;
-    let mut frame = vec![0u8; model::WIDTH * model::HEIGHT * 3];
+    let mut frame = vec![0u8; model::FRAME_BYTES];
+    let l = model::Light::from_raw(3 << 10, 4 << 10, -(2 << 10)).map_err(|e| format!("bench light: {e}"))?;
+    let mut want = vec![0u8; model::FRAME_BYTES];
+    let want_frame: &mut [u8; model::FRAME_BYTES] = want.as_mut_slice().try_into().map_err(|_| "frame size")?;
+    model::render_frame_rgb888(&l, want_frame);
     for i in 0..frames {
         s.read_exact(&mut frame).map_err(|e| format!("frame {i}: {e}"))?;
+        if frame != want {
+            return Err(format!("{features:?}: frame {i} differs from model::render_frame"));
+        }
     }
-    let wall = wall.elapsed();
     drop(s);
-    // Every frame's lines are logged before its last bytes leave the guest.
-    g.wait_for_log("bench: frame rendered", Duration::from_secs(5))?;
+    g.wait_for_log("bench: counts", Duration::from_secs(5))?;
     let uart = g.uart();
-    let starts = parse(&uart, "bench: frame start");
-    let renders = parse(&uart, "bench: frame rendered");
-    if starts.len() < frames || renders.len() < frames {
-        return Err(format!(
-            "expected {frames} bench lines, got {} starts / {} renders:\n{uart}",
-            starts.len(),
-            renders.len()
-        ));
+    let lines: Vec<Counts> =
+        uart.lines().filter_map(|l| l.trim().strip_prefix("bench: counts")).filter_map(Counts::parse).collect();
+    if lines.len() < frames - 1 {
+        return Err(format!("{features:?}: expected {} counts lines, got {}:\n{uart}", frames - 1, lines.len()));
     }
-    // Frames 1..frames-1: start-to-next-start periods (frame 0 warms up).
-    let mut per_frame = Vec::new();
-    let mut render = Vec::new();
-    for i in 1..frames - 1 {
-        per_frame.push(starts[i + 1] - starts[i]);
-        render.push(renders[i]);
+    let counted = &lines[1..frames - 1];
+    Ok(Measured { counts: Counts::mean(counted), frames: counted.len() })
+}
+
+fn print_mode(name: &str, m: &Measured) {
+    let payload = model::FRAME_BYTES as f64;
+    println!("bench-fw: {name} ({} frames counted)", m.frames);
+    println!(
+        "  streaming           {:>11.0} guest instructions/frame ({:.2} per payload byte)",
+        m.streaming(),
+        m.streaming() / payload
+    );
+    println!("  rendering (guest)   {:>11.0} guest instructions/frame (not the board's CPU)", m.get("render_ns"));
+    println!(
+        "  LW bridge           {:>11.0} register reads, {:.0} line-buffer words, {:.0} register writes",
+        m.get("lw_reads"),
+        m.get("lw_line_words"),
+        m.get("lw_writes")
+    );
+    println!(
+        "  CPU                 {:>11.0} bytes copied, {:.0} cache lines invalidated, {:.0} cleaned, {:.0} bytes read uncached",
+        m.get("cpu_copied"),
+        m.get("lines_invalidated"),
+        m.get("lines_cleaned"),
+        m.get("uncached_read")
+    );
+    println!("  MAC                 {:>11.0} bytes in {:.0} frames sent", m.get("mac_tx"), m.get("tx_frames"));
+    println!("  main loop           {:>11.0} busy iterations", m.get("busy_loops"));
+}
+
+fn print_estimate(name: &str, m: &Measured, fpga_cycles: f64) -> f64 {
+    let e = cost_model::estimate(&m.model_counts(), fpga_cycles);
+    let cpu = e.cpu_seconds();
+    println!(
+        "board estimate, {name}: {:.0} frames/s ({}-bound; per frame CPU {:.2} ms, FPGA {:.2} ms, wire {:.2} ms)",
+        e.fps(),
+        e.bound(),
+        cpu * 1e3,
+        e.fpga * 1e3,
+        e.wire * 1e3
+    );
+    for c in &e.cpu {
+        println!("  {:<28} {:>8.3} ms  {:>5.1}% of the CPU", c.name, c.seconds * 1e3, 100.0 * c.seconds / cpu);
     }
-    let avg = |v: &[u64]| v.iter().sum::<u64>() / v.len() as u64;
-    let (total, rend) = (avg(&per_frame), avg(&render));
-    let net = total.saturating_sub(rend);
+    e.fps()
+}
+
+/// Run the three modes and print the figures and the cost model.
+pub fn run(args: &BenchArgs) -> Result<()> {
+    crate::tools::ensure_qemu()?;
+    let frames = args.frames.max(4);
+    let frame_mode = measure(&["sim-accelerator"], frames)?;
+    let row_mode = measure(&["sim-accelerator", "row-mode"], frames)?;
+    let software = measure(&[], frames)?;
+    println!("bench-fw: QEMU npcm750-evb, -icount shift=0, {frames} pipelined frames per mode on the persistent port");
+    print_mode("frame mode (simulated frame DMA into the ring)", &frame_mode);
+    print_mode("row mode (simulated accelerator, a row per start)", &row_mode);
     println!(
-        "bench-fw: QEMU npcm750-evb, -icount shift=0, {frames} pipelined frames on the persistent port ({} counted)",
-        per_frame.len()
+        "bench-fw: software renderer {:.0} guest instructions/frame ({:.0} per pixel); streaming {:.2} per payload byte",
+        software.get("render_ns"),
+        software.get("render_ns") / (model::WIDTH * model::HEIGHT) as f64,
+        software.streaming() / model::FRAME_BYTES as f64
     );
-    println!("bench-fw: whole frame              {total:>13} guest instructions/frame");
+    println!();
+    println!("board cost model: per-operation costs on a DE1-SoC");
+    for c in CONSTANTS {
+        println!("  {:<36} {:>12.4e} {:<12} {}", c.name, c.value, c.unit, c.source);
+    }
+    let f = print_estimate("frame mode", &frame_mode, cost_model::FPGA_FRAME_CYCLES.value);
+    let r = print_estimate("row mode", &row_mode, cost_model::FPGA_ROW_MODE_CYCLES.value);
+    let per_byte = frame_mode.streaming() / model::FRAME_BYTES as f64;
     println!(
-        "bench-fw: software renderer        {rend:>13} guest instructions/frame ({:.0} per pixel)",
-        rend as f64 / (model::WIDTH * model::HEIGHT) as f64
+        "goals: streaming <= 4 instructions/byte: {per_byte:.2} ({}); frame mode >= 150 frames/s: {f:.0} ({}); row mode >= 30: {r:.0} ({})",
+        verdict(per_byte <= 4.0),
+        verdict(f >= 150.0),
+        verdict(r >= 30.0)
     );
-    println!(
-        "bench-fw: network streaming alone  {net:>13} guest instructions/frame ({:.1} per payload byte)",
-        net as f64 / frame.len() as f64
-    );
-    println!("bench-fw: (host wall clock {:.2} s for {frames} frames under icount)", wall.as_secs_f64());
     Ok(())
+}
+
+fn verdict(ok: bool) -> &'static str {
+    if ok {
+        "met"
+    } else {
+        "NOT met"
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_lines_parse_only_when_complete() {
+        let line = " lw_reads=3 lw_line_words=0 lw_writes=2 cpu_copied=518400 lines_invalidated=16200 lines_cleaned=0 uncached_read=1200 mac_tx=537000 tx_frames=358 busy_ns=900 render_ns=100 busy_loops=7";
+        let c = Counts::parse(line).expect("complete");
+        assert_eq!((c.lw_reads, c.lines_invalidated, c.tx_frames, c.busy_ns), (3, 16200, 358, 900));
+        assert_eq!(Counts::parse(" lw_reads=3"), None, "fields missing");
+        assert_eq!(Counts::parse(&format!("{line} extra=1")), None, "unknown field");
+        assert_eq!(Counts::parse(&line.replace("=3 ", "=x ")), None, "not a number");
+        let m = Measured { counts: Counts::mean(&[c, c]), frames: 2 };
+        assert_eq!(m.streaming(), 800.0);
+        assert_eq!(m.model_counts().instructions, 800.0);
+    }
 }

@@ -2,6 +2,7 @@
 //! cargo does.
 
 mod bench_fw;
+mod cost_model;
 mod firmware;
 mod model_cmds;
 mod qemu_e2e;
