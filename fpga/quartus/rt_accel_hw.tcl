@@ -1,8 +1,11 @@
 # Platform Designer component: the ray-tracer accelerator (rt_top).
 #
 # One 32-bit Avalon-MM slave, word addressing over an 8 KiB span:
-#   0x0000 CSR block (CONTROL, STATUS, ROW_Y, LIGHT_X/Y/Z, ID)
+#   0x0000 CSR block (CONTROL, STATUS, ROW_Y, LIGHT_X/Y/Z, ID, FRAME_*)
 #   0x1000 line buffer, 480 words 0x00RRGGBB
+# and one write-only AXI3 master (64-bit data, bursts of at most 16 beats,
+# at most 16 writes outstanding) for the frame DMA: connect it to
+# hps_0.f2h_sdram0_data (F2SDRAM_Type AXI-3, F2SDRAM_Width 64).
 # Connect it to hps_0.h2f_lw_axi_master at base 0x0000_0000: the CPU then
 # sees it at 0xFF20_0000 (hal-avalon's CSR_OFFSET / LINE_BUFFER_OFFSET).
 # Fixed read latency 1, no waitrequest, no byte enables (32-bit accesses
@@ -13,7 +16,7 @@ set_module_property NAME rt_accel
 set_module_property DISPLAY_NAME "Ray tracer accelerator"
 set_module_property VERSION 1.0
 set_module_property GROUP "Ray tracer"
-set_module_property DESCRIPTION "Fixed-point ray tracer, one 480-pixel row per start (register map: hal-avalon)"
+set_module_property DESCRIPTION "Fixed-point ray tracer: a 480-pixel row per start, or whole frames written to SDRAM (register map: hal-avalon)"
 set_module_property EDITABLE false
 set_module_property INTERNAL false
 set_module_property OPAQUE_ADDRESS_MAP true
@@ -32,7 +35,7 @@ foreach f [split [read $fh] "\n"] {
 close $fh
 
 # ---- Parameters -------------------------------------------------------------
-add_parameter LANES INTEGER 2
+add_parameter LANES INTEGER 1
 set_parameter_property LANES DISPLAY_NAME "Lanes (power of two dividing 480)"
 set_parameter_property LANES ALLOWED_RANGES {1 2 4}
 set_parameter_property LANES HDL_PARAMETER true
@@ -74,3 +77,30 @@ add_interface_port s0 avs_writedata_i writedata Input 32
 add_interface_port s0 avs_readdata_o readdata Output 32
 set_interface_assignment s0 embeddedsw.configuration.isFlash 0
 set_interface_assignment s0 embeddedsw.configuration.isMemoryDevice 0
+
+# ---- AXI3 master: the frame DMA (write channels only) ------------------------
+# No ID signals: Platform Designer gives a master without them ID 0, and the
+# DMA does not need write responses in any order but issue order. No read
+# channel: the master only writes.
+add_interface axm axi start
+set_interface_property axm associatedClock clock
+set_interface_property axm associatedReset reset
+set_interface_property axm writeIssuingCapability 16
+set_interface_property axm combinedIssuingCapability 16
+set_interface_property axm ENABLED true
+add_interface_port axm axm_awaddr_o awaddr Output 32
+add_interface_port axm axm_awlen_o awlen Output 4
+add_interface_port axm axm_awsize_o awsize Output 3
+add_interface_port axm axm_awburst_o awburst Output 2
+add_interface_port axm axm_awcache_o awcache Output 4
+add_interface_port axm axm_awprot_o awprot Output 3
+add_interface_port axm axm_awvalid_o awvalid Output 1
+add_interface_port axm axm_awready_i awready Input 1
+add_interface_port axm axm_wdata_o wdata Output 64
+add_interface_port axm axm_wstrb_o wstrb Output 8
+add_interface_port axm axm_wlast_o wlast Output 1
+add_interface_port axm axm_wvalid_o wvalid Output 1
+add_interface_port axm axm_wready_i wready Input 1
+add_interface_port axm axm_bresp_i bresp Input 2
+add_interface_port axm axm_bvalid_i bvalid Input 1
+add_interface_port axm axm_bready_o bready Output 1

@@ -4,12 +4,12 @@
 #
 # The accelerator's slave sits at base 0x0 of the lightweight bridge, so the
 # CPU sees CSRs at 0xFF20_0000 and the line buffer at 0xFF20_1000
-# (hal-avalon src/map.rs).
+# (hal-avalon src/map.rs). Its AXI master writes frames through f2h_sdram0,
+# whose address 0 is SDRAM address 0: FRAME_BASE is the CPU's physical
+# address of the frame (the firmware's map is flat).
 #
-# The DDR3 settings describe the DE1-SoC's two MT41K256M16 (1 GiB, 32 bits)
-# at 400 MHz. They were written from the data sheet, not exported from a
-# calibrated board design: if calibration fails, take the hps_0 memory
-# parameters from Terasic's DE1-SoC GHRD (System CD) instead.
+# The DDR3 settings are a known-good DE1-SoC set (see below); this script
+# has not been run through Quartus here (fpga/README.md#quartus-integration).
 package require -exact qsys 16.1
 
 create_system soc_system
@@ -24,14 +24,17 @@ set_instance_parameter_value clk_0 resetSynchronousEdges {NONE}
 
 # ---- HPS ----------------------------------------------------------------------
 add_instance hps_0 altera_hps
-# Bridges: only the lightweight HPS-to-FPGA bridge is used.
+# Bridges: the lightweight HPS-to-FPGA bridge (registers) and one 64-bit
+# AXI-3 FPGA-to-SDRAM port, f2h_sdram0 (the frame DMA writes frames into
+# HPS SDRAM; docs/frame-dma.md#port). With one AXI port at 64 bits the
+# boot loader must release FPGA-port resets 0x311 (command ports 0 and 4,
+# read port 0, write port 0; docs/frame-dma.md#boot-loader).
 set_instance_parameter_value hps_0 LWH2F_Enable {true}
 set_instance_parameter_value hps_0 S2F_Width {0}
 set_instance_parameter_value hps_0 F2S_Width {0}
-set_instance_parameter_value hps_0 F2SDRAM_Type {}
-set_instance_parameter_value hps_0 F2SDRAM_Width {}
+set_instance_parameter_value hps_0 F2SDRAM_Type {AXI-3}
+set_instance_parameter_value hps_0 F2SDRAM_Width {64}
 set_instance_parameter_value hps_0 F2SINTERRUPT_Enable {0}
-set_instance_parameter_value hps_0 S2FINTERRUPT_UART0_Enable {0}
 # Peripherals the firmware uses (docs/platform.md#two-targets): EMAC1 RGMII,
 # SD card, UART0.
 set_instance_parameter_value hps_0 EMAC1_PinMuxing {HPS I/O Set 0}
@@ -40,7 +43,11 @@ set_instance_parameter_value hps_0 SDIO_PinMuxing {HPS I/O Set 0}
 set_instance_parameter_value hps_0 SDIO_Mode {4-bit Data}
 set_instance_parameter_value hps_0 UART0_PinMuxing {HPS I/O Set 0}
 set_instance_parameter_value hps_0 UART0_Mode {No Flow Control}
-# DDR3: 2 x MT41K256M16 (x16, 15 row / 10 column / 3 bank bits), 32-bit bus.
+# DDR3: 2 x MT41K256M16 (x16, 15 row / 10 column / 3 bank bits), 32-bit bus,
+# 400 MHz. The whole set is the Intel FPGA University Program's "DE1-SoC
+# Computer" (Computer_System.tcl, Quartus 18.1), whose timing (CL 7, CWL 7,
+# tRCD/tRP 13.125 ns, tRFC 300 ns) is also what mainline U-Boot's SPL
+# programs for this board (board/terasic/de1-soc/qts/sdram_config.h).
 set_instance_parameter_value hps_0 HPS_PROTOCOL {DDR3}
 set_instance_parameter_value hps_0 MEM_VENDOR {Micron}
 set_instance_parameter_value hps_0 MEM_CLK_FREQ {400.0}
@@ -51,39 +58,54 @@ set_instance_parameter_value hps_0 MEM_ROW_ADDR_WIDTH {15}
 set_instance_parameter_value hps_0 MEM_COL_ADDR_WIDTH {10}
 set_instance_parameter_value hps_0 MEM_BANKADDR_WIDTH {3}
 set_instance_parameter_value hps_0 MEM_CS_WIDTH {1}
+set_instance_parameter_value hps_0 MEM_CK_WIDTH {1}
 set_instance_parameter_value hps_0 MEM_IF_DM_PINS_EN {1}
+set_instance_parameter_value hps_0 MEM_IF_DQSN_EN {1}
 set_instance_parameter_value hps_0 MEM_TCL {7}
 set_instance_parameter_value hps_0 MEM_WTCL {7}
-set_instance_parameter_value hps_0 MEM_DRV_STR {RZQ/7}
-set_instance_parameter_value hps_0 MEM_RTT_NOM {RZQ/4}
+set_instance_parameter_value hps_0 MEM_DRV_STR {RZQ/6}
+set_instance_parameter_value hps_0 MEM_RTT_NOM {RZQ/6}
 set_instance_parameter_value hps_0 MEM_RTT_WR {Dynamic ODT off}
-set_instance_parameter_value hps_0 MEM_TIS {180}
-set_instance_parameter_value hps_0 MEM_TIH {140}
-set_instance_parameter_value hps_0 MEM_TDS {30}
-set_instance_parameter_value hps_0 MEM_TDH {65}
-set_instance_parameter_value hps_0 MEM_TDQSQ {125}
-set_instance_parameter_value hps_0 MEM_TQH {0.38}
-set_instance_parameter_value hps_0 MEM_TDQSCK {255}
-set_instance_parameter_value hps_0 MEM_TDQSS {0.25}
-set_instance_parameter_value hps_0 MEM_TQSH {0.4}
-set_instance_parameter_value hps_0 MEM_TDSH {0.2}
-set_instance_parameter_value hps_0 MEM_TDSS {0.2}
 set_instance_parameter_value hps_0 MEM_TINIT_US {500}
 set_instance_parameter_value hps_0 MEM_TMRD_CK {4}
-set_instance_parameter_value hps_0 MEM_TRAS_NS {35.0}
-set_instance_parameter_value hps_0 MEM_TRCD_NS {13.75}
-set_instance_parameter_value hps_0 MEM_TRP_NS {13.75}
+set_instance_parameter_value hps_0 MEM_TRAS_NS {36.0}
+set_instance_parameter_value hps_0 MEM_TRCD_NS {13.125}
+set_instance_parameter_value hps_0 MEM_TRP_NS {13.125}
 set_instance_parameter_value hps_0 MEM_TREFI_US {7.8}
-set_instance_parameter_value hps_0 MEM_TRFC_NS {260.0}
+set_instance_parameter_value hps_0 MEM_TRFC_NS {300.0}
 set_instance_parameter_value hps_0 MEM_TWR_NS {15.0}
 set_instance_parameter_value hps_0 MEM_TWTR {4}
-set_instance_parameter_value hps_0 MEM_TFAW_NS {30.0}
+set_instance_parameter_value hps_0 MEM_TFAW_NS {45.0}
 set_instance_parameter_value hps_0 MEM_TRRD_NS {7.5}
 set_instance_parameter_value hps_0 MEM_TRTP_NS {7.5}
+# Device timing (the altera_hps names are TIMING_*, not MEM_*).
+set_instance_parameter_value hps_0 TIMING_TIS {190}
+set_instance_parameter_value hps_0 TIMING_TIH {140}
+set_instance_parameter_value hps_0 TIMING_TDS {30}
+set_instance_parameter_value hps_0 TIMING_TDH {65}
+set_instance_parameter_value hps_0 TIMING_TDQSQ {125}
+set_instance_parameter_value hps_0 TIMING_TQH {0.38}
+set_instance_parameter_value hps_0 TIMING_TQHS {300}
+set_instance_parameter_value hps_0 TIMING_TDQSCK {255}
+set_instance_parameter_value hps_0 TIMING_TDQSS {0.25}
+set_instance_parameter_value hps_0 TIMING_TDQSH {0.35}
+set_instance_parameter_value hps_0 TIMING_TQSH {0.4}
+set_instance_parameter_value hps_0 TIMING_TDSH {0.2}
+set_instance_parameter_value hps_0 TIMING_TDSS {0.2}
+# Board skews and delays of the DE1-SoC layout (same source).
+set_instance_parameter_value hps_0 TIMING_BOARD_AC_SKEW {0.02}
+set_instance_parameter_value hps_0 TIMING_BOARD_AC_TO_CK_SKEW {0.01}
+set_instance_parameter_value hps_0 TIMING_BOARD_MAX_CK_DELAY {0.03}
+set_instance_parameter_value hps_0 TIMING_BOARD_MAX_DQS_DELAY {0.02}
+set_instance_parameter_value hps_0 TIMING_BOARD_SKEW_CKDQS_DIMM_MIN {0.06}
+set_instance_parameter_value hps_0 TIMING_BOARD_SKEW_CKDQS_DIMM_MAX {0.12}
+set_instance_parameter_value hps_0 TIMING_BOARD_SKEW_BETWEEN_DQS {0.06}
+set_instance_parameter_value hps_0 TIMING_BOARD_SKEW_WITHIN_DQS {0.01}
+set_instance_parameter_value hps_0 TIMING_BOARD_DQ_TO_DQS_SKEW {0.05}
 
 # ---- Ray-tracer accelerator (rt_accel_hw.tcl) ---------------------------------
 add_instance rt_accel_0 rt_accel
-set_instance_parameter_value rt_accel_0 LANES {2}
+set_instance_parameter_value rt_accel_0 LANES {1}
 
 # ---- Connections --------------------------------------------------------------
 add_connection clk_0.clk hps_0.h2f_lw_axi_clock
@@ -92,6 +114,9 @@ add_connection clk_0.clk_reset rt_accel_0.reset
 add_connection hps_0.h2f_reset rt_accel_0.reset
 add_connection hps_0.h2f_lw_axi_master rt_accel_0.s0
 set_connection_parameter_value hps_0.h2f_lw_axi_master/rt_accel_0.s0 baseAddress {0x0000}
+add_connection clk_0.clk hps_0.f2h_sdram0_clock
+add_connection rt_accel_0.axm hps_0.f2h_sdram0_data
+set_connection_parameter_value rt_accel_0.axm/hps_0.f2h_sdram0_data baseAddress {0x0000}
 
 # ---- Exports ------------------------------------------------------------------
 add_interface clk clock sink
