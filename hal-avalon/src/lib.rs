@@ -38,6 +38,8 @@
 #![warn(missing_docs)]
 #![deny(unsafe_op_in_unsafe_fn)]
 
+#[cfg(feature = "conformance")]
+pub mod conformance;
 pub mod driver;
 pub mod map;
 pub mod mmio;
