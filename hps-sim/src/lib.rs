@@ -8,6 +8,11 @@
 //! * row mode: one row per start through the line buffer
 //!   (`rt_protocol::RowFrames`).
 //!
+//! The accelerator is hal-avalon's simulated one (the default) or the
+//! Verilated RTL (`rtl-port`, [`Device::Rtl`]): the same driver code either
+//! way, and with the RTL each connection logs the simulated clocks per frame
+//! and per row.
+//!
 //! Two listeners: the seed protocol on the listen port and the persistent
 //! protocol on the listen port + 1. Every connection is served concurrently
 //! on its own thread with its own simulated accelerator (a board has one
@@ -48,6 +53,25 @@ pub enum RenderMode {
     Frames,
     /// One row per start through the line buffer.
     Rows,
+}
+
+/// Which accelerator renders.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
+pub enum Device {
+    /// hal-avalon's simulated accelerator (built from the model).
+    #[default]
+    Sim,
+    /// The Verilated RTL (`rtl-port`): slower, cycle by cycle.
+    Rtl,
+}
+
+/// What the simulated board runs.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
+pub struct Config {
+    /// Frame mode or row mode.
+    pub render: RenderMode,
+    /// Simulated accelerator or RTL.
+    pub device: Device,
 }
 
 /// Frame slots per connection in frame mode: one being sent, one rendering.
@@ -125,6 +149,53 @@ pub fn frame_ring() -> FrameRing<SharedMemory, SimDriver<SharedMemory>, FRAME_SL
     FrameRing::new(mem, Accelerator::new(sim, CountingDelay::default(), PollTimeout::DEFAULT))
 }
 
+/// The driver over the Verilated RTL whose frame DMA writes `M`.
+pub type RtlDriver<M> = Accelerator<rtl_port::RtlAccelerator<M>, CountingDelay>;
+
+/// Row mode on the RTL.
+pub fn rtl_row_frames() -> Result<RowFrames<RtlDriver<hal_avalon::sim::NoMemory>, 1>, rtl_port::NotBuilt> {
+    let accel = Accelerator::new(rtl_port::RtlAccelerator::new()?, CountingDelay::default(), PollTimeout::DEFAULT);
+    Ok(RowFrames::new(accel))
+}
+
+/// Frame mode on the RTL: its frame DMA's AXI master writes the ring.
+pub fn rtl_frame_ring() -> Result<FrameRing<SharedMemory, RtlDriver<SharedMemory>, FRAME_SLOTS>, rtl_port::NotBuilt> {
+    let mem = SharedMemory::new(FRAME_SLOTS);
+    let rtl = rtl_port::RtlAccelerator::with_memory(mem.clone())?;
+    Ok(FrameRing::new(mem, Accelerator::new(rtl, CountingDelay::default(), PollTimeout::DEFAULT)))
+}
+
+/// Simulated clocks so far, where the device counts them (the RTL).
+pub trait Clocks {
+    /// Clocks simulated since the device was made; `None` for a device
+    /// without a clock.
+    fn clocks(&mut self) -> Option<u64>;
+}
+
+impl<M: DmaTarget> Clocks for RowFrames<SimDriver<M>, 1> {
+    fn clocks(&mut self) -> Option<u64> {
+        None
+    }
+}
+
+impl Clocks for FrameRing<SharedMemory, SimDriver<SharedMemory>, FRAME_SLOTS> {
+    fn clocks(&mut self) -> Option<u64> {
+        None
+    }
+}
+
+impl<M: DmaTarget> Clocks for RowFrames<RtlDriver<M>, 1> {
+    fn clocks(&mut self) -> Option<u64> {
+        Some(self.rows().port().cycles())
+    }
+}
+
+impl Clocks for FrameRing<SharedMemory, RtlDriver<SharedMemory>, FRAME_SLOTS> {
+    fn clocks(&mut self) -> Option<u64> {
+        Some(self.engine().port().cycles())
+    }
+}
+
 /// A running simulated board.
 pub struct HpsSim {
     frame_addr: SocketAddr,
@@ -145,9 +216,19 @@ impl HpsSim {
         HpsSim::start_with(addr, RenderMode::Frames, false)
     }
 
-    /// Listen on `addr` and its port + 1, rendering in `render` mode,
-    /// logging to stderr if `verbose`.
+    /// Listen on `addr` and its port + 1 with the simulated accelerator in
+    /// `render` mode, logging to stderr if `verbose`.
     pub fn start_with(addr: SocketAddr, render: RenderMode, verbose: bool) -> io::Result<HpsSim> {
+        HpsSim::start_config(addr, Config { render, device: Device::Sim }, verbose)
+    }
+
+    /// Listen on `addr` and its port + 1 running `config`, logging to
+    /// stderr if `verbose`. With [`Device::Rtl`] in a build without the RTL
+    /// the error says so (`rtl_port::NotBuilt`).
+    pub fn start_config(addr: SocketAddr, config: Config, verbose: bool) -> io::Result<HpsSim> {
+        if config.device == Device::Rtl && !rtl_port::available() {
+            return Err(io::Error::new(io::ErrorKind::Unsupported, rtl_port::NotBuilt));
+        }
         let (single, persistent) = bind_pair(addr)?;
         let sim = HpsSim {
             frame_addr: single.local_addr()?,
@@ -159,7 +240,7 @@ impl HpsSim {
             let (stop, ids) = (sim.stop.clone(), ids.clone());
             thread::Builder::new()
                 .name(format!("accept {mode:?}"))
-                .spawn(move || accept_loop(listener, mode, render, &stop, &ids, verbose))?;
+                .spawn(move || accept_loop(listener, mode, config, &stop, &ids, verbose))?;
         }
         Ok(sim)
     }
@@ -209,14 +290,7 @@ fn bind_pair(addr: SocketAddr) -> io::Result<(TcpListener, TcpListener)> {
     Err(last_err.unwrap_or_else(|| io::Error::new(io::ErrorKind::AddrInUse, "no free port pair")))
 }
 
-fn accept_loop(
-    listener: TcpListener,
-    mode: Mode,
-    render: RenderMode,
-    stop: &AtomicBool,
-    ids: &AtomicU64,
-    verbose: bool,
-) {
+fn accept_loop(listener: TcpListener, mode: Mode, config: Config, stop: &AtomicBool, ids: &AtomicU64, verbose: bool) {
     for stream in listener.incoming() {
         if stop.load(Ordering::SeqCst) {
             return;
@@ -226,7 +300,7 @@ fn accept_loop(
                 let id = ids.fetch_add(1, Ordering::Relaxed);
                 let spawned = thread::Builder::new()
                     .name(format!("client {id}"))
-                    .spawn(move || serve_connection(stream, mode, render, Log::new(id, verbose)));
+                    .spawn(move || serve_connection(stream, mode, config, Log::new(id, verbose)));
                 if let Err(e) = spawned {
                     eprintln!("[{id}] cannot start a thread: {e}");
                 }
@@ -270,16 +344,25 @@ impl fmt::Write for Log {
     }
 }
 
-/// Serve one connection to its end with its own simulated accelerator in
-/// `render` mode. Never panics on peer behaviour.
-pub fn serve_connection(stream: TcpStream, mode: Mode, render: RenderMode, log: Log) {
-    match render {
-        RenderMode::Frames => serve(stream, mode, &mut frame_ring(), log),
-        RenderMode::Rows => serve(stream, mode, &mut row_frames(), log),
-    }
+/// Serve one connection to its end with its own accelerator as `config`
+/// says. Never panics on peer behaviour.
+pub fn serve_connection(stream: TcpStream, mode: Mode, config: Config, mut log: Log) {
+    let unavailable = match (config.device, config.render) {
+        (Device::Sim, RenderMode::Frames) => return serve(stream, mode, &mut frame_ring(), log),
+        (Device::Sim, RenderMode::Rows) => return serve(stream, mode, &mut row_frames(), log),
+        (Device::Rtl, RenderMode::Frames) => match rtl_frame_ring() {
+            Ok(mut ring) => return serve(stream, mode, &mut ring, log),
+            Err(e) => e,
+        },
+        (Device::Rtl, RenderMode::Rows) => match rtl_row_frames() {
+            Ok(mut rows) => return serve(stream, mode, &mut rows, log),
+            Err(e) => e,
+        },
+    };
+    let _ = fmt::Write::write_fmt(&mut log, format_args!("{unavailable}\n"));
 }
 
-fn serve<S: FrameSource>(mut stream: TcpStream, mode: Mode, frames: &mut S, mut log: Log) {
+fn serve<S: FrameSource + Clocks>(mut stream: TcpStream, mode: Mode, frames: &mut S, mut log: Log) {
     let peer = stream.peer_addr().map_or_else(|_| "?".into(), |a| a.to_string());
     let _ = fmt::Write::write_fmt(&mut log, format_args!("{mode:?} connection from {peer}\n"));
     let _ = stream.set_nodelay(true);
@@ -295,6 +378,8 @@ fn serve<S: FrameSource>(mut stream: TcpStream, mode: Mode, frames: &mut S, mut 
     let mut session = Session::new(mode, now());
     let mut pending: Vec<u8> = Vec::new();
     let mut input_ended = false;
+    let mut frames = ClockLog { clocks_at_last: frames.clocks(), frames, line: None };
+    let frames = &mut frames;
     loop {
         if !pending.is_empty() && session.wants_requests() {
             let n = session.receive(now(), &pending);
@@ -323,6 +408,9 @@ fn serve<S: FrameSource>(mut stream: TcpStream, mode: Mode, frames: &mut S, mut 
             },
             &mut log,
         );
+        if let Some(line) = frames.line.take() {
+            let _ = fmt::Write::write_str(&mut log, &line);
+        }
         match action {
             Action::Close(reason) => {
                 let _ = match reason {
@@ -364,6 +452,45 @@ fn serve<S: FrameSource>(mut stream: TcpStream, mode: Mode, frames: &mut S, mut 
                 Input::Bytes(b) => pending.extend_from_slice(&b),
                 Input::End => input_ended = true,
             }
+        }
+    }
+}
+
+/// A frame source that notes, when a frame has been sent, the clocks the
+/// device simulated since the previous one (rendering overlaps sending, so
+/// in a stream of frames that is the time per frame).
+struct ClockLog<'a, S> {
+    frames: &'a mut S,
+    clocks_at_last: Option<u64>,
+    line: Option<String>,
+}
+
+impl<S: FrameSource + Clocks> FrameSource for ClockLog<'_, S> {
+    type Frame = S::Frame;
+    type Error = S::Error;
+
+    fn begin(&mut self, light: &model::Light) -> Result<Option<S::Frame>, S::Error> {
+        self.frames.begin(light)
+    }
+
+    fn rows_ready(&mut self, frame: S::Frame) -> Result<u16, S::Error> {
+        self.frames.rows_ready(frame)
+    }
+
+    fn copy_row(&mut self, frame: S::Frame, y: u16, offset: usize, out: &mut [u8]) -> usize {
+        self.frames.copy_row(frame, y, offset, out)
+    }
+
+    fn end(&mut self, frame: S::Frame) {
+        self.frames.end(frame);
+        if let (Some(before), Some(now)) = (self.clocks_at_last, self.frames.clocks()) {
+            let clocks = now.saturating_sub(before);
+            self.line = Some(format!(
+                "rtl: {clocks} clocks since the last frame, {} per row ({:.1} frames/s at 50 MHz)\n",
+                clocks / u64::from(rt_protocol::frames::ROWS),
+                50e6 / clocks.max(1) as f64
+            ));
+            self.clocks_at_last = Some(now);
         }
     }
 }

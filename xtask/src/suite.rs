@@ -3,7 +3,9 @@
 //! Each step prints a `==>` line; the first failure stops the run with a
 //! non-zero exit.
 
-use crate::tools::{cargo, ensure_qemu, ensure_rust_components, ensure_rust_target, step, BOARDS, FIRMWARE_TARGET};
+use crate::tools::{
+    cargo, ensure_apt_packages, ensure_qemu, ensure_rust_components, ensure_rust_target, step, BOARDS, FIRMWARE_TARGET,
+};
 use crate::Result;
 
 /// Library crates that must build for the bare-metal target without `std`
@@ -17,6 +19,13 @@ pub fn run() -> Result<()> {
     ensure_rust_components(&["clippy", "rustfmt"])?;
     // QEMU for the firmware tests, mkimage for the U-Boot header test.
     ensure_qemu()?;
+    // Verilator for rtl-port (the RTL behind hal-avalon's driver, in the
+    // host tests) and the RTL steps. With RT_REQUIRE_RTL=1 rtl-port's build
+    // fails rather than build without the RTL, so the RTL tests always run
+    // here. Set before any thread or child exists; every cargo below
+    // inherits it.
+    ensure_apt_packages(&["verilator", "g++", "make"], None)?;
+    std::env::set_var("RT_REQUIRE_RTL", "1");
     step("rustfmt", cargo(&["fmt", "--all", "--", "--check"]))?;
     step(
         "clippy (host crates, all targets)",

@@ -1,6 +1,6 @@
 //! `hps-sim`: the board simulated on the host.
 //!
-//!     cargo run --release --bin hps-sim -- --listen 127.0.0.1:7878
+//!     cargo run --release --bin hps-sim -- --listen 127.0.0.1:7878 [--mode rows] [--accelerator rtl]
 //!
 //! Seed protocol on the listen port, persistent protocol on the port + 1.
 
@@ -8,7 +8,7 @@ use std::net::SocketAddr;
 use std::process::ExitCode;
 
 use clap::{Parser, ValueEnum};
-use hps_sim::{HpsSim, RenderMode};
+use hps_sim::{Config, Device, HpsSim, RenderMode};
 
 #[derive(Parser)]
 #[command(name = "hps-sim", about = "The ray tracer board simulated on the host")]
@@ -20,6 +20,19 @@ struct Args {
     /// memory (the board's main mode) or one row per start.
     #[arg(long, value_enum, default_value_t = Mode::Frames)]
     mode: Mode,
+    /// Which accelerator renders: hal-avalon's simulated one (built from
+    /// the model) or the Verilated RTL of fpga/rtl (cycle by cycle: about a
+    /// second per frame; logs the simulated clocks per frame).
+    #[arg(long, value_enum, default_value_t = Accel::Sim)]
+    accelerator: Accel,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Accel {
+    /// hal-avalon's simulated accelerator.
+    Sim,
+    /// The Verilated RTL (needs Verilator when hps-sim is built).
+    Rtl,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -36,16 +49,24 @@ fn main() -> ExitCode {
         Mode::Frames => RenderMode::Frames,
         Mode::Rows => RenderMode::Rows,
     };
-    match HpsSim::start_with(args.listen, render, true) {
+    let device = match args.accelerator {
+        Accel::Sim => Device::Sim,
+        Accel::Rtl => Device::Rtl,
+    };
+    match HpsSim::start_config(args.listen, Config { render, device }, true) {
         Ok(sim) => {
             eprintln!(
-                "hps-sim: {render:?} mode; frames on {} (one per connection), persistent on {}",
+                "hps-sim: {render:?} mode, {device:?} accelerator; frames on {} (one per connection), persistent on {}",
                 sim.frame_addr(),
                 sim.persistent_addr()
             );
             loop {
                 std::thread::park();
             }
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::Unsupported => {
+            eprintln!("hps-sim: --accelerator rtl: {e}");
+            ExitCode::FAILURE
         }
         Err(e) => {
             eprintln!("hps-sim: cannot listen on {} and the next port: {e}", args.listen);
