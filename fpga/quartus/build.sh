@@ -23,7 +23,9 @@ qsys-generate soc_system.qsys --synthesis=VERILOG --search-path="$PWD,\$" \
 
 # 2. Analysis and synthesis, then the HPS DDR3 pin assignments.
 quartus_map de1_soc
-quartus_sh -t soc_system/synthesis/submodules/hps_sdram_p0_pin_assignments.tcl de1_soc
+# quartus_sta runs the pin script directly (under quartus_sh it relaunches
+# itself and its exit status is lost, as Intel's GHRD Makefile avoids too).
+quartus_sta -t soc_system/synthesis/submodules/hps_sdram_p0_pin_assignments.tcl de1_soc
 
 # 3. Fit, assemble, timing.
 quartus_fit de1_soc

@@ -1,4 +1,5 @@
-# Platform Designer component: the ray-tracer accelerator (rt_top).
+# Platform Designer component: the ray-tracer accelerator (rt_accel.sv:
+# rt_top with the whole AXI3 master signal set).
 #
 # One 32-bit Avalon-MM slave, word addressing over an 8 KiB span:
 #   0x0000 CSR block (CONTROL, STATUS, ROW_Y, LIGHT_X/Y/Z, ID, FRAME_*)
@@ -24,15 +25,16 @@ set_module_property ELABORATION_CALLBACK ""
 
 # ---- Files (paths relative to this file) ----------------------------------
 add_fileset QUARTUS_SYNTH QUARTUS_SYNTH "" ""
-set_fileset_property QUARTUS_SYNTH TOP_LEVEL rt_top
+set_fileset_property QUARTUS_SYNTH TOP_LEVEL rt_accel
 set rtl_dir [file join [file dirname [info script]] .. rtl]
 set fh [open [file join $rtl_dir files.f] r]
 foreach f [split [read $fh] "\n"] {
     set f [string trim $f]
     if {$f eq "" || [string index $f 0] eq "#"} { continue }
-    add_fileset_file $f SYSTEM_VERILOG PATH [file join ../rtl $f] [expr {$f eq "rt_top.sv"}]
+    add_fileset_file $f SYSTEM_VERILOG PATH [file join ../rtl $f]
 }
 close $fh
+add_fileset_file rt_accel.sv SYSTEM_VERILOG PATH rt_accel.sv TOP_LEVEL_FILE
 
 # ---- Parameters -------------------------------------------------------------
 add_parameter LANES INTEGER 1
@@ -78,29 +80,32 @@ add_interface_port s0 avs_readdata_o readdata Output 32
 set_interface_assignment s0 embeddedsw.configuration.isFlash 0
 set_interface_assignment s0 embeddedsw.configuration.isMemoryDevice 0
 
-# ---- AXI3 master: the frame DMA (write channels only) ------------------------
-# No ID signals: Platform Designer gives a master without them ID 0, and the
-# DMA does not need write responses in any order but issue order. No read
-# channel: the master only writes.
+# ---- AXI3 master: the frame DMA ------------------------------------------------
+# Every AXI3 signal is declared, as Altera's own AXI3 master templates do
+# (merlin axi_interface.tcl); rt_accel.sv ties off the IDs, the locks and
+# the read channel, which the DMA never uses.
 add_interface axm axi start
 set_interface_property axm associatedClock clock
 set_interface_property axm associatedReset reset
+set_interface_property axm readIssuingCapability 1
 set_interface_property axm writeIssuingCapability 16
 set_interface_property axm combinedIssuingCapability 16
 set_interface_property axm ENABLED true
-add_interface_port axm axm_awaddr_o awaddr Output 32
-add_interface_port axm axm_awlen_o awlen Output 4
-add_interface_port axm axm_awsize_o awsize Output 3
-add_interface_port axm axm_awburst_o awburst Output 2
-add_interface_port axm axm_awcache_o awcache Output 4
-add_interface_port axm axm_awprot_o awprot Output 3
-add_interface_port axm axm_awvalid_o awvalid Output 1
-add_interface_port axm axm_awready_i awready Input 1
-add_interface_port axm axm_wdata_o wdata Output 64
-add_interface_port axm axm_wstrb_o wstrb Output 8
-add_interface_port axm axm_wlast_o wlast Output 1
-add_interface_port axm axm_wvalid_o wvalid Output 1
-add_interface_port axm axm_wready_i wready Input 1
-add_interface_port axm axm_bresp_i bresp Input 2
-add_interface_port axm axm_bvalid_i bvalid Input 1
-add_interface_port axm axm_bready_o bready Output 1
+foreach {port role dir width} {
+    axm_awid_o awid Output 1     axm_awaddr_o awaddr Output 32   axm_awlen_o awlen Output 4
+    axm_awsize_o awsize Output 3 axm_awburst_o awburst Output 2  axm_awlock_o awlock Output 2
+    axm_awcache_o awcache Output 4 axm_awprot_o awprot Output 3  axm_awvalid_o awvalid Output 1
+    axm_awready_i awready Input 1
+    axm_wid_o wid Output 1       axm_wdata_o wdata Output 64     axm_wstrb_o wstrb Output 8
+    axm_wlast_o wlast Output 1   axm_wvalid_o wvalid Output 1    axm_wready_i wready Input 1
+    axm_bid_i bid Input 1        axm_bresp_i bresp Input 2       axm_bvalid_i bvalid Input 1
+    axm_bready_o bready Output 1
+    axm_arid_o arid Output 1     axm_araddr_o araddr Output 32   axm_arlen_o arlen Output 4
+    axm_arsize_o arsize Output 3 axm_arburst_o arburst Output 2  axm_arlock_o arlock Output 2
+    axm_arcache_o arcache Output 4 axm_arprot_o arprot Output 3  axm_arvalid_o arvalid Output 1
+    axm_arready_i arready Input 1
+    axm_rid_i rid Input 1        axm_rdata_i rdata Input 64      axm_rresp_i rresp Input 2
+    axm_rlast_i rlast Input 1    axm_rvalid_i rvalid Input 1     axm_rready_o rready Output 1
+} {
+    add_interface_port axm $port $role $dir $width
+}

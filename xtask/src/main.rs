@@ -3,9 +3,11 @@
 
 mod bench_fw;
 mod cost_model;
+mod depth;
 mod firmware;
 mod model_cmds;
 mod qemu_e2e;
+mod quartus_check;
 mod rtl;
 mod suite;
 mod tools;

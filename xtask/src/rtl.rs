@@ -87,6 +87,16 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
     for lanes in [1, 2, 4] {
         step(&format!("verilator lint, LANES={lanes}"), lint(&rtl, &files, lanes))?;
     }
+    // The Platform Designer component's top (the full AXI3 signal set) and
+    // the Quartus files against each other.
+    let mut accel = Command::new("verilator");
+    accel
+        .current_dir(&rtl)
+        .args(["--lint-only", "-Wall", "--top-module", "rt_accel"])
+        .args(&files)
+        .arg("../quartus/rt_accel.sv");
+    step("verilator lint, rt_accel (Platform Designer component top)", accel)?;
+    crate::quartus_check::run(&root)?;
 
     // The primitives on their own: random and edge-case operands far beyond
     // what the scene reaches (division by zero, MIN, saturation, 25-bit
@@ -432,15 +442,32 @@ fn estimate(root: &Path, out: &Path, files: &[String], lanes: u32) -> Result<()>
         &format!("shell-lanes{lanes}"),
         &format!(
             "read_slang -j 1 --best-effort-hierarchy --top rt_top -G LANES={lanes} {files}; \
-             blackbox rt_lane*; hierarchy -top rt_top; synth_intel_alm -family cyclonev -top rt_top"
+             blackbox rt_lane*; hierarchy -top rt_top; synth_intel_alm -family cyclonev -top rt_top; \
+             write_json target/rtl/syn/shell-lanes{lanes}.json"
         ),
     )?;
     let lane = yosys_stat(
         root,
         "yosys synth_intel_alm -family cyclonev: one rt_lane (about 3 minutes)",
         "lane",
-        &format!("read_slang -j 1 --top rt_lane {files}; synth_intel_alm -family cyclonev -top rt_lane"),
+        &format!(
+            "read_slang -j 1 --top rt_lane {files}; synth_intel_alm -family cyclonev -top rt_lane; \
+             write_json target/rtl/syn/lane.json"
+        ),
     )?;
+    // Timing evidence without Quartus: the deepest register-to-register
+    // paths, per stage of the lane and per block of the shell.
+    let worst = crate::depth::print_report("one rt_lane", &syn.join("lane.json"))?.max(crate::depth::print_report(
+        "shell (slave, scheduler, DMA)",
+        &syn.join(format!("shell-lanes{lanes}.json")),
+    )?);
+    if worst > crate::depth::TARGET_NS {
+        return Err(format!(
+            "a register-to-register path is estimated at {worst:.1} ns, over the {:.0} ns bound",
+            crate::depth::TARGET_NS
+        ));
+    }
+    println!("  deepest path {worst:.1} ns: {:.0}% of the 50 MHz period, {:.1} ns to spare", 5.0 * worst, 20.0 - worst);
     let total = shell.plus(&lane, u64::from(lanes));
     for (what, c) in [("one lane", &lane), ("shell (slave, scheduler, line buffer)", &shell)] {
         let (lo, hi) = alm_range(c);
