@@ -25,6 +25,10 @@ fn main() {
     println!("cargo::rerun-if-changed=csrc");
     println!("cargo::rerun-if-changed={}", rtl.display());
     let required = env::var("RT_REQUIRE_RTL").is_ok_and(|v| v == "1");
+    // Rerun once Verilator appears (or is upgraded): a path that does not
+    // exist makes Cargo rerun the script on every build, which costs only
+    // this check until it is installed.
+    println!("cargo::rerun-if-changed={}", which("verilator").unwrap_or_else(|| "/usr/bin/verilator".into()).display());
 
     let root = match verilator_root() {
         Some(r) => r,
@@ -80,6 +84,11 @@ fn main() {
     println!("cargo::rustc-cfg=rtl_verilated");
     // For dependents' build scripts (DEP_RTL_PORT_VERILATED).
     println!("cargo::metadata=verilated=1");
+}
+
+/// `name` on PATH.
+fn which(name: &str) -> Option<PathBuf> {
+    env::split_paths(&env::var_os("PATH")?).map(|d| d.join(name)).find(|p| p.is_file())
 }
 
 /// `verilator --getenv VERILATOR_ROOT`, if Verilator runs.
