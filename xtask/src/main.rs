@@ -9,6 +9,7 @@ mod model_cmds;
 mod qemu_e2e;
 mod quartus_check;
 mod rtl;
+mod sdcard;
 mod suite;
 mod tools;
 mod uimage;
@@ -41,10 +42,18 @@ enum Command {
     Image(firmware::ImageArgs),
     /// Boot the QEMU firmware and run the end-to-end tests against it.
     QemuTest,
-    /// Guest instructions per frame (QEMU -icount): renderer and network.
+    /// Guest instructions per frame (QEMU -icount) and the board cost model.
     BenchFw(bench_fw::BenchArgs),
+    /// Write an SD-card image that boots the DE1-SoC into the firmware:
+    /// U-Boot SPL and U-Boot (Debian's source, patched), boot script,
+    /// firmware, and the FPGA image if given.
+    Sdcard(sdcard::SdcardArgs),
+    /// The suite's SD-card test on its own: an image with a stand-in FPGA
+    /// image, checked with the project's parsers and with the tools.
+    SdcardTest,
     /// FPGA checks: Verilator lint, whole-frame co-simulation against the
-    /// model, Yosys resource estimate.
+    /// model, the Quartus files' consistency, Yosys resource estimate and
+    /// logic depth.
     Rtl(rtl::RtlArgs),
 }
 
@@ -59,6 +68,8 @@ fn main() -> ExitCode {
         Command::Image(args) => firmware::image(&args),
         Command::QemuTest => suite::qemu_tests(),
         Command::BenchFw(args) => bench_fw::run(&args),
+        Command::Sdcard(args) => sdcard::run(&args),
+        Command::SdcardTest => sdcard::suite_test(),
         Command::Rtl(args) => rtl::run_cli(&args),
     };
     match result {

@@ -68,6 +68,10 @@ pub fn run() -> Result<()> {
     // tests boot the QEMU board.
     crate::firmware::build("de1-soc", &[])?;
     qemu_tests()?;
+    // The SD-card image: U-Boot from Debian's source with the project's
+    // patch, the firmware and a stand-in FPGA image, checked piece by piece.
+    println!("==> SD-card image");
+    crate::sdcard::suite_test()?;
     // FPGA: lint, whole-frame co-simulation, resource estimate.
     crate::rtl::run()?;
     println!("xtask test: all steps passed");
