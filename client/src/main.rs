@@ -1,9 +1,12 @@
 //! `rt-client`: fetch frames from the ray tracer (board, emulated board or
 //! the simulated board started in-process) as PNG, GIF or a live window.
 
+mod control;
+mod live;
 mod net;
 mod orbit;
 mod output;
+mod script;
 mod stats;
 mod window;
 
@@ -32,9 +35,10 @@ struct Cli {
 enum Command {
     /// Fetch one frame over the seed protocol and save it as PNG.
     Frame {
-        /// The server's frame port, HOST:PORT.
+        /// The server's frame port, HOST:PORT. Without it, a simulated
+        /// board is started in-process.
         #[arg(long)]
-        server: String,
+        server: Option<String>,
         /// Light position in world units: X,Y,Z.
         #[arg(long, allow_hyphen_values = true)]
         light: Light,
@@ -58,6 +62,47 @@ enum Command {
         #[command(flatten)]
         run: RunArgs,
     },
+    /// A window onto the server's frames; move the light and see it
+    /// re-rendered live.
+    ///
+    /// Mouse: drag with the left button orbits the light around the sphere
+    /// (azimuth, elevation); the wheel changes its distance. Keys: arrows
+    /// turn it by 5 degrees, PageUp/PageDown bring it closer/farther, Space
+    /// starts/stops the automatic orbit, R resets, P saves the frame on
+    /// screen as live-NNN.png, Escape (or closing the window) quits. The
+    /// title shows the light, frames/s and median latency of the last
+    /// second, the server and the connection state.
+    Live {
+        /// The server's frame port, HOST:PORT (the persistent port is the
+        /// next one). Without it, a simulated board is started in-process.
+        #[arg(long)]
+        server: Option<String>,
+        /// Enlarge the window by this integer factor (1-8).
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
+        scale: u32,
+        /// Replay timed input events from FILE instead of the mouse and keys
+        /// (docs/live-viewer.md: one `MS EVENT` per line).
+        #[arg(long)]
+        script: Option<PathBuf>,
+        /// Write the frames shown to an animated GIF.
+        #[arg(long)]
+        record: Option<PathBuf>,
+        /// On exit, save the last frame shown as PNG.
+        #[arg(long)]
+        save_last: Option<PathBuf>,
+    },
+    /// Measure the live viewer's input-to-screen latency (no window).
+    BenchLive {
+        /// The server's frame port; without it, a simulated board in-process.
+        #[arg(long)]
+        server: Option<String>,
+        /// Input events to send.
+        #[arg(long, default_value_t = 200)]
+        events: usize,
+        /// Input events per second.
+        #[arg(long, default_value_t = 60.0)]
+        hz: f64,
+    },
 }
 
 #[derive(Args)]
@@ -80,7 +125,11 @@ struct RunArgs {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Frame { server, light, out } => frame(&server, &light, &out),
+        Command::Frame { server, light, out } => frame(server.as_deref(), &light, &out),
+        Command::Live { server, scale, script, record, save_last } => live(server, scale, script, record, save_last),
+        Command::BenchLive { server, events, hz } => {
+            board(server.as_deref()).and_then(|(addr, _b)| live::bench(addr, events, hz))
+        }
         Command::Orbit { run, out, show } => orbit(&run, Some(out), show),
         Command::Bench { run } => orbit(&run, None, false),
     };
@@ -93,8 +142,43 @@ fn main() -> ExitCode {
     }
 }
 
-fn frame(server: &str, light: &Light, out: &std::path::Path) -> Result<(), String> {
-    let addr = net::resolve(server).map_err(|e| e.to_string())?;
+/// The server's frame port, or a simulated board started in-process
+/// (kept alive by the returned handle).
+fn board(server: Option<&str>) -> Result<(SocketAddr, Option<HpsSim>), String> {
+    match server {
+        Some(s) => Ok((net::resolve(s).map_err(|e| e.to_string())?, None)),
+        None => {
+            let board = HpsSim::start_quiet(SocketAddr::from(([127, 0, 0, 1], 0)))
+                .map_err(|e| format!("cannot start the simulated board: {e}"))?;
+            eprintln!("rt-client: simulated board on {}", board.frame_addr());
+            Ok((board.frame_addr(), Some(board)))
+        }
+    }
+}
+
+fn live(
+    server: Option<String>,
+    scale: u32,
+    script: Option<PathBuf>,
+    record: Option<PathBuf>,
+    save_last: Option<PathBuf>,
+) -> Result<(), String> {
+    let script = match script {
+        Some(p) => {
+            Some(script::Script::parse(&std::fs::read_to_string(&p).map_err(|e| format!("{}: {e}", p.display()))?)?)
+        }
+        None => None,
+    };
+    let (addr, _board) = board(server.as_deref())?;
+    let server_name = match &server {
+        Some(s) => s.clone(),
+        None => format!("simulated board {addr}"),
+    };
+    live::run(live::LiveOptions { server: addr, server_name, scale: scale as usize, script, record, save_last })
+}
+
+fn frame(server: Option<&str>, light: &Light, out: &std::path::Path) -> Result<(), String> {
+    let (addr, _board) = board(server)?;
     let start = Instant::now();
     let rgb = net::fetch_frame(addr, light).map_err(|e| e.to_string())?;
     let took = start.elapsed();
@@ -107,15 +191,7 @@ fn orbit(args: &RunArgs, out: Option<PathBuf>, show: bool) -> Result<(), String>
     let path = OrbitPath { frames: args.frames as usize, radius: args.radius, height: args.height };
     let lights = path.lights().map_err(|e| format!("orbit leaves the light range: {e}"))?;
     // Keep the in-process board alive for the whole run.
-    let (addr, _board) = match &args.server {
-        Some(s) => (net::resolve(s).map_err(|e| e.to_string())?, None),
-        None => {
-            let board = HpsSim::start_quiet(SocketAddr::from(([127, 0, 0, 1], 0)))
-                .map_err(|e| format!("cannot start the simulated board: {e}"))?;
-            eprintln!("rt-client: simulated board on {}", board.frame_addr());
-            (board.frame_addr(), Some(board))
-        }
-    };
+    let (addr, _board) = board(args.server.as_deref())?;
     let mut window = if show { Some(window::LiveWindow::open("rt-client orbit")?) } else { None };
     let mut sink = FrameSink::new(out)?;
     let bar = ProgressBar::new(lights.len() as u64).with_style(

@@ -5,6 +5,7 @@ mod bench_fw;
 mod cost_model;
 mod depth;
 mod firmware;
+mod live_test;
 mod model_cmds;
 mod qemu_e2e;
 mod quartus_check;
@@ -51,6 +52,8 @@ enum Command {
     /// The suite's SD-card test on its own: an image with a stand-in FPGA
     /// image, checked with the project's parsers and with the tools.
     SdcardTest,
+    /// The live viewer end to end under Xvfb (a scripted session).
+    LiveTest,
     /// FPGA checks: Verilator lint, whole-frame co-simulation against the
     /// model, the Quartus files' consistency, Yosys resource estimate and
     /// logic depth.
@@ -70,6 +73,7 @@ fn main() -> ExitCode {
         Command::BenchFw(args) => bench_fw::run(&args),
         Command::Sdcard(args) => sdcard::run(&args),
         Command::SdcardTest => sdcard::suite_test(),
+        Command::LiveTest => live_test::run(),
         Command::Rtl(args) => rtl::run_cli(&args),
     };
     match result {

@@ -72,6 +72,8 @@ pub fn run() -> Result<()> {
     // patch, the firmware and a stand-in FPGA image, checked piece by piece.
     println!("==> SD-card image");
     crate::sdcard::suite_test()?;
+    // The live viewer, end to end in a window under Xvfb.
+    crate::live_test::run()?;
     // FPGA: lint, whole-frame co-simulation, resource estimate.
     crate::rtl::run()?;
     println!("xtask test: all steps passed");
