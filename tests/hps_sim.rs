@@ -161,3 +161,42 @@ fn two_clients_at_once_are_both_served() {
         assert!(tb.join().expect("client b") == model_frame(&b));
     }
 }
+
+#[test]
+fn two_hundred_clients_at_once_are_each_served_or_refused_and_the_next_is_served() {
+    let sim = sim();
+    let lights = [light(3.0, 4.0, -2.0), light(-4.0, 6.0, -3.0), light(0.5, 0.2, -1.0)];
+    let want: Vec<Vec<u8>> = lights.iter().map(model_frame).collect();
+    let addr = sim.frame_addr();
+    let clients: Vec<_> = (0..200)
+        .map(|i| {
+            let l = lights[i % 3];
+            thread::spawn(move || -> Option<Vec<u8>> {
+                let mut s = TcpStream::connect(addr).ok()?;
+                s.set_read_timeout(Some(Duration::from_secs(120))).ok()?;
+                let _ = s.write_all(&encode_request(&l));
+                let mut got = Vec::new();
+                let _ = s.read_to_end(&mut got);
+                Some(got)
+            })
+        })
+        .collect();
+    let (mut served, mut refused) = (0, 0);
+    for (i, c) in clients.into_iter().enumerate() {
+        match c.join().expect("client thread") {
+            Some(got) if got.is_empty() => refused += 1,
+            Some(got) => {
+                assert!(got == want[i % 3], "client {i}: {} bytes, not its whole frame", got.len());
+                served += 1;
+            }
+            None => refused += 1,
+        }
+    }
+    println!("hps-sim: 200 clients at once: {served} served byte-exact, {refused} refused");
+    assert_eq!(served + refused, 200);
+    assert!(served > 0);
+    // The very next client is served.
+    let mut s = connect(addr);
+    s.write_all(&encode_request(&lights[0])).expect("request");
+    assert!(read_all(s) == want[0]);
+}

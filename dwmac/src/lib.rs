@@ -28,7 +28,7 @@ pub mod sync;
 pub mod wait;
 
 pub use mac::{Dwmac, Error, Stats};
-pub use ring::DmaArea;
+pub use ring::{DmaArea, RX_RING, TX_RING};
 pub use sync::DmaSync;
 
 #[cfg(test)]

@@ -237,6 +237,15 @@ impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
         self.shared.regs.mac().version.read()
     }
 
+    /// Descriptors the CPU could fill now (transmit, OWN clear) and
+    /// descriptors waiting for the DMA to receive into (OWN set): when idle,
+    /// all of both rings, or something leaked.
+    pub fn free_descriptors(&self) -> (usize, usize) {
+        let tx = (0..TX_RING).filter(|i| self.shared.area.tx_descriptor(*i).word(0) & OWN == 0).count();
+        let rx = (0..RX_RING).filter(|i| self.shared.area.rx_descriptor(*i).word(0) & OWN != 0).count();
+        (tx, rx)
+    }
+
     /// Frame counters.
     pub fn stats(&self) -> Stats {
         Stats {

@@ -25,10 +25,14 @@ use crate::cpu::Barriers;
 use crate::log::{self, Log};
 use crate::render::Frames;
 
-/// TCP sockets of the frame service: half on each port, so while one client
-/// of a port is served three more are accepted (and served interleaved)
-/// instead of refused.
-pub const SOCKETS: usize = 8;
+/// TCP sockets of the frame service: [`FRAME_PORT_SOCKETS`] on the seed
+/// port, the rest on the persistent port. A socket holds one client; the
+/// frame ring renders four frames at a time, so up to 14 seed-port clients
+/// wait their turn beyond those four (docs/reliability.md#overload), and one
+/// more arriving while all are taken is refused.
+pub const SOCKETS: usize = 24;
+/// Sockets on the seed port.
+pub const FRAME_PORT_SOCKETS: usize = 18;
 
 /// Why the network did not start.
 #[derive(Clone, Copy, Debug)]
@@ -157,17 +161,20 @@ pub fn run<B: Board>(
         }
     }
     let mut sockets = SocketSet::new(&mut socket_storage[..]);
-    let mut service = FrameService::<usize, SOCKETS>::new(&mut sockets, socket_buffers);
+    let mut service = FrameService::<usize, SOCKETS>::new(&mut sockets, socket_buffers, FRAME_PORT_SOCKETS);
     let mut counts = crate::bench::Counts::default();
     let _ = writeln!(
         log,
-        "net: {cidr} via {}, MAC {}, listening on TCP {FRAME_PORT} and {PERSISTENT_PORT} ({SOCKETS} sockets)",
+        "net: {cidr} via {}, MAC {}, listening on TCP {FRAME_PORT} and {PERSISTENT_PORT} ({FRAME_PORT_SOCKETS} + {} sockets)",
         gw.unwrap_or(Ipv4Addr::UNSPECIFIED),
         EthernetAddress(B::MAC_ADDR),
+        SOCKETS - FRAME_PORT_SOCKETS,
     );
     log::flush();
 
     let mac_moved = |m: &Dwmac<'_, _, _>| m.stats().tx_frames.wrapping_add(m.stats().rx_frames);
+    // Idle since (µs), after having served someone.
+    let mut idle_since: Option<u64> = None;
     loop {
         let iteration = crate::bench::Iteration::start(mac_moved(&mac));
         let now_us = timer.now_us();
@@ -186,6 +193,21 @@ pub fn run<B: Board>(
         iface.poll(now, &mut mac, &mut sockets);
         service.poll(now, &mut sockets, frames, &mut log);
         frames.report(&mut log);
+        // A second after the last client: say what is free, so a long run
+        // can show nothing leaked (cargo xtask soak reads this line).
+        if service.active_sessions() > 0 {
+            idle_since = Some(now_us);
+        } else if idle_since.is_some_and(|t| now_us.saturating_sub(t) >= 1_000_000) {
+            idle_since = None;
+            let (tx, rx) = mac.free_descriptors();
+            let _ = writeln!(
+                log,
+                "net: idle: {} of {SOCKETS} sockets listening, {tx} of {} TX and {rx} of {} RX descriptors free",
+                service.listening(&sockets),
+                dwmac::TX_RING,
+                dwmac::RX_RING
+            );
+        }
         let stats = mac.stats();
         let moved = crate::bench::Mac {
             frames: mac_moved(&mac),

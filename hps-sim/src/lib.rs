@@ -86,7 +86,8 @@ const RING_BASE: u32 = 0x0410_0000;
 pub struct SharedMemory(Rc<RefCell<Vec<u8>>>);
 
 impl SharedMemory {
-    fn new(slots: usize) -> SharedMemory {
+    /// Zeroed memory for `slots` frame slots.
+    pub fn new(slots: usize) -> SharedMemory {
         SharedMemory(Rc::new(RefCell::new(vec![0; slots * FRAME_BYTES])))
     }
 

@@ -28,7 +28,8 @@
 //!   of earlier requests are complete.
 //! * A request cut short by end of stream is dropped ([`Closed::ShortRequest`]).
 //! * A partial request idle for [`REQUEST_TIMEOUT`] is dropped
-//!   ([`Closed::RequestTimeout`]).
+//!   ([`Closed::RequestTimeout`]), and so is a seed-port client that sends
+//!   nothing for as long after connecting.
 //! * A client vanishing mid-frame is the adapter's to notice (the socket
 //!   fails); it drops the session, which holds nothing else.
 
@@ -45,6 +46,11 @@ use crate::wire::{FRAME_PORT, PERSISTENT_PORT};
 
 /// How long a partially received request may sit idle before it is dropped.
 pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// How long a frame may go without a byte leaving before the session gives
+/// up on the client (it stopped reading; its socket is needed by others).
+/// Far beyond any frame's render time, even in software on the board.
+pub const SEND_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// How many complete requests a persistent session queues beyond the frame in
 /// progress. When the queue is full the session stops taking input, so TCP
@@ -75,13 +81,20 @@ pub enum Closed {
         /// Bytes of the incomplete request.
         received: u8,
     },
-    /// A partial request sat idle for [`REQUEST_TIMEOUT`].
+    /// A partial request (or, on the seed port, no request at all) sat idle
+    /// for [`REQUEST_TIMEOUT`].
     RequestTimeout {
         /// Bytes of the incomplete request.
         received: u8,
     },
     /// The client closed before sending any request.
     NoRequest,
+    /// No byte of the frame in progress left for [`SEND_TIMEOUT`]: the
+    /// client stopped reading (or the source stopped producing rows).
+    Stalled {
+        /// The row the frame was at.
+        row: u16,
+    },
     /// The frame source failed (for example the accelerator timed out); the
     /// frame in progress is abandoned, and the close tells the client its
     /// frame is short.
@@ -103,6 +116,9 @@ impl core::fmt::Display for Closed {
                 write!(f, "partial request idle for {} ms ({received} of 12 bytes)", REQUEST_TIMEOUT.as_millis())
             }
             Closed::NoRequest => f.write_str("client closed without a request"),
+            Closed::Stalled { row } => {
+                write!(f, "no progress for {} s at row {row}: client not reading", SEND_TIMEOUT.as_secs())
+            }
             Closed::RenderFailed { row } => write!(f, "rendering row {row} failed"),
         }
     }
@@ -160,6 +176,8 @@ struct Sending<F> {
     row: u16,
     offset: usize,
     ready: u16,
+    /// When the position above last moved (or the frame started).
+    moved_at: Option<(u16, usize, Instant)>,
 }
 
 /// One connection's protocol state, holding frames of type `F` (the
@@ -169,7 +187,8 @@ pub struct Session<F> {
     mode: Mode,
     partial: [u8; REQUEST_BYTES],
     partial_len: u8,
-    /// Time of the last byte added to `partial`.
+    /// Time of the last byte added to `partial` (the connection's start
+    /// until one arrives).
     partial_since: Instant,
     requests_seen: u32,
     /// Requests not begun yet.
@@ -259,6 +278,18 @@ impl<F: Copy> Session<F> {
             }
             return Action::Close(reason);
         }
+        if let Some(s) = &mut self.sending {
+            match s.moved_at {
+                Some((row, offset, at)) if (row, offset) == (s.row, s.offset) => {
+                    if now >= at + SEND_TIMEOUT {
+                        let reason = Closed::Stalled { row: s.row };
+                        self.closed = Some(reason);
+                        return self.poll(now);
+                    }
+                }
+                _ => s.moved_at = Some((s.row, s.offset, now)),
+            }
+        }
         if let Some(s) = self.sending {
             if s.row == ROWS {
                 self.sending = None;
@@ -281,7 +312,7 @@ impl<F: Copy> Session<F> {
             return Action::Progress { frame: s.frame };
         }
         if let Some(frame) = self.ahead.take() {
-            self.sending = Some(Sending { frame, row: 0, offset: 0, ready: 0 });
+            self.sending = Some(Sending { frame, row: 0, offset: 0, ready: 0, moved_at: None });
             return Action::Progress { frame };
         }
         match self.queue.front() {
@@ -303,7 +334,9 @@ impl<F: Copy> Session<F> {
             self.closed = Some(reason);
             return Action::Close(reason);
         }
-        if received > 0 {
+        // A partial request, or a seed-port client that has sent nothing yet
+        // (it would hold a socket that another client could use).
+        if received > 0 || (self.mode == Mode::Single && self.requests_seen == 0) {
             let deadline = self.partial_since + REQUEST_TIMEOUT;
             if now >= deadline {
                 let reason = Closed::RequestTimeout { received };
@@ -326,7 +359,7 @@ impl<F: Copy> Session<F> {
         };
         let _ = self.queue.pop_front();
         if self.sending.is_none() {
-            self.sending = Some(Sending { frame, row: 0, offset: 0, ready: 0 });
+            self.sending = Some(Sending { frame, row: 0, offset: 0, ready: 0, moved_at: None });
         } else {
             self.ahead = Some(frame);
         }

@@ -20,8 +20,12 @@ use crate::wire::{FRAME_PORT, PERSISTENT_PORT};
 
 /// Receive buffer of one socket: room for 42 pipelined requests.
 pub const RX_BUFFER_BYTES: usize = 512;
-/// Transmit buffer of one socket: about 11 rows in flight.
-pub const TX_BUFFER_BYTES: usize = 16 * 1024;
+/// Transmit buffer of one socket: 64 KiB, about 45 segments in flight. On a
+/// lossy link a hole then has enough segments behind it for the three
+/// duplicate ACKs of smoltcp's fast retransmit, where 16 KiB (11 segments)
+/// mostly left a retransmission timeout (at least 1 s in smoltcp 0.14); see
+/// docs/reliability.md for the figures.
+pub const TX_BUFFER_BYTES: usize = 64 * 1024;
 
 /// The buffers of one TCP socket. The transmit buffer comes first and is
 /// cache-line aligned: rows are copied into it a whole number of words at a
@@ -67,17 +71,24 @@ pub struct FrameService<F, const N: usize> {
 }
 
 impl<F: Copy, const N: usize> FrameService<F, N> {
-    /// Add `N` TCP sockets to `sockets`: the first half (rounded up) listens
-    /// on [`FRAME_PORT`], the rest on [`PERSISTENT_PORT`].
-    pub fn new<'a>(sockets: &mut SocketSet<'a>, buffers: &'a mut [SocketBuffers; N]) -> Self {
+    /// Add `N` TCP sockets to `sockets`: the first `frame_port` listen on
+    /// [`FRAME_PORT`], the rest on [`PERSISTENT_PORT`]. Each socket holds
+    /// one client: a port accepts as many at once as it has sockets, and
+    /// those beyond the frames being rendered wait their turn.
+    pub fn new<'a>(sockets: &mut SocketSet<'a>, buffers: &'a mut [SocketBuffers; N], frame_port: usize) -> Self {
         let mut i = 0;
         let slots = buffers.each_mut().map(|b| {
             let socket = tcp::Socket::new(tcp::SocketBuffer::new(&mut b.rx[..]), tcp::SocketBuffer::new(&mut b.tx[..]));
-            let mode = if i < N.div_ceil(2) { Mode::Single } else { Mode::Persistent };
+            let mode = if i < frame_port { Mode::Single } else { Mode::Persistent };
             i += 1;
             Slot { handle: sockets.add(socket), mode, session: None }
         });
         FrameService { slots }
+    }
+
+    /// Sockets listening for a client, of `N`.
+    pub fn listening(&self, sockets: &SocketSet<'_>) -> usize {
+        self.slots.iter().filter(|s| sockets.get::<tcp::Socket>(s.handle).state() == tcp::State::Listen).count()
     }
 
     /// Number of sessions currently open.
@@ -112,6 +123,13 @@ fn serve_slot<S: FrameSource>(
     log: &mut impl Write,
 ) {
     let Some(session) = &mut slot.session else {
+        // A finished connection's socket would wait in TIME-WAIT for 10 s
+        // (smoltcp's CLOSE_DELAY) before it listens again, refusing clients
+        // meanwhile: our FIN has been acknowledged and the client's received,
+        // so drop that state at once.
+        if socket.state() == tcp::State::TimeWait {
+            socket.abort();
+        }
         if !socket.is_open() {
             if let Err(e) = socket.listen(slot.port()) {
                 let _ = writeln!(log, "[{index}] listen on {} failed: {e:?}", slot.port());

@@ -19,19 +19,74 @@ use smoltcp::wire::{EthernetAddress, IpAddress, IpCidr, Ipv4Address};
 
 type Queue = Rc<RefCell<VecDeque<Vec<u8>>>>;
 
+/// Faults of a lossy cable, per frame and direction, from a seeded
+/// generator (the same run every time).
+#[derive(Clone, Copy, Debug, Default)]
+struct Faults {
+    drop: f64,
+    reorder: f64,
+    corrupt: f64,
+}
+
+/// The cable's fault state: the generator and what it did.
+#[derive(Default)]
+struct Injector {
+    faults: Faults,
+    state: u64,
+    dropped: u64,
+    reordered: u64,
+    corrupted: u64,
+}
+
+impl Injector {
+    fn chance(&mut self, p: f64) -> bool {
+        // SplitMix64.
+        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        p > 0.0 && (((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64) < p
+    }
+
+    /// Put `frame` on `queue`, or lose, damage or reorder it.
+    fn send(&mut self, queue: &mut VecDeque<Vec<u8>>, mut frame: Vec<u8>) {
+        if self.chance(self.faults.drop) {
+            self.dropped += 1;
+            return;
+        }
+        if frame.len() > 14 && self.chance(self.faults.corrupt) {
+            let i = 14 + (self.state as usize) % (frame.len() - 14);
+            frame[i] ^= 0x10;
+            self.corrupted += 1;
+        }
+        if !queue.is_empty() && self.chance(self.faults.reorder) {
+            // Overtake the frame queued before it.
+            let last = queue.len() - 1;
+            queue.insert(last, frame);
+            self.reordered += 1;
+            return;
+        }
+        queue.push_back(frame);
+    }
+}
+
+type Shared = Rc<RefCell<Injector>>;
+
 /// One end of a point-to-point Ethernet cable.
 struct CableEnd {
     rx: Queue,
     tx: Queue,
+    faults: Shared,
 }
 
-fn cable() -> (CableEnd, CableEnd) {
+fn cable_with(faults: Faults, seed: u64) -> (CableEnd, CableEnd) {
     let (a, b) = (Queue::default(), Queue::default());
-    (CableEnd { rx: a.clone(), tx: b.clone() }, CableEnd { rx: b, tx: a })
+    let f = Rc::new(RefCell::new(Injector { faults, state: seed, ..Injector::default() }));
+    (CableEnd { rx: a.clone(), tx: b.clone(), faults: f.clone() }, CableEnd { rx: b, tx: a, faults: f })
 }
 
 struct Rx(Vec<u8>);
-struct Tx(Queue);
+struct Tx(Queue, Shared);
 
 impl phy::RxToken for Rx {
     fn consume<R, F: FnOnce(&[u8]) -> R>(self, f: F) -> R {
@@ -43,7 +98,7 @@ impl phy::TxToken for Tx {
     fn consume<R, F: FnOnce(&mut [u8]) -> R>(self, len: usize, f: F) -> R {
         let mut frame = vec![0u8; len];
         let r = f(&mut frame);
-        self.0.borrow_mut().push_back(frame);
+        self.1.borrow_mut().send(&mut self.0.borrow_mut(), frame);
         r
     }
 }
@@ -54,11 +109,11 @@ impl Device for CableEnd {
 
     fn receive(&mut self, _: Instant) -> Option<(Rx, Tx)> {
         let frame = self.rx.borrow_mut().pop_front()?;
-        Some((Rx(frame), Tx(self.tx.clone())))
+        Some((Rx(frame), Tx(self.tx.clone(), self.faults.clone())))
     }
 
     fn transmit(&mut self, _: Instant) -> Option<Tx> {
-        Some(Tx(self.tx.clone()))
+        Some(Tx(self.tx.clone(), self.faults.clone()))
     }
 
     fn capabilities(&self) -> DeviceCapabilities {
@@ -124,7 +179,11 @@ struct Link {
 
 impl Link {
     fn new(mode: Mode) -> Link {
-        let (mut server_dev, mut client_dev) = cable();
+        Link::lossy(mode, Faults::default(), 0)
+    }
+
+    fn lossy(mode: Mode, faults: Faults, seed: u64) -> Link {
+        let (mut server_dev, mut client_dev) = cable_with(faults, seed);
         let server_if = interface(&mut server_dev, 1);
         let client_if = interface(&mut client_dev, 2);
         Link { mode, server_dev, client_dev, server_if, client_if, clients: SocketSet::new(vec![]) }
@@ -167,7 +226,7 @@ impl Link {
     ) -> String {
         let mut buffers: Box<[SocketBuffers; 4]> = Box::default();
         let mut server_sockets = SocketSet::new(vec![]);
-        let mut service = FrameService::new(&mut server_sockets, &mut buffers);
+        let mut service = FrameService::new(&mut server_sockets, &mut buffers, 2);
         let mut log = String::new();
         for step in 0..max_steps {
             let now = Instant::from_millis(step as i64);
@@ -298,5 +357,32 @@ fn client_vanishing_mid_frame_does_not_stop_the_next() {
         assert!(log.contains("vanished mid-frame"), "{log}");
         assert!(clients[1].received == frame(&light), "next client served; log: {log}");
         assert!(clients[2].received == frame(&light), "last client served; log: {log}");
+    }
+}
+
+#[test]
+fn frames_stay_byte_exact_over_a_lossy_link() {
+    let (a, b) = (Light::from_world(3.0, 4.0, -2.0).unwrap(), Light::from_world(-4.0, 6.0, -3.0).unwrap());
+    for (name, faults) in [
+        ("2% drop, 1% reorder, 1% corrupt", Faults { drop: 0.02, reorder: 0.01, corrupt: 0.01 }),
+        ("10% drop, 1% reorder, 1% corrupt", Faults { drop: 0.10, reorder: 0.01, corrupt: 0.01 }),
+    ] {
+        let mut link = Link::lossy(Mode::Ring, faults, 11);
+        let two: Vec<u8> = [request(&a), request(&b)].concat();
+        let mut clients = [
+            link.connect(PERSISTENT_PORT, 50_030, two, true),
+            link.connect(FRAME_PORT, 50_031, request(&b).to_vec(), false),
+        ];
+        // 1 ms steps: smoltcp's retransmission timeout (at least 1 s) needs
+        // room.
+        let log = link.run(&mut clients, 900_000);
+        let f = link.server_dev.faults.borrow();
+        println!(
+            "lossy link, {name}: {} dropped, {} reordered, {} corrupted; frames byte-exact",
+            f.dropped, f.reordered, f.corrupted
+        );
+        assert!(f.dropped > 0, "{name}: the link lost nothing");
+        assert!(clients[0].received == [frame(&a), frame(&b)].concat(), "{name}: persistent client; log: {log}");
+        assert!(clients[1].received == frame(&b), "{name}: seed client; log: {log}");
     }
 }

@@ -49,6 +49,22 @@ pub fn qemu_command(elf: &Path, port_single: u16, port_persistent: u16) -> Comma
     c
 }
 
+/// The QEMU command line for `elf` with the MAC on the back end `netdev`
+/// (a `-netdev` value with `id=n0`).
+pub fn qemu_command_netdev(elf: &Path, netdev: &str) -> Command {
+    let mut c = Command::new("qemu-system-arm");
+    c.args(["-M", "npcm750-evb", "-kernel"]).arg(elf).args([
+        "-netdev",
+        netdev,
+        "-net",
+        "nic,model=npcm-gmac,netdev=n0",
+    ]);
+    c
+}
+
+/// Numbers the guests' UART logs.
+static LOG_SEQ: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+
 /// A running QEMU guest with its UART in a log file; killed on drop.
 pub struct Guest {
     child: Child,
@@ -65,8 +81,21 @@ impl Guest {
     /// firmware says it listens.
     pub fn boot(elf: &Path, extra: &[&str]) -> Result<Guest> {
         let (port_single, port_persistent) = (free_port()?, free_port()?);
-        let log = std::env::temp_dir().join(format!("rt-firmware-uart-{}-{port_single}.log", std::process::id()));
-        let mut c = qemu_command(elf, port_single, port_persistent);
+        Guest::start(qemu_command(elf, port_single, port_persistent), port_single, port_persistent, extra)
+    }
+
+    /// Boot `elf` with the MAC on `netdev` (a `-netdev` value, `id=n0`)
+    /// instead of slirp.
+    pub fn boot_netdev(elf: &Path, netdev: &str, extra: &[&str]) -> Result<Guest> {
+        Guest::start(qemu_command_netdev(elf, netdev), 0, 0, extra)
+    }
+
+    fn start(mut c: Command, port_single: u16, port_persistent: u16, extra: &[&str]) -> Result<Guest> {
+        let log = std::env::temp_dir().join(format!(
+            "rt-firmware-uart-{}-{}.log",
+            std::process::id(),
+            LOG_SEQ.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+        ));
         c.args(["-display", "none", "-monitor", "none", "-serial"]).arg(format!("file:{}", log.display()));
         c.args(extra);
         c.stdin(Stdio::null())

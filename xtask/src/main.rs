@@ -5,12 +5,15 @@ mod bench_fw;
 mod cost_model;
 mod depth;
 mod firmware;
+mod fuzz;
 mod live_test;
+mod lossy;
 mod model_cmds;
 mod qemu_e2e;
 mod quartus_check;
 mod rtl;
 mod sdcard;
+mod soak;
 mod suite;
 mod tools;
 mod uimage;
@@ -54,6 +57,18 @@ enum Command {
     SdcardTest,
     /// The live viewer end to end under Xvfb (a scripted session).
     LiveTest,
+    /// The emulated board behind a lossy link, the kernel's TCP as the
+    /// peer: clean, 2% and 10% loss; times, faults, retransmissions.
+    LossyBench(lossy::BenchArgs),
+    /// A long run of the emulated board: 1,000 frames in one boot, every
+    /// one checked, nothing leaked.
+    Soak(soak::SoakArgs),
+    /// The hostile-input harnesses with many cases (frame server, MAC
+    /// receive path).
+    Fuzz(fuzz::FuzzArgs),
+    /// The client `lossy-bench` runs inside its network namespace.
+    #[command(hide = true)]
+    LossyClient(lossy::ClientArgs),
     /// FPGA checks: Verilator lint, whole-frame co-simulation against the
     /// model, the Quartus files' consistency, Yosys resource estimate and
     /// logic depth.
@@ -74,6 +89,10 @@ fn main() -> ExitCode {
         Command::Sdcard(args) => sdcard::run(&args),
         Command::SdcardTest => sdcard::suite_test(),
         Command::LiveTest => live_test::run(),
+        Command::LossyBench(args) => lossy::bench(&args),
+        Command::Soak(args) => soak::run(&args),
+        Command::Fuzz(args) => fuzz::run(&args),
+        Command::LossyClient(args) => lossy::client(&args),
         Command::Rtl(args) => rtl::run_cli(&args),
     };
     match result {

@@ -121,6 +121,49 @@ fn t_close_mid_frame_then_next_client(g: &mut Guest) -> Result<()> {
     single_frame(g.port_single, LIGHTS[1])
 }
 
+/// Clients at once on the seed port in the overload test: more than its 18
+/// sockets (firmware/src/net.rs FRAME_PORT_SOCKETS).
+const OVERLOAD_CLIENTS: usize = 24;
+
+/// Served byte-exact, or refused with no byte; anything else is an error.
+fn served_or_refused(port: u16, light: [i32; 3]) -> Result<bool> {
+    let mut s = match TcpStream::connect(("127.0.0.1", port)) {
+        Ok(s) => s,
+        Err(_) => return Ok(false),
+    };
+    s.set_read_timeout(Some(IO_TIMEOUT)).map_err(|e| e.to_string())?;
+    // A refused connection may already be closed when the request goes.
+    let _ = s.write_all(&wire(light));
+    let got = read_to_eof(&mut s)?;
+    if got.is_empty() {
+        return Ok(false);
+    }
+    check_frame(&got, light)?;
+    Ok(true)
+}
+
+fn t_overload(g: &mut Guest) -> Result<()> {
+    let port = g.port_single;
+    let clients: Vec<_> = (0..OVERLOAD_CLIENTS)
+        .map(|i| std::thread::spawn(move || served_or_refused(port, LIGHTS[i % LIGHTS.len()])))
+        .collect();
+    let mut served = 0;
+    for (i, c) in clients.into_iter().enumerate() {
+        if c.join().map_err(|_| format!("client {i} panicked"))?? {
+            served += 1;
+        }
+    }
+    if served < 16 {
+        return Err(format!("{served} of {OVERLOAD_CLIENTS} clients served, want at least 16 (the documented depth)"));
+    }
+    println!(
+        "qemu e2e: overload: {served} of {OVERLOAD_CLIENTS} served byte-exact, {} refused with no byte",
+        OVERLOAD_CLIENTS - served
+    );
+    // The very next client is served.
+    single_frame(port, LIGHTS[1])
+}
+
 fn t_two_clients_at_once(g: &mut Guest) -> Result<()> {
     let (p1, p2) = (g.port_single, g.port_persistent);
     let a = std::thread::spawn(move || single_frame(p1, LIGHTS[3]));
@@ -170,12 +213,13 @@ fn t_uart_log(g: &mut Guest) -> Result<()> {
 pub fn run(elf: &std::path::Path) -> Result<()> {
     let mut g = Guest::boot(elf, &[])?;
     type Test = fn(&mut Guest) -> Result<()>;
-    let tests: [(&str, Test); 6] = [
+    let tests: [(&str, Test); 7] = [
         ("frames on the frame port equal the model", t_seed_port_frames),
         ("pipelined frames on the persistent port equal the model", t_persistent_port_pipelined),
         ("out-of-range request: no frame, next client served", t_out_of_range_then_next_client),
         ("client closing mid-frame: next client served", t_close_mid_frame_then_next_client),
         ("two clients at once both served", t_two_clients_at_once),
+        ("24 seed-port clients at once: at least 16 served, the rest refused cleanly, the next served", t_overload),
         ("UART log shows link up and each request", t_uart_log),
     ];
     let (mut passed, mut failed) = (0, 0);

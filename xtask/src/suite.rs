@@ -72,6 +72,11 @@ pub fn run() -> Result<()> {
     // patch, the firmware and a stand-in FPGA image, checked piece by piece.
     println!("==> SD-card image");
     crate::sdcard::suite_test()?;
+    // The emulated board behind a lossy link, the kernel's TCP as its peer,
+    // and a short soak (cargo xtask soak runs 1,000 frames).
+    crate::lossy::suite_test()?;
+    println!("==> short soak of the emulated board");
+    println!("{}", crate::soak::soak(40)?);
     // The live viewer, end to end in a window under Xvfb.
     crate::live_test::run()?;
     // FPGA: lint, whole-frame co-simulation, resource estimate.
