@@ -36,9 +36,9 @@ use static_cell::StaticCell;
 use crate::boards::{Active, Board};
 
 /// The MPCore global timer: the firmware's clock (smoltcp's `Instant`).
-// SAFETY: PERIPHBASE + 0x200 is the board's MPCore global timer (ARM DDI
-// 0407 4.3), mapped Device once the MMU is on; only this value writes it.
 pub static TIMER: GlobalTimer =
+    // SAFETY: PERIPHBASE + 0x200 is the board's MPCore global timer (ARM DDI
+    // 0407 4.3), mapped Device once the MMU is on; only this value writes it.
     unsafe { GlobalTimer::new(register_block(Active::PERIPHBASE + PERIPHBASE_OFFSET), Active::TIMER_HZ) };
 
 /// The accelerator probe's guard, shared with the data-abort handler.

@@ -18,18 +18,21 @@
 //!   row source (row mode) and frame engine (frame mode).
 //!
 //! ```
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
 //! # #[cfg(feature = "sim")] {
 //! use hal_avalon::sim::{CountingDelay, SimAccelerator};
 //! use hal_avalon::{Accelerator, PollTimeout};
 //!
 //! let mut accel = Accelerator::new(SimAccelerator::new(), CountingDelay::default(), PollTimeout::DEFAULT);
-//! let light = model::Light::from_raw(3 << 10, 4 << 10, -(2 << 10)).unwrap();
+//! let light = model::Light::from_raw(3 << 10, 4 << 10, -(2 << 10))?;
 //! let mut row = [0u32; 480];
-//! accel.run_row(200, &light, &mut row).unwrap();
+//! accel.run_row(200, &light, &mut row)?;
 //!
 //! let mut expected = [0u32; 480];
 //! model::render_row(200, &light, &mut expected);
 //! assert_eq!(row, expected);
+//! # }
+//! # Ok(())
 //! # }
 //! ```
 //!
