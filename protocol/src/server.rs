@@ -764,4 +764,27 @@ mod tests {
         assert_eq!(a, Action::Send { frame: 0, row: 0, offset: 0 });
         assert!(!s.mid_frame(), "nothing sent yet");
     }
+
+    // The two ways the fuzz harness (tests/fuzz_server.rs) first found to
+    // hold a socket for ever.
+
+    #[test]
+    fn a_seed_port_client_that_sends_nothing_times_out() {
+        let mut s: Session<usize> = Session::new(Mode::Single, at(1_000));
+        assert_eq!(s.poll(at(5_999)), Action::Wait { deadline: Some(at(6_000)) });
+        assert_eq!(s.poll(at(6_000)), Action::Close(Closed::RequestTimeout { received: 0 }));
+    }
+
+    #[test]
+    fn a_client_that_stops_reading_is_closed_after_the_send_timeout() {
+        let mut s = Session::new(Mode::Single, at(0));
+        s.receive(at(0), &request(0, 4096, 0));
+        let mut src = Source::new(SoftwareRenderer);
+        let mut stuck = |now| drive(&mut s, now, &mut src, |_| 0, &mut String::new());
+        assert_eq!(stuck(at(0)), Action::Send { frame: 0, row: 0, offset: 0 });
+        let last_chance = at(SEND_TIMEOUT.as_millis() as u64 - 1);
+        assert!(matches!(stuck(last_chance), Action::Send { .. }));
+        assert_eq!(stuck(at(0) + SEND_TIMEOUT), Action::Close(Closed::Stalled { row: 0 }));
+        assert_eq!(src.begin(&Light::from_raw(0, 0, 0).unwrap()).unwrap(), Some(0), "the frame was ended");
+    }
 }
