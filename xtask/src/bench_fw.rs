@@ -152,13 +152,10 @@ fn measure(features: &[&str], frames: usize) -> Result<Measured> {
     let mut g = Guest::boot(&elf, &["-icount", "shift=0"])?;
     let mut s = TcpStream::connect(("127.0.0.1", g.port_persistent)).map_err(|e| e.to_string())?;
     s.set_read_timeout(Some(Duration::from_secs(600))).map_err(|e| e.to_string())?;
-    let light = rt_protocol::encode_raw_request([3 << 10, 4 << 10, -(2 << 10)]);
-    s.write_all(&light.repeat(frames)).map_err(|e| e.to_string())?;
+    let light = crate::qemu_e2e::LIGHTS[0];
+    s.write_all(&rt_protocol::encode_raw_request(light).repeat(frames)).map_err(|e| e.to_string())?;
     let mut frame = vec![0u8; model::FRAME_BYTES];
-    let l = model::Light::from_raw(3 << 10, 4 << 10, -(2 << 10)).map_err(|e| format!("bench light: {e}"))?;
-    let mut want = vec![0u8; model::FRAME_BYTES];
-    let want_frame: &mut [u8; model::FRAME_BYTES] = want.as_mut_slice().try_into().map_err(|_| "frame size")?;
-    model::render_frame_rgb888(&l, want_frame);
+    let want = crate::qemu_e2e::expected_frame(light)?;
     for i in 0..frames {
         s.read_exact(&mut frame).map_err(|e| format!("frame {i}: {e}"))?;
         if frame != want {

@@ -113,18 +113,25 @@ impl Guest {
         std::fs::read_to_string(&self.log).unwrap_or_default()
     }
 
-    /// Wait until the UART log contains `needle`.
+    /// Wait until a line of the UART log contains `needle`.
     pub fn wait_for_log(&mut self, needle: &str, timeout: Duration) -> Result<()> {
+        self.wait_for_line(0, needle, timeout).map(drop)
+    }
+
+    /// The first UART line after byte `from` that contains `needle`.
+    pub fn wait_for_line(&mut self, from: usize, needle: &str, timeout: Duration) -> Result<String> {
         let start = Instant::now();
         loop {
-            if self.uart().contains(needle) {
-                return Ok(());
+            let uart = self.uart();
+            let after = uart.get(from..).unwrap_or("");
+            if let Some(line) = after.lines().find(|l| l.contains(needle)) {
+                return Ok(line.to_string());
             }
             if let Ok(Some(st)) = self.child.try_wait() {
-                return Err(format!("QEMU exited ({st}) before {needle:?}; UART:\n{}", self.uart()));
+                return Err(format!("QEMU exited ({st}) before {needle:?}; UART:\n{after}"));
             }
             if start.elapsed() > timeout {
-                return Err(format!("no {needle:?} on the UART within {timeout:?}; UART:\n{}", self.uart()));
+                return Err(format!("no {needle:?} on the UART within {timeout:?}; UART:\n{after}"));
             }
             std::thread::sleep(Duration::from_millis(50));
         }

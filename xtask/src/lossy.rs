@@ -25,6 +25,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 
 use crate::firmware::{build, Guest};
+use crate::qemu_e2e::{expected_frame, LIGHTS};
 use crate::Result;
 
 /// Per-frame fault probabilities, the same both ways.
@@ -344,23 +345,19 @@ pub struct ClientArgs {
     pub persistent: usize,
 }
 
-/// The lights the client asks for, in turn.
-const LIGHTS: [[i32; 3]; 4] =
-    [[3 << 10, 4 << 10, -(2 << 10)], [-(5 << 10), 6 << 10, 1 << 10], [0, 8 << 10, -(7 << 10)], [1500, 2500, 700]];
-
 /// Fetch and check the frames; print the elapsed time.
 pub fn client(args: &ClientArgs) -> Result<()> {
     let board = "10.0.2.15";
     let timeout = Duration::from_secs(300);
-    let expected: Vec<Vec<u8>> = LIGHTS.iter().map(|l| crate::qemu_e2e::expected_frame(*l)).collect::<Result<_>>()?;
+    let expected: Vec<Vec<u8>> = LIGHTS.iter().map(|l| expected_frame(*l)).collect::<Result<_>>()?;
     let start = Instant::now();
     for i in 0..args.single {
         let mut s = TcpStream::connect((board, rt_protocol::FRAME_PORT)).map_err(|e| format!("connect: {e}"))?;
         s.set_read_timeout(Some(timeout)).map_err(|e| e.to_string())?;
-        s.write_all(&rt_protocol::encode_raw_request(LIGHTS[i % 4])).map_err(|e| e.to_string())?;
+        s.write_all(&rt_protocol::encode_raw_request(LIGHTS[i % LIGHTS.len()])).map_err(|e| e.to_string())?;
         let mut got = Vec::new();
         s.read_to_end(&mut got).map_err(|e| format!("seed frame {i}: {e}"))?;
-        if got != expected[i % 4] {
+        if got != expected[i % LIGHTS.len()] {
             return Err(format!("seed frame {i}: {} bytes, not the model's frame", got.len()));
         }
     }
@@ -368,12 +365,12 @@ pub fn client(args: &ClientArgs) -> Result<()> {
         let mut s = TcpStream::connect((board, rt_protocol::PERSISTENT_PORT)).map_err(|e| format!("connect: {e}"))?;
         s.set_read_timeout(Some(timeout)).map_err(|e| e.to_string())?;
         let requests: Vec<u8> =
-            (0..args.persistent).flat_map(|i| rt_protocol::encode_raw_request(LIGHTS[i % 4])).collect();
+            (0..args.persistent).flat_map(|i| rt_protocol::encode_raw_request(LIGHTS[i % LIGHTS.len()])).collect();
         s.write_all(&requests).map_err(|e| e.to_string())?;
         let mut frame = vec![0u8; model::FRAME_BYTES];
         for i in 0..args.persistent {
             s.read_exact(&mut frame).map_err(|e| format!("persistent frame {i}: {e}"))?;
-            if frame != expected[i % 4] {
+            if frame != expected[i % LIGHTS.len()] {
                 return Err(format!("persistent frame {i}: not the model's frame"));
             }
         }

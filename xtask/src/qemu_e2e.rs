@@ -15,7 +15,7 @@ use crate::Result;
 const IO_TIMEOUT: Duration = Duration::from_secs(120);
 
 /// Lights (raw Q13.10) used by the tests.
-const LIGHTS: [[i32; 3]; 4] =
+pub const LIGHTS: [[i32; 3]; 4] =
     [[3 << 10, 4 << 10, -(2 << 10)], [-(5 << 10), 6 << 10, 1 << 10], [0, 8 << 10, -(7 << 10)], [1500, 2500, 700]];
 
 fn wire(light: [i32; 3]) -> [u8; 12] {
@@ -28,7 +28,7 @@ pub fn expected_frame(light: [i32; 3]) -> Result<Vec<u8>> {
     Ok(render_frame(&l))
 }
 
-fn connect(port: u16) -> Result<TcpStream> {
+pub fn connect(port: u16) -> Result<TcpStream> {
     let s = TcpStream::connect(("127.0.0.1", port)).map_err(|e| format!("connect {port}: {e}"))?;
     s.set_read_timeout(Some(IO_TIMEOUT)).map_err(|e| e.to_string())?;
     s.set_nodelay(true).map_err(|e| e.to_string())?;

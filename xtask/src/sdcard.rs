@@ -31,6 +31,7 @@ use std::process::Command;
 use clap::Args;
 
 use crate::tools::{ensure_apt_packages, ensure_apt_source, root, step};
+use crate::uimage::IH_MAGIC;
 use crate::Result;
 
 /// Bytes per sector.
@@ -196,7 +197,7 @@ pub fn check_preloader(copy: &[u8]) -> Result<Preloader> {
 /// legacy header, then a zero-terminated table of big-endian lengths, then
 /// the parts).
 pub fn script_text(img: &[u8]) -> Result<String> {
-    if img.len() < 72 || img[..4] != [0x27, 0x05, 0x19, 0x56] {
+    if img.len() < 72 || img[..4] != IH_MAGIC.to_be_bytes() {
         return Err("not a U-Boot legacy image".into());
     }
     if img[30] != 6 {
@@ -242,11 +243,7 @@ fn uboot_source() -> Result<PathBuf> {
         fs::create_dir_all(&dl).map_err(|e| format!("{}: {e}", dl.display()))?;
         // deb-src for bookworm, copied from the machine's Debian entry.
         ensure_apt_source("raytracer-bookworm-src", "deb-src", "bookworm", "bookworm")?;
-        step("apt-get update", {
-            let mut c = crate::tools::as_root("apt-get");
-            c.args(["update", "-q"]);
-            c
-        })?;
+        step("apt-get update", crate::tools::apt_get(&["update", "-q"]))?;
         run_in(&dl, "apt-get source u-boot (Debian bookworm)", "apt-get", &["source", "-q", "u-boot"])?;
         let tree = fs::read_dir(&dl)
             .map_err(|e| e.to_string())?
@@ -262,9 +259,8 @@ fn uboot_source() -> Result<PathBuf> {
     Ok(src)
 }
 
-/// `u-boot-with-spl.sfp` and the build's `.config`, built once and then
-/// incrementally.
-fn uboot() -> Result<(PathBuf, PathBuf)> {
+/// `u-boot-with-spl.sfp`, built once and then incrementally.
+fn uboot() -> Result<PathBuf> {
     let src = uboot_source()?;
     let build = dir().join("u-boot/build");
     let out = format!("O={}", build.display());
@@ -277,7 +273,7 @@ fn uboot() -> Result<(PathBuf, PathBuf)> {
     if !sfp.exists() {
         return Err(format!("the U-Boot build wrote no {}", sfp.display()));
     }
-    Ok((sfp, build.join(".config")))
+    Ok(sfp)
 }
 
 /// Compile `boot/boot.cmd` into a U-Boot script image.
@@ -345,7 +341,7 @@ pub fn run(args: &SdcardArgs) -> Result<()> {
     ensure_apt_packages(PACKAGES, None)?;
     let out_dir = dir();
     fs::create_dir_all(&out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
-    let (sfp, _config) = uboot()?;
+    let sfp = uboot()?;
     crate::firmware::image(&crate::firmware::ImageArgs { out: out_dir.clone() })?;
     let firmware = out_dir.join(FIRMWARE_FILE);
     let script = boot_script(&out_dir)?;
@@ -425,7 +421,7 @@ pub fn check_image(img: &Path, want: &Expected) -> Result<()> {
         check_preloader(&pre[i * SPL_COPY..(i + 1) * SPL_COPY]).map_err(|e| format!("preloader copy {i}: {e}"))?;
     }
     let uimg = &pre[UBOOT_IMG_OFFSET..];
-    if uimg[..4] != [0x27, 0x05, 0x19, 0x56] {
+    if uimg[..4] != IH_MAGIC.to_be_bytes() {
         return Err("no U-Boot legacy image at 256 KiB into the preloader partition".into());
     }
     let script = fat_file(img, SCRIPT_FILE)?.ok_or("no boot.scr on the FAT partition")?;
@@ -599,7 +595,7 @@ mod tests {
     fn script_text_comes_back_out_of_a_script_image() {
         let text = "echo hello\ngo 0x100040\n";
         let mut img = vec![0u8; 64];
-        img[..4].copy_from_slice(&[0x27, 0x05, 0x19, 0x56]);
+        img[..4].copy_from_slice(&IH_MAGIC.to_be_bytes());
         img[30] = 6;
         img.extend_from_slice(&(text.len() as u32).to_be_bytes());
         img.extend_from_slice(&0u32.to_be_bytes());

@@ -6,12 +6,12 @@
 //! every descriptor free.
 
 use std::io::{Read, Write};
-use std::net::TcpStream;
 use std::time::{Duration, Instant};
 
 use clap::Args;
 
 use crate::firmware::{build, Guest};
+use crate::qemu_e2e::connect;
 use crate::Result;
 
 /// `cargo xtask soak` options.
@@ -36,12 +36,6 @@ const PER_CONNECTION: usize = 40;
 /// A seed-port frame after every this many.
 const SEED_EVERY: usize = 25;
 
-fn connect(port: u16) -> Result<TcpStream> {
-    let s = TcpStream::connect(("127.0.0.1", port)).map_err(|e| format!("connect {port}: {e}"))?;
-    s.set_read_timeout(Some(Duration::from_secs(120))).map_err(|e| e.to_string())?;
-    Ok(s)
-}
-
 /// Run `frames` frames; the figures on one line.
 pub fn soak(frames: usize) -> Result<String> {
     crate::tools::ensure_qemu()?;
@@ -50,9 +44,9 @@ pub fn soak(frames: usize) -> Result<String> {
         .iter()
         .map(|l| crate::qemu_e2e::expected_frame(*l).map(|f| crc32fast::hash(&f)))
         .collect::<Result<_>>()?;
-    let g = Guest::boot(&elf, &[])?;
+    let mut g = Guest::boot(&elf, &[])?;
     let start = Instant::now();
-    let (mut done, mut seed, mut connections, mut n) = (0usize, 0usize, 0usize, 0usize);
+    let (mut done, mut seed, mut connections) = (0usize, 0usize, 0usize);
     let mut frame = vec![0u8; model::FRAME_BYTES];
     while done < frames {
         // One persistent connection: up to PER_CONNECTION frames, pipelined.
@@ -60,17 +54,17 @@ pub fn soak(frames: usize) -> Result<String> {
         let mut s = connect(g.port_persistent)?;
         connections += 1;
         let requests: Vec<u8> =
-            (0..count).flat_map(|i| rt_protocol::encode_raw_request(LIGHTS[(n + i) % LIGHTS.len()])).collect();
+            (0..count).flat_map(|i| rt_protocol::encode_raw_request(LIGHTS[(done + i) % LIGHTS.len()])).collect();
         s.write_all(&requests).map_err(|e| e.to_string())?;
         s.shutdown(std::net::Shutdown::Write).map_err(|e| e.to_string())?;
         for i in 0..count {
             s.read_exact(&mut frame).map_err(|e| format!("frame {} (persistent): {e}", done + i))?;
-            if crc32fast::hash(&frame) != digests[(n + i) % LIGHTS.len()] {
+            if crc32fast::hash(&frame) != digests[(done + i) % LIGHTS.len()] {
                 return Err(format!("frame {} (persistent) is not the model's", done + i));
             }
             if (done + i + 1) % SEED_EVERY == 0 && done + i + 1 < frames {
                 // A seed-port frame while the persistent one is open.
-                let l = (n + i + 3) % LIGHTS.len();
+                let l = (done + i + 3) % LIGHTS.len();
                 let mut t = connect(g.port_single)?;
                 t.write_all(&rt_protocol::encode_raw_request(LIGHTS[l])).map_err(|e| e.to_string())?;
                 let mut got = Vec::new();
@@ -87,7 +81,6 @@ pub fn soak(frames: usize) -> Result<String> {
             return Err(format!("{} bytes after the last frame of a connection", rest.len()));
         }
         done += count;
-        n += count;
         if done % 100 < count {
             eprintln!("soak: {done} of {frames} frames");
         }
@@ -95,17 +88,7 @@ pub fn soak(frames: usize) -> Result<String> {
     let elapsed = start.elapsed();
     // The firmware reports a second after the last client goes.
     let seen = g.uart().len();
-    let deadline = Instant::now() + Duration::from_secs(15);
-    let idle = loop {
-        let uart = g.uart();
-        if let Some(l) = uart.get(seen..).and_then(|t| t.lines().find(|l| l.contains("net: idle:"))) {
-            break l.to_string();
-        }
-        if Instant::now() > deadline {
-            return Err(format!("no idle report from the firmware after the run:\n{}", uart.get(seen..).unwrap_or("")));
-        }
-        std::thread::sleep(Duration::from_millis(100));
-    };
+    let idle = g.wait_for_line(seen, "net: idle:", Duration::from_secs(15))?;
     // firmware/src/net.rs SOCKETS; dwmac TX_RING and RX_RING.
     let want = "24 of 24 sockets listening, 32 of 32 TX and 64 of 64 RX descriptors free";
     if !idle.contains(want) {

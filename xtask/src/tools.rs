@@ -104,7 +104,8 @@ pub fn as_root(program: &str) -> Command {
     }
 }
 
-fn apt_get(args: &[&str]) -> Command {
+/// `apt-get` as root, never asking questions.
+pub fn apt_get(args: &[&str]) -> Command {
     let mut c = as_root("apt-get");
     c.args(args).env("DEBIAN_FRONTEND", "noninteractive");
     c
