@@ -9,7 +9,6 @@
 //! goes away the window keeps running, the title and stderr say so, and the
 //! link reconnects with back-off.
 
-use std::io::Write;
 use std::net::{SocketAddr, TcpStream};
 use std::path::PathBuf;
 use std::sync::mpsc::{self, Receiver, TryRecvError};
@@ -83,7 +82,7 @@ impl Link {
     }
 
     pub(crate) fn request(&mut self, light: &Light) -> Result<(), String> {
-        self.stream.write_all(&rt_protocol::encode_request(light)).map_err(|e| format!("sending a request: {e}"))
+        net::send_request(&mut self.stream, light).map_err(|e| e.to_string())
     }
 }
 
@@ -123,7 +122,7 @@ fn rgb_to_pixels(rgb: &[u8], scale: usize, out: &mut [u32]) {
     for y in 0..HEIGHT {
         for x in 0..WIDTH {
             let i = (y * WIDTH + x) * 3;
-            let px = u32::from(rgb[i]) << 16 | u32::from(rgb[i + 1]) << 8 | u32::from(rgb[i + 2]);
+            let px = crate::window::pack_rgb(&rgb[i..i + 3]);
             for sy in 0..scale {
                 let row = (y * scale + sy) * w + x * scale;
                 out[row..row + scale].fill(px);
@@ -260,7 +259,6 @@ pub fn run(opts: LiveOptions) -> Result<(), String> {
         }
 
         // ---- Frames ----
-        let mut shown = false;
         loop {
             let msg = match link.as_ref().map(|l| l.frames.try_recv()) {
                 Some(Ok(m)) => m,
@@ -287,7 +285,6 @@ pub fn run(opts: LiveOptions) -> Result<(), String> {
                         eprintln!("rt-client: {e}");
                     }
                     last_frame = Some(rgb);
-                    shown = true;
                 }
                 FromServer::Lost(why) => {
                     eprintln!("rt-client: lost the server: {why}");
@@ -310,7 +307,6 @@ pub fn run(opts: LiveOptions) -> Result<(), String> {
             ));
         }
         // Redrawn every pass: minifb gathers input events in its update.
-        let _ = shown;
         if window.update_with_buffer(&pixels, w, h).is_err() {
             break;
         }

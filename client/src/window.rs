@@ -3,6 +3,11 @@
 use minifb::{Key, Window, WindowOptions};
 use model::{HEIGHT, WIDTH};
 
+/// One RGB888 pixel as minifb's 0RGB word.
+pub fn pack_rgb(c: &[u8]) -> u32 {
+    u32::from(c[0]) << 16 | u32::from(c[1]) << 8 | u32::from(c[2])
+}
+
 /// A window showing 480 x 360 frames.
 pub struct LiveWindow {
     window: Window,
@@ -21,7 +26,7 @@ impl LiveWindow {
     /// pressed Escape.
     pub fn show(&mut self, rgb: &[u8]) -> bool {
         for (px, c) in self.pixels.iter_mut().zip(rgb.chunks_exact(3)) {
-            *px = u32::from(c[0]) << 16 | u32::from(c[1]) << 8 | u32::from(c[2]);
+            *px = pack_rgb(c);
         }
         self.is_open() && self.window.update_with_buffer(&self.pixels, WIDTH, HEIGHT).is_ok()
     }

@@ -45,8 +45,8 @@ const SIM_BUSY_POLLS: u32 = 2;
 /// connection and could cost the client the frame's tail).
 const LINGER: Duration = Duration::from_secs(2);
 
-/// How the simulated board renders.
-#[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
+/// How the simulated board renders (also the binary's `--mode`).
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default, clap::ValueEnum)]
 pub enum RenderMode {
     /// Whole frames by the accelerator's frame DMA into a ring in memory.
     #[default]
@@ -55,8 +55,8 @@ pub enum RenderMode {
     Rows,
 }
 
-/// Which accelerator renders.
-#[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
+/// Which accelerator renders (also the binary's `--accelerator`).
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default, clap::ValueEnum)]
 pub enum Device {
     /// hal-avalon's simulated accelerator (built from the model).
     #[default]

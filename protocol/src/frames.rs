@@ -197,11 +197,6 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
         &mut self.engine
     }
 
-    /// The memory.
-    pub fn memory(&mut self) -> &mut M {
-        &mut self.mem
-    }
-
     /// Slots not held by a frame (free for `begin`).
     pub fn free_slots(&self) -> usize {
         self.slots.iter().filter(|s| matches!(s, SlotState::Free)).count()
@@ -315,16 +310,6 @@ impl<'a> SliceMemory<'a> {
     pub fn new(base: u32, bytes: &'a mut [u8]) -> SliceMemory<'a> {
         SliceMemory { base, bytes }
     }
-
-    /// How many whole slots the slice holds.
-    pub fn slots(&self) -> usize {
-        self.bytes.len() / FRAME_BYTES
-    }
-
-    /// The bytes.
-    pub fn bytes(&self) -> &[u8] {
-        self.bytes
-    }
 }
 
 impl FrameMemory for SliceMemory<'_> {
@@ -361,11 +346,6 @@ impl<R: RowSource> RowEngine<R> {
     /// An engine rendering with `rows`.
     pub fn new(rows: R) -> RowEngine<R> {
         RowEngine { rows, job: None, words: [0; WIDTH], bytes: [0; ROW_BYTES] }
-    }
-
-    /// The row source.
-    pub fn rows(&mut self) -> &mut R {
-        &mut self.rows
     }
 }
 

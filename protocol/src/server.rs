@@ -176,8 +176,9 @@ struct Sending<F> {
     row: u16,
     offset: usize,
     ready: u16,
-    /// When the position above last moved (or the frame started).
-    moved_at: Option<(u16, usize, Instant)>,
+    /// The first poll since the position above last moved (or the frame
+    /// started); `None` until that poll.
+    moved_at: Option<Instant>,
 }
 
 /// One connection's protocol state, holding frames of type `F` (the
@@ -280,14 +281,12 @@ impl<F: Copy> Session<F> {
         }
         if let Some(s) = &mut self.sending {
             match s.moved_at {
-                Some((row, offset, at)) if (row, offset) == (s.row, s.offset) => {
-                    if now >= at + SEND_TIMEOUT {
-                        let reason = Closed::Stalled { row: s.row };
-                        self.closed = Some(reason);
-                        return self.poll(now);
-                    }
+                Some(at) if now >= at + SEND_TIMEOUT => {
+                    self.closed = Some(Closed::Stalled { row: s.row });
+                    return self.poll(now);
                 }
-                _ => s.moved_at = Some((s.row, s.offset, now)),
+                Some(_) => {}
+                None => s.moved_at = Some(now),
             }
         }
         if let Some(s) = self.sending {
@@ -375,7 +374,8 @@ impl<F: Copy> Session<F> {
 
     /// The answer to [`Action::Send`]: `n` bytes went out.
     pub fn sent(&mut self, n: usize) {
-        if let Some(s) = &mut self.sending {
+        if let Some(s) = self.sending.as_mut().filter(|_| n > 0) {
+            s.moved_at = None;
             s.offset += n;
             if s.offset >= ROW_BYTES {
                 s.offset = 0;

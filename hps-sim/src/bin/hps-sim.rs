@@ -7,7 +7,7 @@
 use std::net::SocketAddr;
 use std::process::ExitCode;
 
-use clap::{Parser, ValueEnum};
+use clap::Parser;
 use hps_sim::{Config, Device, HpsSim, RenderMode};
 
 #[derive(Parser)]
@@ -18,41 +18,18 @@ struct Args {
     listen: SocketAddr,
     /// How the simulated accelerator renders: whole frames by DMA into
     /// memory (the board's main mode) or one row per start.
-    #[arg(long, value_enum, default_value_t = Mode::Frames)]
-    mode: Mode,
+    #[arg(long, value_enum, default_value_t = RenderMode::Frames)]
+    mode: RenderMode,
     /// Which accelerator renders: hal-avalon's simulated one (built from
     /// the model) or the Verilated RTL of fpga/rtl (cycle by cycle: about a
     /// second per frame; logs the simulated clocks per frame).
-    #[arg(long, value_enum, default_value_t = Accel::Sim)]
-    accelerator: Accel,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum Accel {
-    /// hal-avalon's simulated accelerator.
-    Sim,
-    /// The Verilated RTL (needs Verilator when hps-sim is built).
-    Rtl,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum Mode {
-    /// Frame DMA into a ring of frame slots.
-    Frames,
-    /// Row by row through the line buffer.
-    Rows,
+    #[arg(long, value_enum, default_value_t = Device::Sim)]
+    accelerator: Device,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    let render = match args.mode {
-        Mode::Frames => RenderMode::Frames,
-        Mode::Rows => RenderMode::Rows,
-    };
-    let device = match args.accelerator {
-        Accel::Sim => Device::Sim,
-        Accel::Rtl => Device::Rtl,
-    };
+    let (render, device) = (args.mode, args.accelerator);
     match HpsSim::start_config(args.listen, Config { render, device }, true) {
         Ok(sim) => {
             eprintln!(
