@@ -26,29 +26,11 @@ const L1_WAYS_LOG2: usize = 2;
 const L1_LINE_LOG2: usize = 5;
 const L1_SETS_LOG2: usize = 8;
 
-/// The MAC driver's barriers on the Cortex-A9 with the L2C-310.
-pub struct Barriers<'a> {
-    /// The L2 cache controller whose store buffer `outer_sync` drains.
-    pub l2: &'a L2c310,
-}
-
-impl DmaSync for Barriers<'_> {
-    fn dsb(&self) {
-        dsb()
-    }
-
-    fn dmb(&self) {
-        dmb()
-    }
-
-    fn outer_sync(&self) {
-        self.l2.cache_sync()
-    }
-}
-
-/// By-address cache maintenance on both levels, for the frame ring
-/// (`soc::cache` has the sequences). The map is flat: an address is both
-/// the virtual one CP15 takes and the physical one the L2C-310 takes.
+/// The Cortex-A9 with its L2C-310: by-address cache maintenance on both
+/// levels for the frame ring (`soc::cache` has the sequences), and the MAC
+/// driver's barriers (`outer_sync` drains the L2C-310's store buffer). The
+/// map is flat: an address is both the virtual one CP15 takes and the
+/// physical one the L2C-310 takes.
 #[derive(Clone, Copy)]
 pub struct Caches {
     /// The L2 cache controller.
@@ -80,6 +62,20 @@ impl CacheOps for Caches {
 
     fn dsb(&self) {
         dsb()
+    }
+}
+
+impl DmaSync for Caches {
+    fn dsb(&self) {
+        dsb()
+    }
+
+    fn dmb(&self) {
+        dmb()
+    }
+
+    fn outer_sync(&self) {
+        self.l2.cache_sync()
     }
 }
 

@@ -17,7 +17,6 @@
 
 mod bench;
 mod boards;
-mod copy;
 mod cpu;
 mod log;
 mod mem;
@@ -70,9 +69,10 @@ fn main() -> ! {
     #[cfg(feature = "reentry-test")]
     reentry_test::maybe_reenter(&mut log);
     Active::init(&mut log);
-    let mut frames = Active::renderer(&mut log, &TIMER, cpu::Caches { l2 });
+    let caches = cpu::Caches { l2 };
+    let mut frames = Active::renderer(&mut log, &TIMER, caches);
     log::flush();
-    match net::run::<Active>(&TIMER, l2, &mut frames) {
+    match net::run::<Active>(&TIMER, caches, &mut frames) {
         Ok(never) => match never {},
         Err(why) => {
             let _ = writeln!(log, "network not started: {why}");

@@ -17,11 +17,10 @@ use smoltcp::iface::{Config, Interface, SocketSet, SocketStorage};
 use smoltcp::time::Instant;
 use smoltcp::wire::{EthernetAddress, HardwareAddress, IpCidr, Ipv4Cidr};
 use soc::global_timer::{GlobalTimer, TimerDelay};
-use soc::l2c310::L2c310;
 use static_cell::ConstStaticCell;
 
 use crate::boards::Board;
-use crate::cpu::Barriers;
+use crate::cpu::Caches;
 use crate::log::{self, Log};
 use crate::render::Frames;
 
@@ -114,7 +113,7 @@ const TAKEN_TWICE: NetError = NetError::AlreadyRunning;
 /// is not an error: the link monitor brings the MAC up when it arrives.
 pub fn run<B: Board>(
     timer: &'static GlobalTimer,
-    l2: &L2c310,
+    caches: Caches,
     frames: &mut Frames<B::Port>,
 ) -> Result<core::convert::Infallible, NetError> {
     static SOCKET_BUFFERS: ConstStaticCell<[SocketBuffers; SOCKETS]> =
@@ -129,7 +128,7 @@ pub fn run<B: Board>(
     // SAFETY: the board's DesignWare MAC, mapped Device; only this driver
     // uses it.
     let regs = unsafe { Regs::new(crate::register_block(B::EMAC)) };
-    let mut mac = Dwmac::new(regs, dma, Barriers { l2 }, TimerDelay(timer));
+    let mut mac = Dwmac::new(regs, dma, caches, TimerDelay(timer));
     let _ = writeln!(
         log,
         "eth: DWMAC at {:#010x}, version {:#06x}, {:?} descriptors, checksum insertion {:?}",

@@ -96,8 +96,10 @@ impl FrameMemory for RingMemory {
             }
         }
         // SAFETY: `at` checked the range lies in the slots; the ring reads
-        // only rows the engine has finished writing.
-        unsafe { crate::copy::burst_copy(out, src) };
+        // only rows the engine has finished writing. (The copy is mem.rs's
+        // `ldm`/`stm` memcpy: the socket keeps `out` word aligned with the
+        // row, dwmac's `TX_SKEW`.)
+        unsafe { core::ptr::copy_nonoverlapping(src, out.as_mut_ptr(), out.len()) };
     }
 
     fn write_row(&mut self, slot: usize, y: u16, row: &[u8; ROW_BYTES]) {
