@@ -424,9 +424,7 @@ fn serve<S: FrameSource + Clocks>(mut stream: TcpStream, mode: Mode, frames: &mu
             Action::Send { .. } => {
                 let what = if write_failed { "vanished mid-frame; frame aborted" } else { "stopped taking data" };
                 let _ = fmt::Write::write_fmt(&mut log, format_args!("client {what}\n"));
-                for frame in session.take_frames().into_iter().flatten() {
-                    frames.end(frame);
-                }
+                session.abandon(frames);
                 return;
             }
             // The simulated accelerator moves on with every status read:

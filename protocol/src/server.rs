@@ -390,11 +390,13 @@ impl<F: Copy> Session<F> {
         self.closed = Some(Closed::RenderFailed { row });
     }
 
-    /// Take every frame the session holds, for an adapter that drops the
-    /// session without driving it to its close (the client vanished): it
-    /// must [`end`](FrameSource::end) them, or their slots stay taken.
-    pub fn take_frames(&mut self) -> [Option<F>; 2] {
-        [self.sending.take().map(|s| s.frame), self.ahead.take()]
+    /// End every frame the session holds, for an adapter that drops the
+    /// session without driving it to its close (the client vanished): else
+    /// their slots in `source` stay taken.
+    pub fn abandon<S: FrameSource<Frame = F>>(&mut self, source: &mut S) {
+        for frame in [self.sending.take().map(|s| s.frame), self.ahead.take()].into_iter().flatten() {
+            source.end(frame);
+        }
     }
 
     /// Whether bytes of a frame went out and the frame is not complete (a

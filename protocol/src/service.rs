@@ -147,9 +147,7 @@ fn serve_slot<S: FrameSource>(
         // Reset, or closed both ways before we finished: nothing to send to.
         let what = if session.mid_frame() { "vanished mid-frame; frame aborted" } else { "went away" };
         let _ = writeln!(log, "[{index}] client {what}");
-        for frame in session.take_frames().into_iter().flatten() {
-            frames.end(frame);
-        }
+        session.abandon(frames);
         socket.abort();
         slot.session = None;
         return;

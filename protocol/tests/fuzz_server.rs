@@ -206,9 +206,7 @@ fn run(c: &Case) -> Result<(), TestCaseError> {
         }
         if let End::Reset(at) = c.end {
             if received.len() >= at {
-                for f in session.take_frames().into_iter().flatten() {
-                    frames.end(f);
-                }
+                session.abandon(&mut frames);
                 closed = Some("reset");
                 break;
             }
