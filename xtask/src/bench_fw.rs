@@ -1,6 +1,7 @@
 //! `cargo xtask bench-fw`: the firmware's cost per frame, measured on QEMU
 //! with `-icount shift=0` (one guest nanosecond per instruction, so the
-//! figures are deterministic instruction counts), and the board cost model
+//! figures are instruction counts; they move by a few in a million from
+//! run to run, with when the host's ACKs arrive), and the board cost model
 //! ([`crate::cost_model`]) applied to the counts.
 //!
 //! Three builds of the `bench` firmware serve pipelined frames on the
@@ -37,21 +38,40 @@ pub struct BenchArgs {
     pub frames: usize,
 }
 
-/// One `bench: counts` line.
+/// One `bench: counts` line (`u64`), or a mean of them per frame (`f64`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Counts {
-    lw_reads: u64,
-    lw_line_words: u64,
-    lw_writes: u64,
-    cpu_copied: u64,
-    lines_invalidated: u64,
-    lines_cleaned: u64,
-    uncached_read: u64,
-    mac_tx: u64,
-    tx_frames: u64,
-    busy_ns: u64,
-    render_ns: u64,
-    busy_loops: u64,
+pub struct Counts<T = u64> {
+    lw_reads: T,
+    lw_line_words: T,
+    lw_writes: T,
+    cpu_copied: T,
+    lines_invalidated: T,
+    lines_cleaned: T,
+    uncached_read: T,
+    mac_tx: T,
+    tx_frames: T,
+    busy_ns: T,
+    render_ns: T,
+    busy_loops: T,
+}
+
+impl<T> Counts<T> {
+    fn fields_mut(&mut self) -> [&mut T; 12] {
+        [
+            &mut self.lw_reads,
+            &mut self.lw_line_words,
+            &mut self.lw_writes,
+            &mut self.cpu_copied,
+            &mut self.lines_invalidated,
+            &mut self.lines_cleaned,
+            &mut self.uncached_read,
+            &mut self.mac_tx,
+            &mut self.tx_frames,
+            &mut self.busy_ns,
+            &mut self.render_ns,
+            &mut self.busy_loops,
+        ]
+    }
 }
 
 impl Counts {
@@ -70,23 +90,6 @@ impl Counts {
         "busy_loops",
     ];
 
-    fn fields_mut(&mut self) -> [&mut u64; 12] {
-        [
-            &mut self.lw_reads,
-            &mut self.lw_line_words,
-            &mut self.lw_writes,
-            &mut self.cpu_copied,
-            &mut self.lines_invalidated,
-            &mut self.lines_cleaned,
-            &mut self.uncached_read,
-            &mut self.mac_tx,
-            &mut self.tx_frames,
-            &mut self.busy_ns,
-            &mut self.render_ns,
-            &mut self.busy_loops,
-        ]
-    }
-
     /// Parse the text after `bench: counts`: every field, `name=value`.
     pub fn parse(line: &str) -> Option<Counts> {
         let mut c = Counts::default();
@@ -101,44 +104,43 @@ impl Counts {
     }
 
     /// The mean of `lines`, per frame.
-    fn mean(lines: &[Counts]) -> [f64; 12] {
-        let mut sum = [0f64; 12];
+    fn mean(lines: &[Counts]) -> Counts<f64> {
+        let mut mean = Counts::<f64>::default();
         for l in lines {
             let mut l = *l;
-            for (s, v) in sum.iter_mut().zip(l.fields_mut()) {
-                *s += *v as f64;
+            for (m, v) in mean.fields_mut().into_iter().zip(l.fields_mut()) {
+                *m += *v as f64;
             }
         }
-        sum.map(|s| s / lines.len() as f64)
+        for m in mean.fields_mut() {
+            *m /= lines.len() as f64;
+        }
+        mean
     }
 }
 
 /// What one mode measured, per frame.
 struct Measured {
-    counts: [f64; 12],
+    counts: Counts<f64>,
     frames: usize,
 }
 
 impl Measured {
-    fn get(&self, field: &str) -> f64 {
-        Counts::FIELDS.iter().position(|f| *f == field).map_or(0.0, |i| self.counts[i])
-    }
-
     fn streaming(&self) -> f64 {
-        (self.get("busy_ns") - self.get("render_ns")).max(0.0)
+        (self.counts.busy_ns - self.counts.render_ns).max(0.0)
     }
 
     fn model_counts(&self) -> FrameCounts {
         FrameCounts {
             instructions: self.streaming(),
-            lw_reads: self.get("lw_reads"),
-            lw_line_words: self.get("lw_line_words"),
-            lw_writes: self.get("lw_writes"),
-            lines_invalidated: self.get("lines_invalidated"),
-            lines_cleaned: self.get("lines_cleaned"),
-            uncached_read: self.get("uncached_read"),
-            mac_tx: self.get("mac_tx"),
-            tx_frames: self.get("tx_frames"),
+            lw_reads: self.counts.lw_reads,
+            lw_line_words: self.counts.lw_line_words,
+            lw_writes: self.counts.lw_writes,
+            lines_invalidated: self.counts.lines_invalidated,
+            lines_cleaned: self.counts.lines_cleaned,
+            uncached_read: self.counts.uncached_read,
+            mac_tx: self.counts.mac_tx,
+            tx_frames: self.counts.tx_frames,
         }
     }
 }
@@ -182,22 +184,20 @@ fn print_mode(name: &str, m: &Measured) {
         m.streaming(),
         m.streaming() / payload
     );
-    println!("  rendering (guest)   {:>11.0} guest instructions/frame (not the board's CPU)", m.get("render_ns"));
+    println!("  rendering (guest)   {:>11.0} guest instructions/frame (not the board's CPU)", m.counts.render_ns);
     println!(
         "  LW bridge           {:>11.0} register reads, {:.0} line-buffer words, {:.0} register writes",
-        m.get("lw_reads"),
-        m.get("lw_line_words"),
-        m.get("lw_writes")
+        m.counts.lw_reads, m.counts.lw_line_words, m.counts.lw_writes
     );
     println!(
         "  CPU                 {:>11.0} bytes copied, {:.0} cache lines invalidated, {:.0} cleaned, {:.0} bytes read uncached",
-        m.get("cpu_copied"),
-        m.get("lines_invalidated"),
-        m.get("lines_cleaned"),
-        m.get("uncached_read")
+        m.counts.cpu_copied,
+        m.counts.lines_invalidated,
+        m.counts.lines_cleaned,
+        m.counts.uncached_read
     );
-    println!("  MAC                 {:>11.0} bytes in {:.0} frames sent", m.get("mac_tx"), m.get("tx_frames"));
-    println!("  main loop           {:>11.0} busy iterations", m.get("busy_loops"));
+    println!("  MAC                 {:>11.0} bytes in {:.0} frames sent", m.counts.mac_tx, m.counts.tx_frames);
+    println!("  main loop           {:>11.0} busy iterations", m.counts.busy_loops);
 }
 
 fn print_estimate(name: &str, m: &Measured, fpga_cycles: f64) -> f64 {
@@ -229,8 +229,8 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     print_mode("row mode (simulated accelerator, a row per start)", &row_mode);
     println!(
         "bench-fw: software renderer {:.0} guest instructions/frame ({:.0} per pixel); streaming {:.2} per payload byte",
-        software.get("render_ns"),
-        software.get("render_ns") / (model::WIDTH * model::HEIGHT) as f64,
+        software.counts.render_ns,
+        software.counts.render_ns / (model::WIDTH * model::HEIGHT) as f64,
         software.streaming() / model::FRAME_BYTES as f64
     );
     println!();
