@@ -21,10 +21,11 @@ use static_cell::ConstStaticCell;
 use crate::boards::Board;
 
 /// Cortex-A9 L1 data cache geometry (both boards: 32 KiB, 4-way, 32-byte
-/// lines, 256 sets; ARM DDI 0388 Cortex-A9 TRM 7.1): log2 ways, line, sets.
-const L1_WAYS_LOG2: usize = 2;
-const L1_LINE_LOG2: usize = 5;
-const L1_SETS_LOG2: usize = 8;
+/// lines, 256 sets; ARM DDI 0388 Cortex-A9 TRM 7.1): log2 ways, line, sets
+/// (also the reset entry's set/way loop, start.rs).
+pub const L1_WAYS_LOG2: usize = 2;
+pub const L1_LINE_LOG2: usize = 5;
+pub const L1_SETS_LOG2: usize = 8;
 
 /// The Cortex-A9 with its L2C-310: by-address cache maintenance on both
 /// levels for the frame ring (`soc::cache` has the sequences), and the MAC

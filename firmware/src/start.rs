@@ -23,13 +23,15 @@
 //!   keeps core 1 in reset).
 
 use core::fmt::Write;
+use core::mem::offset_of;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use aarch32_cpu::register::{Dfar, Dfsr, Ifar, Ifsr};
 use aarch32_rt::exception;
+use soc::l2c310::{RegisterBlock, WAY_OP_POLLS};
 
 use crate::boards::{Active, Board};
-use crate::log;
+use crate::{cpu, log};
 
 core::arch::global_asm!(
     r#"
@@ -48,40 +50,40 @@ _start:
     bic     r1, r0, #(1 << 2)
     mcr     p15, 0, r1, c1, c0, 0
     isb
-    @ 2. Clean and invalidate L1 D by set/way: way in bits 31:30 (4 ways),
-    @    set in bits 12:5 (256 sets of 32-byte lines).
+    @ 2. Clean and invalidate L1 D by set/way (cpu.rs's L1 geometry): way
+    @    in the top bits, set above the line offset.
     mov     r5, #0
 1:  mov     r3, #0
-2:  lsl     r4, r5, #30
-    orr     r4, r4, r3, lsl #5
+2:  lsl     r4, r5, #{way_shift}
+    orr     r4, r4, r3, lsl #{line_log2}
     mcr     p15, 0, r4, c7, c14, 2      @ DCCISW
     add     r3, r3, #1
-    cmp     r3, #256
+    cmp     r3, #{sets}
     blo     2b
     add     r5, r5, #1
-    cmp     r5, #4
+    cmp     r5, #{ways}
     blo     1b
     dsb
-    @ 3. L2C-310 on? Clean and invalidate every way (0x7fc), bounded wait,
-    @    cache sync (0x730), L2 off (control 0x100).
+    @ 3. L2C-310 on? Clean and invalidate every way, bounded wait, cache
+    @    sync, L2 off (soc::l2c310's register block and poll budget).
     ldr     r6, ={l2c}
-    ldr     r1, [r6, #0x100]
+    ldr     r1, [r6, #{control}]
     tst     r1, #1
     beq     4f
-    ldr     r1, [r6, #0x104]            @ aux control bit 16: 16 ways
+    ldr     r1, [r6, #{aux_control}]    @ aux control bit 16: 16 ways
     mov     r2, #0xff
     tst     r1, #(1 << 16)
     orrne   r2, r2, #0xff00
-    str     r2, [r6, #0x7fc]
-    ldr     r7, =0x1000000
-3:  ldr     r1, [r6, #0x7fc]
+    str     r2, [r6, #{clean_invalidate_way}]
+    ldr     r7, ={polls}
+3:  ldr     r1, [r6, #{clean_invalidate_way}]
     tst     r1, r2
     beq     6f
     subs    r7, r7, #1
     bne     3b
 6:  mov     r1, #0
-    str     r1, [r6, #0x730]
-    str     r1, [r6, #0x100]
+    str     r1, [r6, #{cache_sync}]
+    str     r1, [r6, #{control}]
     dsb
 4:  @ 4. MMU, D-cache and I-cache off.
     bic     r0, r0, #((1 << 0) | (1 << 2))
@@ -125,6 +127,15 @@ _asm_fiq_handler:
     .popsection
     "#,
     l2c = const Active::L2C,
+    control = const offset_of!(RegisterBlock, control),
+    aux_control = const offset_of!(RegisterBlock, aux_control),
+    cache_sync = const offset_of!(RegisterBlock, cache_sync),
+    clean_invalidate_way = const offset_of!(RegisterBlock, clean_invalidate_way),
+    polls = const WAY_OP_POLLS,
+    way_shift = const 32 - cpu::L1_WAYS_LOG2,
+    line_log2 = const cpu::L1_LINE_LOG2,
+    sets = const 1 << cpu::L1_SETS_LOG2,
+    ways = const 1 << cpu::L1_WAYS_LOG2,
     entry_sctlr = sym ENTRY_SCTLR,
 );
 
