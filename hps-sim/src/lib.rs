@@ -34,7 +34,9 @@ use hal_avalon::sim::{CountingDelay, DmaTarget, SimAccelerator};
 use hal_avalon::{Accelerator, PollTimeout};
 use model::{FRAME_BYTES, ROW_BYTES};
 use rt_protocol::server::{drive, Action, Closed, Mode, Session};
-use rt_protocol::{persistent_port, FrameMemory, FrameRing, FrameSource, Instant as ProtocolInstant, RowFrames};
+use rt_protocol::{
+    persistent_port, FrameMemory, FrameRing, FrameSource, Instant as ProtocolInstant, RowFrames, SliceMemory,
+};
 
 /// STATUS polls a simulated row stays busy for: enough that the driver's
 /// polling loop runs, few enough to cost nothing.
@@ -115,17 +117,11 @@ impl FrameMemory for SharedMemory {
     }
 
     fn read_row(&mut self, slot: usize, y: u16, offset: usize, out: &mut [u8]) {
-        let at = slot * FRAME_BYTES + usize::from(y) * ROW_BYTES + offset;
-        if let Some(src) = self.0.borrow().get(at..at + out.len()) {
-            out.copy_from_slice(src);
-        }
+        SliceMemory::new(RING_BASE, &mut self.0.borrow_mut()).read_row(slot, y, offset, out)
     }
 
     fn write_row(&mut self, slot: usize, y: u16, row: &[u8; ROW_BYTES]) {
-        let at = slot * FRAME_BYTES + usize::from(y) * ROW_BYTES;
-        if let Some(dst) = self.0.borrow_mut().get_mut(at..at + ROW_BYTES) {
-            dst.copy_from_slice(row);
-        }
+        SliceMemory::new(RING_BASE, &mut self.0.borrow_mut()).write_row(slot, y, row)
     }
 }
 
