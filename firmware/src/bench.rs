@@ -286,4 +286,8 @@ impl<M: FrameMemory, E: FrameEngine<M>> FrameEngine<M> for TimedEngine<E> {
         }
         Ok(rows)
     }
+
+    fn abort(&mut self, mem: &mut M) -> Result<(), E::Error> {
+        timed(|| self.engine.abort(mem))
+    }
 }

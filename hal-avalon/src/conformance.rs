@@ -37,13 +37,16 @@ pub const MEMORY_BASE: u32 = 0x0100_0000;
 /// A memory window behind the frame DMA: one frame and a little more,
 /// filled with a marker byte; writes outside it, or all writes while
 /// `refuse` is set, fail (the bus error the RTL turns into FRAME_STATUS
-/// error).
+/// error); while `silent` is set it takes no write at all (a port held in
+/// reset: no handshake, no response).
 #[derive(Clone, Debug)]
 pub struct TestMemory {
     /// The window's bytes, from [`MEMORY_BASE`].
     pub bytes: Vec<u8>,
     /// Fail every write.
     pub refuse: bool,
+    /// Answer nothing.
+    pub silent: bool,
 }
 
 /// The marker the window is filled with.
@@ -51,7 +54,7 @@ pub const MARKER: u8 = 0x5A;
 
 impl Default for TestMemory {
     fn default() -> TestMemory {
-        TestMemory { bytes: vec![MARKER; FRAME_BYTES + 4096], refuse: false }
+        TestMemory { bytes: vec![MARKER; FRAME_BYTES + 4096], refuse: false, silent: false }
     }
 }
 
@@ -63,6 +66,10 @@ impl DmaTarget for TestMemory {
         }
         self.bytes[off..off + bytes.len()].copy_from_slice(bytes);
         true
+    }
+
+    fn answers(&self) -> bool {
+        !self.silent
     }
 }
 
@@ -424,6 +431,85 @@ pub fn a_bus_error_is_reported_and_the_frame_still_ends(d: &mut impl Device) {
     assert!(d.memory().bytes[..FRAME_BYTES] == model_frame(&l)[..]);
 }
 
+/// Poll until ROWS_DONE shows at least one landed row of the frame in
+/// progress; the count.
+fn wait_for_a_row(d: &mut impl Device) -> u32 {
+    for _ in 0..MAX_POLLS {
+        let r = d.bus_read(ROWS_DONE);
+        if r > 0 {
+            return r;
+        }
+    }
+    panic!("no row landed");
+}
+
+/// An abort stops a frame: busy clears with aborted set and done clear,
+/// ROWS_DONE keeps the rows that landed (and they hold the model's bytes),
+/// nothing lands after busy clears, row mode works at once, and the next
+/// frame clears aborted and completes.
+pub fn an_abort_stops_a_frame_and_nothing_lands_after_it(d: &mut impl Device) {
+    let l = light(3072, 4096, -2048);
+    start_frame(d, MEMORY_BASE, &l);
+    let before = wait_for_a_row(d);
+    d.bus_write(FRAME_CONTROL, FRAME_CONTROL_ABORT);
+    let (status, rows) = run_frame(d);
+    assert_eq!(status, FRAME_STATUS_ABORTED, "aborted, neither done nor error");
+    assert!(rows >= before && rows < u32::from(ROWS), "ROWS_DONE {rows} kept (was {before})");
+    let snapshot = d.memory().bytes.clone();
+    let landed = rows as usize * ROW_BYTES;
+    assert!(snapshot[..landed] == model_frame(&l)[..landed], "the landed rows hold the model's bytes");
+    for _ in 0..1000 {
+        assert_eq!(d.bus_read(FRAME_STATUS), FRAME_STATUS_ABORTED, "sticky, and idle");
+    }
+    assert!(d.memory().bytes == snapshot, "nothing of the frame landed after busy cleared");
+    // Row mode is not blocked.
+    let rl = light(0, 4096, 0);
+    program(d, 20, &rl);
+    d.bus_write(CONTROL, CONTROL_START);
+    assert_eq!(run_to_idle(d), STATUS_DONE);
+    assert_eq!(read_line(d), model_row(20, &rl));
+    // The next frame starts clean.
+    d.bus_write(FRAME_CONTROL, FRAME_CONTROL_START);
+    assert_eq!(d.bus_read(FRAME_STATUS) & FRAME_STATUS_ABORTED, 0, "a start clears aborted");
+    assert_eq!(run_frame(d), (FRAME_STATUS_DONE, u32::from(ROWS)));
+    assert!(d.memory().bytes[..FRAME_BYTES] == model_frame(&rl)[..]);
+}
+
+/// An abort while idle does nothing; a write with the abort bit set never
+/// starts a frame.
+pub fn an_abort_while_idle_does_nothing(d: &mut impl Device) {
+    d.bus_write(FRAME_CONTROL, FRAME_CONTROL_ABORT);
+    assert_eq!(d.bus_read(FRAME_STATUS), 0);
+    program(d, 0, &light(1, 2, 3));
+    d.bus_write(FRAME_BASE, MEMORY_BASE);
+    d.bus_write(FRAME_CONTROL, FRAME_CONTROL_ABORT | FRAME_CONTROL_START);
+    for _ in 0..100 {
+        assert_eq!(d.bus_read(FRAME_STATUS), 0, "no frame started");
+        assert_eq!(d.bus_read(STATUS), 0);
+    }
+    assert!(d.memory().bytes.iter().all(|b| *b == MARKER), "nothing written");
+}
+
+/// A memory that answers nothing (the FPGA-to-SDRAM port held in reset):
+/// the frame ends by itself within the stall limit with error and aborted
+/// set and no row counted; row mode works; once the memory answers again
+/// the next frame completes.
+pub fn a_frame_whose_memory_never_answers_ends_with_an_error(d: &mut impl Device) {
+    let l = light(-1024, 3072, -2048);
+    d.memory().silent = true;
+    start_frame(d, MEMORY_BASE, &l);
+    assert_eq!(run_frame(d), (FRAME_STATUS_ERROR | FRAME_STATUS_ABORTED, 0));
+    let rl = light(512, 4096, 0);
+    program(d, 300, &rl);
+    d.bus_write(CONTROL, CONTROL_START);
+    assert_eq!(run_to_idle(d), STATUS_DONE, "row mode not blocked");
+    assert_eq!(read_line(d), model_row(300, &rl));
+    d.memory().silent = false;
+    start_frame(d, MEMORY_BASE, &l);
+    assert_eq!(run_frame(d), (FRAME_STATUS_DONE, u32::from(ROWS)));
+    assert!(d.memory().bytes[..FRAME_BYTES] == model_frame(&l)[..]);
+}
+
 /// One `#[test]` per check of [`crate::conformance`] for the device that
 /// `$make` (an expression) builds afresh each time.
 #[macro_export]
@@ -437,7 +523,8 @@ macro_rules! conformance_tests {
             other_control_bits_are_ignored, registers_are_latched_at_start, start_while_busy_is_ignored,
             clear_done_while_busy_leaves_busy, rows_past_the_frame_follow_the_model, line_buffer_ignores_writes,
             a_frame_lands_in_memory_as_the_model_renders_it, starts_while_a_frame_runs_are_ignored,
-            a_bus_error_is_reported_and_the_frame_still_ends);
+            a_bus_error_is_reported_and_the_frame_still_ends, an_abort_stops_a_frame_and_nothing_lands_after_it,
+            an_abort_while_idle_does_nothing, a_frame_whose_memory_never_answers_ends_with_an_error);
     };
     (@each $make:expr; $($check:ident),* $(,)?) => {
         $(

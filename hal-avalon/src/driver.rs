@@ -7,9 +7,10 @@ use embedded_hal::delay::DelayNs;
 use model::{Light, LightError};
 
 use crate::map::{
-    light_to_register, line_word_offset, Csr, CONTROL_START, CSR_OFFSET, FRAME_BASE_MASK, FRAME_CONTROL_START,
-    FRAME_STATUS_BUSY, FRAME_STATUS_DONE, FRAME_STATUS_ERROR, FRAME_STATUS_MASK, ID_MAGIC, ID_VALUE, ID_VERSION_FRAMES,
-    LINE_WORDS, PIXEL_RESERVED_MASK, ROWS, STATUS_BUSY, STATUS_DONE, STATUS_MASK,
+    light_to_register, line_word_offset, Csr, CONTROL_START, CSR_OFFSET, FRAME_BASE_MASK, FRAME_CONTROL_ABORT,
+    FRAME_CONTROL_START, FRAME_STATUS_ABORTED, FRAME_STATUS_BUSY, FRAME_STATUS_DONE, FRAME_STATUS_ERROR,
+    FRAME_STATUS_MASK, ID_MAGIC, ID_VALUE, ID_VERSION_FRAMES, LINE_WORDS, PIXEL_RESERVED_MASK, ROWS, STATUS_BUSY,
+    STATUS_DONE, STATUS_MASK,
 };
 use crate::port::RegisterPort;
 
@@ -71,6 +72,12 @@ pub enum Error {
         /// Rows that landed before the failure.
         rows: u16,
     },
+    /// The frame was stopped before its end by an abort
+    /// ([`Accelerator::abort_frame`]): rows `0..rows` landed.
+    FrameAborted {
+        /// Rows that landed before the abort.
+        rows: u16,
+    },
     /// A frame was asked of an accelerator whose map version has no frame
     /// DMA (version 1).
     NoFrameMode {
@@ -92,11 +99,12 @@ pub enum Error {
         /// What the ID register read.
         id: u32,
     },
-    /// STATUS did not show the awaited state within the [`PollTimeout`]:
-    /// busy still set (a stuck row) or, with busy clear, done never set.
-    /// The next call starts over and works once the device recovers.
+    /// STATUS (or FRAME_STATUS, while aborting a frame) did not show the
+    /// awaited state within the [`PollTimeout`]: busy still set (a stuck row
+    /// or frame) or, with busy clear, done never set. The next call starts
+    /// over and works once the device recovers.
     Timeout {
-        /// The last STATUS value read.
+        /// The last status value read.
         status: u32,
     },
     /// A read returned bits the device always reads as 0 (for example all
@@ -114,6 +122,7 @@ impl fmt::Display for Error {
         match self {
             Error::FrameBaseMisaligned { base } => write!(f, "frame base {base:#010x} is not 8-byte aligned"),
             Error::DmaError { rows } => write!(f, "frame DMA write failed after {rows} rows"),
+            Error::FrameAborted { rows } => write!(f, "frame aborted after {rows} rows"),
             Error::NoFrameMode { version } => {
                 write!(f, "register map version {version} has no frame mode (needs {ID_VERSION_FRAMES})")
             }
@@ -280,7 +289,24 @@ impl<P: RegisterPort, D: DelayNs> Accelerator<P, D> {
         if status & FRAME_STATUS_ERROR != 0 {
             return self.fail(Error::DmaError { rows });
         }
+        if status & FRAME_STATUS_ABORTED != 0 {
+            return self.fail(Error::FrameAborted { rows });
+        }
         Ok(FrameProgress { rows, done: status & FRAME_STATUS_DONE != 0 && status & FRAME_STATUS_BUSY == 0 })
+    }
+
+    /// Stop the frame in progress, if any, and wait until the accelerator is
+    /// idle: on `Ok` nothing more of that frame lands in memory and its
+    /// buffer may be reused (register map, "Stopping a frame"). Bounded by
+    /// the [`PollTimeout`]; [`Error::Timeout`] if busy never clears (the
+    /// buffer must then stay out of use).
+    pub fn abort_frame(&mut self) -> Result<(), Error> {
+        let busy = |s: u32| s & FRAME_STATUS_BUSY != 0;
+        if !busy(self.read_checked(Csr::FrameStatus, FRAME_STATUS_MASK)?) {
+            return Ok(());
+        }
+        self.port.write(Csr::FrameControl, FRAME_CONTROL_ABORT);
+        self.poll(Csr::FrameStatus, FRAME_STATUS_MASK, |s| !busy(s))
     }
 
     fn write_light(&mut self, light: &Light) {
@@ -307,13 +333,23 @@ impl<P: RegisterPort, D: DelayNs> Accelerator<P, D> {
 
     /// Read STATUS until `ready` holds, at most `max_polls` times.
     fn poll_status(&mut self, ready: impl Fn(u32) -> bool) -> Result<(), Error> {
+        self.poll(Csr::Status, STATUS_MASK, ready)
+    }
+
+    /// Read `csr` (whose bits outside `mask` always read 0).
+    fn read_checked(&mut self, csr: Csr, mask: u32) -> Result<u32, Error> {
+        let value = self.port.read(csr);
+        if value & !mask != 0 {
+            return self.fail(Error::BusFault { offset: CSR_OFFSET + csr.offset(), value });
+        }
+        Ok(value)
+    }
+
+    /// Read `csr` until `ready` holds, at most `max_polls` times.
+    fn poll(&mut self, csr: Csr, mask: u32, ready: impl Fn(u32) -> bool) -> Result<(), Error> {
         let mut polls_left = self.timeout.max_polls;
         loop {
-            let status = self.port.read(Csr::Status);
-            if status & !STATUS_MASK != 0 {
-                let offset = CSR_OFFSET + Csr::Status.offset();
-                return self.fail(Error::BusFault { offset, value: status });
-            }
+            let status = self.read_checked(csr, mask)?;
             if ready(status) {
                 return Ok(());
             }

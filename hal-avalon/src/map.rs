@@ -16,7 +16,9 @@
 //!
 //! Map version 2 adds the frame DMA (`0x1C..=0x28`) to version 1's row
 //! registers (`0x00..=0x18`, unchanged): the ID register tells a driver which
-//! it has ([`ID_VERSION_FRAMES`]).
+//! it has ([`ID_VERSION_FRAMES`]). The frame abort and the stall limit
+//! ([Stopping a frame](#stopping-a-frame)) belong to version 2: no
+//! version 2 bitstream without them was ever released.
 //!
 //! # CSR block
 //!
@@ -30,8 +32,8 @@
 //! | `0x14` | [`Csr::LightZ`] | R/W | light z, as light x. |
 //! | `0x18` | [`Csr::Id`] | R | [`ID_VALUE`] `0x5254_0002`: magic `0x5254` ("RT") in bits 31:16, map version 2 in bits 15:0. Writes ignored. |
 //! | `0x1C` | [`Csr::FrameBase`] | R/W | bus address of the frame buffer; bits 31:3 stored ([`FRAME_BASE_MASK`]), bits 2:0 read 0. |
-//! | `0x20` | [`Csr::FrameControl`] | W | bit 0 [`FRAME_CONTROL_START`]: render a whole frame for `LIGHT_*` into `FRAME_BASE` (ignored while busy); bit 1 [`FRAME_CONTROL_CLEAR_DONE`]: clear frame done. Reads 0. |
-//! | `0x24` | [`Csr::FrameStatus`] | R | bit 0 [`FRAME_STATUS_BUSY`]: a frame is in progress; bit 1 [`FRAME_STATUS_DONE`]: sticky, every row landed; bit 2 [`FRAME_STATUS_ERROR`]: sticky until the next frame, a write to memory failed. Writes ignored. |
+//! | `0x20` | [`Csr::FrameControl`] | W | bit 0 [`FRAME_CONTROL_START`]: render a whole frame for `LIGHT_*` into `FRAME_BASE` (ignored while busy); bit 1 [`FRAME_CONTROL_CLEAR_DONE`]: clear frame done; bit 2 [`FRAME_CONTROL_ABORT`]: stop the frame in progress (wins over the other bits). Reads 0. |
+//! | `0x24` | [`Csr::FrameStatus`] | R | bit 0 [`FRAME_STATUS_BUSY`]: a frame is in progress (or stopping); bit 1 [`FRAME_STATUS_DONE`]: sticky, every row landed; bit 2 [`FRAME_STATUS_ERROR`]: sticky until the next frame, a write to memory failed or the memory stopped answering; bit 3 [`FRAME_STATUS_ABORTED`]: sticky until the next frame, the frame was stopped before its end (an abort or the stall limit). Writes ignored. |
 //! | `0x28` | [`Csr::RowsDone`] | R | rows `0..n` of the current (or last) frame whose bytes have landed in memory, `0..=360`. Writes ignored. |
 //!
 //! # Behaviour
@@ -66,6 +68,30 @@
 //!   end (busy clears), done stays clear.
 //! * A row start or a frame start while busy is ignored; the line buffer
 //!   and `STATUS.done` are not part of frame mode.
+//!
+//! # Stopping a frame
+//!
+//! A frame that cannot complete (the FPGA-to-SDRAM port held in reset, a
+//! lost write response) must neither hold the accelerator nor land late in
+//! a frame buffer that software has reused.
+//!
+//! * An abort ([`FRAME_CONTROL_ABORT`]) while a frame is in progress stops
+//!   it: no new burst is issued, the bursts already announced on the bus are
+//!   completed with every byte strobe off (AXI forbids withdrawing them; no
+//!   byte is written), the outstanding write responses are collected, the
+//!   renderer drains, and then busy clears with aborted set and done clear.
+//!   `ROWS_DONE` keeps the rows that had landed. An abort while idle does
+//!   nothing; a write with the abort bit never starts a frame. Once busy
+//!   reads clear after an abort, nothing of that frame reaches memory any
+//!   more and the buffer may be reused.
+//! * Stall limit: when the memory makes no transfer on any write channel
+//!   for [`FRAME_STALL_CYCLES`] fabric clocks while the DMA waits on it, the
+//!   frame stops as by an abort and error sets as well. If the memory still
+//!   answers nothing for another [`FRAME_STALL_CYCLES`] while stopping, the
+//!   DMA withdraws its requests and goes idle anyway (error and aborted
+//!   set): a frame never holds the accelerator longer than
+//!   `2 * FRAME_STALL_CYCLES` past its last transfer.
+//! * Row mode is available again as soon as busy clears.
 
 /// Base address of the lightweight HPS-to-FPGA bridge window in the HPS
 /// address map.
@@ -228,8 +254,18 @@ pub const FRAME_STATUS_BUSY: u32 = 1 << 0;
 pub const FRAME_STATUS_DONE: u32 = 1 << 1;
 /// FRAME_STATUS bit 2: sticky until the next frame; a memory write failed.
 pub const FRAME_STATUS_ERROR: u32 = 1 << 2;
+/// FRAME_CONTROL bit 2: stop the frame in progress ([Stopping a frame](self#stopping-a-frame)).
+pub const FRAME_CONTROL_ABORT: u32 = 1 << 2;
+/// FRAME_STATUS bit 3: sticky until the next frame; the frame was stopped
+/// before its end, by an abort or the stall limit.
+pub const FRAME_STATUS_ABORTED: u32 = 1 << 3;
 /// The FRAME_STATUS bits that can be set.
-pub const FRAME_STATUS_MASK: u32 = FRAME_STATUS_BUSY | FRAME_STATUS_DONE | FRAME_STATUS_ERROR;
+pub const FRAME_STATUS_MASK: u32 = FRAME_STATUS_BUSY | FRAME_STATUS_DONE | FRAME_STATUS_ERROR | FRAME_STATUS_ABORTED;
+/// Fabric clocks without a transfer on any write channel, while the frame
+/// DMA waits on the memory, after which the frame stops with an error:
+/// 2^17 clocks, 2.6 ms at 50 MHz. A healthy FPGA-to-SDRAM port answers
+/// within microseconds; a whole frame takes about 3.5 ms.
+pub const FRAME_STALL_CYCLES: u32 = 1 << 17;
 /// Bytes of one row in the frame buffer.
 pub const FRAME_ROW_BYTES: u32 = model::ROW_BYTES as u32;
 /// Bytes of one frame in the frame buffer.

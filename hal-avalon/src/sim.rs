@@ -19,6 +19,12 @@
 //! [`frame_rows_per_poll`](SimAccelerator::frame_rows_per_poll) more rows
 //! land.
 //!
+//! A memory whose [`DmaTarget::answers`] is `false` takes no write: the
+//! frame stalls, and after [`FRAME_STALL_POLLS`] status reads without
+//! progress it stops with error and aborted set, as the RTL does after
+//! [`FRAME_STALL_CYCLES`](crate::map::FRAME_STALL_CYCLES) clocks. An abort
+//! stops a frame at once.
+//!
 //! [`Fault`] injects the failures the driver must survive. No `std`, no
 //! allocation.
 
@@ -27,9 +33,9 @@ use model::Light;
 
 use crate::map::{
     light_from_register, Csr, BUS_ALL_ONES, CONTROL_CLEAR_DONE, CONTROL_START, CSR_OFFSET, CSR_WINDOW, FRAME_BASE_MASK,
-    FRAME_CONTROL_CLEAR_DONE, FRAME_CONTROL_START, FRAME_ROW_BYTES, FRAME_STATUS_BUSY, FRAME_STATUS_DONE,
-    FRAME_STATUS_ERROR, ID_VALUE, LIGHT_MASK, LINE_BUFFER_OFFSET, LINE_WORDS, ROWS, ROW_Y_MASK, STATUS_BUSY,
-    STATUS_DONE,
+    FRAME_CONTROL_ABORT, FRAME_CONTROL_CLEAR_DONE, FRAME_CONTROL_START, FRAME_ROW_BYTES, FRAME_STATUS_ABORTED,
+    FRAME_STATUS_BUSY, FRAME_STATUS_DONE, FRAME_STATUS_ERROR, ID_VALUE, LIGHT_MASK, LINE_BUFFER_OFFSET, LINE_WORDS,
+    ROWS, ROW_Y_MASK, STATUS_BUSY, STATUS_DONE,
 };
 use crate::port::RegisterPort;
 
@@ -43,11 +49,23 @@ pub const DEFAULT_BUSY_POLLS: u32 = 3;
 /// Rows of a frame that land per status read unless configured otherwise.
 pub const DEFAULT_FRAME_ROWS_PER_POLL: u16 = 12;
 
+/// Status reads without progress after which a frame whose memory does not
+/// answer stops (the simulated device's time is counted in status reads).
+pub const FRAME_STALL_POLLS: u32 = 64;
+
 /// Memory the simulated frame DMA writes into.
 pub trait DmaTarget {
     /// Write `bytes` at bus address `addr`; `false` if no memory answers
     /// there (the RTL's bus error).
     fn write(&mut self, addr: u32, bytes: &[u8]) -> bool;
+
+    /// Whether the memory takes writes at all. `false`: every write waits
+    /// for ever (an FPGA-to-SDRAM port held in reset, a lost write
+    /// response), so a frame stalls until it is aborted or hits the stall
+    /// limit.
+    fn answers(&self) -> bool {
+        true
+    }
 }
 
 /// No memory behind the DMA: every frame write fails.
@@ -63,6 +81,10 @@ impl DmaTarget for NoMemory {
 impl<T: DmaTarget + ?Sized> DmaTarget for &mut T {
     fn write(&mut self, addr: u32, bytes: &[u8]) -> bool {
         (**self).write(addr, bytes)
+    }
+
+    fn answers(&self) -> bool {
+        (**self).answers()
     }
 }
 
@@ -116,6 +138,9 @@ struct FrameState {
     busy: bool,
     done: bool,
     error: bool,
+    aborted: bool,
+    /// Status reads in a row without progress (the memory not answering).
+    stalled_polls: u32,
     /// Rows rendered (and written) so far.
     next_row: u16,
     /// Rows that landed before any failure.
@@ -163,6 +188,8 @@ impl<M: DmaTarget> SimAccelerator<M> {
                 busy: false,
                 done: false,
                 error: false,
+                aborted: false,
+                stalled_polls: 0,
                 next_row: 0,
                 rows_done: 0,
             },
@@ -322,6 +349,7 @@ impl<M: DmaTarget> SimAccelerator<M> {
                 (if f.busy { FRAME_STATUS_BUSY } else { 0 })
                     | (if f.done { FRAME_STATUS_DONE } else { 0 })
                     | (if f.error { FRAME_STATUS_ERROR } else { 0 })
+                    | (if f.aborted { FRAME_STATUS_ABORTED } else { 0 })
             }
             Csr::RowsDone => {
                 self.advance_frame();
@@ -348,9 +376,15 @@ impl<M: DmaTarget> SimAccelerator<M> {
         }
     }
 
-    /// A FRAME_CONTROL write: start a frame when idle, or clear frame done.
+    /// A FRAME_CONTROL write: abort the frame in progress, start a frame
+    /// when idle, or clear frame done; abort wins.
     fn frame_control(&mut self, value: u32) {
-        if value & FRAME_CONTROL_START != 0 {
+        if value & FRAME_CONTROL_ABORT != 0 {
+            // A wedged device (StuckBusy) ignores the abort too.
+            if self.frame.busy && self.fault != Some(Fault::StuckBusy) {
+                self.stop_frame();
+            }
+        } else if value & FRAME_CONTROL_START != 0 {
             if !self.is_busy() {
                 self.frame = FrameState {
                     base: self.frame.base,
@@ -359,6 +393,8 @@ impl<M: DmaTarget> SimAccelerator<M> {
                     busy: true,
                     done: false,
                     error: false,
+                    aborted: false,
+                    stalled_polls: 0,
                     next_row: 0,
                     rows_done: 0,
                 };
@@ -375,6 +411,15 @@ impl<M: DmaTarget> SimAccelerator<M> {
         if !self.frame.busy || self.fault == Some(Fault::StuckBusy) {
             return;
         }
+        if !self.mem.answers() {
+            self.frame.stalled_polls += 1;
+            if self.frame.stalled_polls >= FRAME_STALL_POLLS {
+                self.frame.error = true;
+                self.stop_frame();
+            }
+            return;
+        }
+        self.frame.stalled_polls = 0;
         let [x, y, z] = self.frame.latched_light.map(light_from_register);
         // A sign-extended 24-bit value is always a valid word; should that
         // ever fail, the frame ends in an error instead of a panic.
@@ -406,6 +451,14 @@ impl<M: DmaTarget> SimAccelerator<M> {
             self.frame.busy = false;
             self.frame.done = !self.frame.error && self.fault != Some(Fault::DoneNeverSet);
         }
+    }
+
+    /// The frame stops before its end: nothing more lands, `ROWS_DONE`
+    /// keeps its count.
+    fn stop_frame(&mut self) {
+        self.frame.busy = false;
+        self.frame.done = false;
+        self.frame.aborted = true;
     }
 
     /// One STATUS read: time passes for the row in progress.

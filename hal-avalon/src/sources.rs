@@ -29,6 +29,10 @@ impl<P: RegisterPort, D: DelayNs, M: FrameMemory> FrameEngine<M> for Accelerator
     fn progress(&mut self, _mem: &mut M) -> Result<u16, Error> {
         self.frame_progress().map(|p| p.rows)
     }
+
+    fn abort(&mut self, _mem: &mut M) -> Result<(), Error> {
+        self.abort_frame()
+    }
 }
 
 /// Row mode with the next row started before the current one is used:

@@ -189,6 +189,27 @@ fn the_driver_reports_dma_errors_and_vanished_devices() {
 }
 
 #[test]
+fn the_driver_aborts_a_frame_and_waits_for_idle_bounded() {
+    let mut accel = driver(Memory::new(BASE, 1 << 20));
+    assert_eq!(accel.abort_frame(), Ok(()), "nothing to stop");
+    let l = light(3.0, 4.0, -2.0);
+    accel.start_frame(BASE, &l).unwrap();
+    let rows = accel.frame_progress().unwrap().rows;
+    assert!(rows > 0 && rows < 360);
+    assert_eq!(accel.abort_frame(), Ok(()));
+    assert_eq!(accel.port_mut().read(Csr::FrameStatus), FRAME_STATUS_ABORTED, "idle, aborted");
+    let Err(Error::FrameAborted { rows: kept }) = accel.frame_progress() else { panic!("aborted") };
+    assert!(kept >= rows && kept < 360, "ROWS_DONE {kept} kept");
+    assert_eq!(accel.port().memory().rows_written(BASE), kept, "nothing landed after the abort");
+    // A device that ignores the abort: a bounded wait, then a timeout.
+    accel.start_frame(BASE, &l).unwrap();
+    accel.port_mut().set_fault(Some(Fault::StuckBusy));
+    assert!(matches!(accel.abort_frame(), Err(Error::Timeout { .. })));
+    accel.port_mut().set_fault(None);
+    assert_eq!(accel.abort_frame(), Ok(()), "works once the device recovers");
+}
+
+#[test]
 fn pipelined_rows_start_the_next_row_before_returning_this_one() {
     use hal_avalon::sources::PipelinedRows;
     use rt_protocol::RowSource;

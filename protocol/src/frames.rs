@@ -155,6 +155,14 @@ pub trait FrameEngine<M: FrameMemory> {
     /// Rows `0..n` of the frame in progress that have landed. May do work
     /// (a software engine renders a row per call); never blocks for long.
     fn progress(&mut self, mem: &mut M) -> Result<u16, Self::Error>;
+
+    /// Stop the frame in progress after a failure and return once nothing
+    /// more of it can land in memory; an error if that cannot be confirmed
+    /// (the slot must then stay out of use). Bounded. An engine that writes
+    /// nothing on its own (a software renderer) has nothing to stop.
+    fn abort(&mut self, _mem: &mut M) -> Result<(), Self::Error> {
+        Ok(())
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -168,8 +176,13 @@ enum SlotState<E> {
     Ready,
     /// Released while the engine still writes it: freed when it finishes.
     Abandoned,
-    /// The engine failed it.
+    /// The engine failed it (and stopped writing it).
     Failed(E),
+    /// The engine failed it and could not confirm that it stopped writing:
+    /// out of use until an abort succeeds.
+    Quarantined(E),
+    /// Released while quarantined: freed once an abort succeeds.
+    Lost,
 }
 
 /// Frame mode: `SLOTS` whole frames in `M`, rendered by `E` in the order
@@ -202,34 +215,41 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
         self.slots.iter().filter(|s| matches!(s, SlotState::Free)).count()
     }
 
+    /// Slots out of use because a failed frame's engine could not confirm
+    /// that it stopped writing them.
+    pub fn quarantined_slots(&self) -> usize {
+        self.slots.iter().filter(|s| matches!(s, SlotState::Quarantined(_) | SlotState::Lost)).count()
+    }
+
     /// Advance the engine: progress of the frame in progress, the next
-    /// queued frame started when it is done (or failed).
+    /// queued frame started when it is done (or failed). A failed frame is
+    /// aborted before its slot can be used again.
     fn pump(&mut self) {
         if let Some(slot) = self.rendering {
             let result = self.engine.progress(&mut self.mem);
-            let finished = match (result, &mut self.slots[slot]) {
-                (Ok(rows), SlotState::Rendering(r)) => {
-                    *r = rows.min(ROWS);
-                    rows >= ROWS
-                }
-                (Ok(rows), _) => rows >= ROWS,
-                (Err(e), state) => {
-                    if !matches!(state, SlotState::Abandoned) {
-                        *state = SlotState::Failed(e);
+            let stopped = match result {
+                Ok(rows) => {
+                    if let SlotState::Rendering(r) = &mut self.slots[slot] {
+                        *r = rows.min(ROWS);
+                    }
+                    if rows < ROWS {
+                        return;
                     }
                     true
                 }
+                Err(_) => self.engine.abort(&mut self.mem).is_ok(),
             };
-            if !finished {
-                return;
-            }
-            self.slots[slot] = match self.slots[slot] {
-                SlotState::Rendering(_) => SlotState::Ready,
-                SlotState::Abandoned => SlotState::Free,
-                other => other,
+            self.slots[slot] = match (result, self.slots[slot], stopped) {
+                (Ok(_), SlotState::Rendering(_), _) => SlotState::Ready,
+                (_, SlotState::Abandoned, true) => SlotState::Free,
+                (_, SlotState::Abandoned, false) => SlotState::Lost,
+                (Err(e), _, true) => SlotState::Failed(e),
+                (Err(e), _, false) => SlotState::Quarantined(e),
+                (Ok(_), other, _) => other,
             };
             self.rendering = None;
         }
+
         while let Some(slot) = self.queue.pop_front() {
             let SlotState::Queued(light) = self.slots[slot] else {
                 continue;
@@ -246,11 +266,32 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
     }
 }
 
+impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOTS> {
+    /// Quarantined slots return once the engine, idle, confirms that
+    /// nothing more lands (tried only when no slot is free).
+    fn reclaim(&mut self) {
+        let quarantined = self.slots.iter().any(|s| matches!(s, SlotState::Quarantined(_) | SlotState::Lost));
+        if !quarantined || self.rendering.is_some() || self.engine.abort(&mut self.mem).is_err() {
+            return;
+        }
+        for state in &mut self.slots {
+            *state = match *state {
+                SlotState::Quarantined(e) => SlotState::Failed(e),
+                SlotState::Lost => SlotState::Free,
+                other => other,
+            };
+        }
+    }
+}
+
 impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameSource for FrameRing<M, E, SLOTS> {
     type Frame = usize;
     type Error = E::Error;
 
     fn begin(&mut self, light: &Light) -> Result<Option<usize>, E::Error> {
+        if !self.slots.iter().any(|s| matches!(s, SlotState::Free)) {
+            self.reclaim();
+        }
         let Some(slot) = self.slots.iter().position(|s| matches!(s, SlotState::Free)) else {
             return Ok(None);
         };
@@ -268,7 +309,7 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameSource for Fram
         match self.slots.get(frame) {
             Some(SlotState::Rendering(rows)) => Ok(*rows),
             Some(SlotState::Ready) => Ok(ROWS),
-            Some(SlotState::Failed(e)) => Err(*e),
+            Some(SlotState::Failed(e) | SlotState::Quarantined(e)) => Err(*e),
             _ => Ok(0),
         }
     }
@@ -293,6 +334,7 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameSource for Fram
         };
         *state = match state {
             SlotState::Rendering(_) => SlotState::Abandoned,
+            SlotState::Quarantined(_) | SlotState::Lost => SlotState::Lost,
             _ => SlotState::Free,
         };
     }
@@ -406,7 +448,9 @@ impl<P: fmt::Display, F: fmt::Display> fmt::Display for EngineError<P, F> {
 /// [`WEDGED_AFTER`](crate::fallback::WEDGED_AFTER) failed frames in a row
 /// the primary is switched off for good.
 pub struct FallbackEngine<P, F> {
+    /// Kept after it is switched off, to stop a frame it may still write.
     primary: Option<P>,
+    active: bool,
     fallback: F,
     using: Using,
     consecutive: u32,
@@ -416,17 +460,18 @@ pub struct FallbackEngine<P, F> {
 impl<P, F> FallbackEngine<P, F> {
     /// `primary` first (none: the fallback only), `fallback` where it fails.
     pub fn new(primary: Option<P>, fallback: F) -> FallbackEngine<P, F> {
-        FallbackEngine { primary, fallback, using: Using::Fallback, consecutive: 0, switched_off: false }
+        let active = primary.is_some();
+        FallbackEngine { primary, active, fallback, using: Using::Fallback, consecutive: 0, switched_off: false }
     }
 
     /// Whether the primary engine is still in use.
     pub fn primary_active(&self) -> bool {
-        self.primary.is_some()
+        self.active
     }
 
     /// The primary engine, while it is in use.
     pub fn primary(&mut self) -> Option<&mut P> {
-        self.primary.as_mut()
+        self.primary.as_mut().filter(|_| self.active)
     }
 
     /// `true` once, right after the primary was switched off.
@@ -436,8 +481,14 @@ impl<P, F> FallbackEngine<P, F> {
 
     fn failed(&mut self) {
         self.consecutive += 1;
-        if self.consecutive >= crate::fallback::WEDGED_AFTER && self.primary.is_some() {
-            self.primary = None;
+        if self.consecutive >= crate::fallback::WEDGED_AFTER {
+            self.switch_off();
+        }
+    }
+
+    fn switch_off(&mut self) {
+        if self.active {
+            self.active = false;
             self.switched_off = true;
         }
     }
@@ -447,7 +498,7 @@ impl<M: FrameMemory, P: FrameEngine<M>, F: FrameEngine<M>> FrameEngine<M> for Fa
     type Error = EngineError<P::Error, F::Error>;
 
     fn start(&mut self, mem: &mut M, slot: usize, light: &Light) -> Result<(), Self::Error> {
-        if let Some(p) = &mut self.primary {
+        if let Some(p) = self.primary.as_mut().filter(|_| self.active) {
             match p.start(mem, slot, light) {
                 Ok(()) => {
                     self.using = Using::Primary;
@@ -475,6 +526,22 @@ impl<M: FrameMemory, P: FrameEngine<M>, F: FrameEngine<M>> FrameEngine<M> for Fa
                 }
             },
             _ => self.fallback.progress(mem).map_err(EngineError::Fallback),
+        }
+    }
+
+    /// Stops the primary (switched off or not: a frame it failed may still
+    /// be writing) and, if it rendered the last frame, the fallback. A
+    /// primary that cannot confirm it stopped is switched off at once.
+    fn abort(&mut self, mem: &mut M) -> Result<(), Self::Error> {
+        if let Some(p) = &mut self.primary {
+            if let Err(e) = p.abort(mem) {
+                self.switch_off();
+                return Err(EngineError::Primary(e));
+            }
+        }
+        match self.using {
+            Using::Primary => Ok(()),
+            Using::Fallback => self.fallback.abort(mem).map_err(EngineError::Fallback),
         }
     }
 }
@@ -542,6 +609,10 @@ impl<M: FrameMemory, E: FrameEngine<M>, C: FnMut() -> crate::time::Instant> Fram
             return Err(WatchdogError::Stalled { rows });
         }
         Ok(rows)
+    }
+
+    fn abort(&mut self, mem: &mut M) -> Result<(), Self::Error> {
+        self.engine.abort(mem).map_err(WatchdogError::Engine)
     }
 }
 
@@ -704,5 +775,96 @@ mod tests {
         assert_eq!(ring.rows_ready(f), Ok(0), "within the limit");
         now.set(501);
         assert_eq!(ring.rows_ready(f), Err(WatchdogError::Stalled { rows: 0 }));
+    }
+
+    /// An engine whose frames never land a row; it stops writing on an
+    /// abort only while `stoppable`.
+    struct Stalling {
+        writing: bool,
+        stoppable: bool,
+        aborts: u32,
+    }
+
+    impl FrameEngine<SliceMemory<'_>> for Stalling {
+        type Error = &'static str;
+        fn start(&mut self, _: &mut SliceMemory<'_>, _: usize, _: &Light) -> Result<(), &'static str> {
+            self.writing = true;
+            Ok(())
+        }
+        fn progress(&mut self, _: &mut SliceMemory<'_>) -> Result<u16, &'static str> {
+            Ok(0)
+        }
+        fn abort(&mut self, _: &mut SliceMemory<'_>) -> Result<(), &'static str> {
+            self.aborts += 1;
+            if self.stoppable {
+                self.writing = false;
+                Ok(())
+            } else {
+                Err("still busy")
+            }
+        }
+    }
+
+    fn stalling_ring<'m>(
+        mem: &'m mut [u8],
+        stoppable: bool,
+        now: &'m core::cell::Cell<u64>,
+    ) -> FrameRing<SliceMemory<'m>, Watchdog<Stalling, impl FnMut() -> crate::time::Instant + 'm>, 1> {
+        let clock = move || crate::time::Instant::from_millis(now.get());
+        let engine = Watchdog::new(
+            Stalling { writing: false, stoppable, aborts: 0 },
+            clock,
+            core::time::Duration::from_millis(500),
+        );
+        FrameRing::new(SliceMemory::new(0, mem), engine)
+    }
+
+    #[test]
+    fn the_watchdog_aborts_a_stalled_frame_before_its_slot_is_reused() {
+        let now = core::cell::Cell::new(0u64);
+        let mut mem = vec![0u8; FRAME_BYTES];
+        let mut ring = stalling_ring(&mut mem, true, &now);
+        let f = ring.begin(&light(2.0)).unwrap().unwrap();
+        now.set(501);
+        assert_eq!(ring.rows_ready(f), Err(WatchdogError::Stalled { rows: 0 }));
+        assert_eq!(ring.engine().engine().aborts, 1, "aborted when it failed");
+        assert!(!ring.engine().engine().writing, "stopped before the slot is released");
+        ring.end(f);
+        assert_eq!(ring.free_slots(), 1);
+        assert_eq!(ring.quarantined_slots(), 0);
+    }
+
+    #[test]
+    fn a_frame_that_cannot_be_stopped_keeps_its_slot_until_an_abort_succeeds() {
+        let now = core::cell::Cell::new(0u64);
+        let mut mem = vec![0u8; FRAME_BYTES];
+        let mut ring = stalling_ring(&mut mem, false, &now);
+        let f = ring.begin(&light(2.0)).unwrap().unwrap();
+        now.set(501);
+        assert_eq!(ring.rows_ready(f), Err(WatchdogError::Stalled { rows: 0 }));
+        assert_eq!(ring.rows_ready(f), Err(WatchdogError::Stalled { rows: 0 }), "the error stays");
+        ring.end(f);
+        assert_eq!((ring.free_slots(), ring.quarantined_slots()), (0, 1), "still written: out of use");
+        assert_eq!(ring.begin(&light(3.0)).unwrap(), None, "no slot while the engine may write it");
+        assert_eq!(ring.engine().engine().aborts, 2, "tried again when a slot was wanted");
+        ring.engine().engine().stoppable = true;
+        assert_eq!(ring.begin(&light(3.0)).unwrap(), Some(f), "back once the engine stopped");
+        assert_eq!(ring.engine().engine().aborts, 3);
+    }
+
+    #[test]
+    fn a_primary_that_cannot_stop_its_frame_is_switched_off_at_once() {
+        let mut mem = vec![0u8; FRAME_BYTES];
+        let stuck = Stalling { writing: false, stoppable: false, aborts: 0 };
+        let engine = FallbackEngine::new(Some(stuck), RowEngine::new(SoftwareRenderer));
+        let mut ring = FrameRing::<_, _, 1>::new(SliceMemory::new(0, &mut mem), engine);
+        let mut m = vec![0u8; FRAME_BYTES];
+        let mut scratch = SliceMemory::new(0, &mut m);
+        let f = ring.begin(&light(1.0)).unwrap().unwrap();
+        assert!(ring.engine().primary_active());
+        assert!(FrameEngine::abort(ring.engine(), &mut scratch).is_err());
+        assert!(!ring.engine().primary_active(), "a device that cannot stop is wedged");
+        assert!(ring.engine().take_switched_off());
+        ring.end(f);
     }
 }
