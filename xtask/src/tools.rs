@@ -104,9 +104,16 @@ pub fn as_root(program: &str) -> Command {
     }
 }
 
-/// `apt-get` as root, never asking questions.
+/// How long apt-get waits for another apt or dpkg process (unattended-upgrades
+/// right after a desktop boots) to release the dpkg lock, in seconds.
+pub const APT_LOCK_TIMEOUT_S: u32 = 600;
+
+/// `apt-get` as root, never asking questions, waiting up to
+/// [`APT_LOCK_TIMEOUT_S`] for the dpkg lock instead of failing at once
+/// (apt.conf(5), `DPkg::Lock::Timeout`).
 pub fn apt_get(args: &[&str]) -> Command {
     let mut c = as_root("apt-get");
+    c.arg("-o").arg(format!("DPkg::Lock::Timeout={APT_LOCK_TIMEOUT_S}"));
     c.args(args).env("DEBIAN_FRONTEND", "noninteractive");
     c
 }
@@ -117,6 +124,7 @@ pub fn apt_install(packages: &[&str], suite: Option<&str>) -> Result<()> {
     if packages.is_empty() {
         return Ok(());
     }
+    println!("==> apt-get waits up to {APT_LOCK_TIMEOUT_S} s for the dpkg lock if another apt process holds it");
     step("apt-get update", apt_get(&["update", "-q"]))?;
     let mut args = vec!["install", "-y", "-q", "--no-install-recommends"];
     if let Some(s) = suite {
@@ -259,6 +267,15 @@ pub fn ensure_yowasp() -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn apt_get_waits_for_the_dpkg_lock() {
+        let c = apt_get(&["update"]);
+        let args: Vec<_> = c.get_args().map(|a| a.to_string_lossy().into_owned()).collect();
+        let at = args.iter().position(|a| a == "-o").expect("an -o option");
+        assert_eq!(args[at + 1], format!("DPkg::Lock::Timeout={APT_LOCK_TIMEOUT_S}"));
+        assert_eq!(args.last().map(String::as_str), Some("update"));
+    }
 
     #[test]
     fn the_debian_entry_is_found_by_its_release() {
