@@ -71,7 +71,7 @@ module normalize
   s_t s_q;
   logic zero_q;
   s_t s;
-  always_comb begin
+  always_comb begin : p_bit_length
     int k;
     k = 0;
     for (int i = 0; i < int'(IN_W); i++) if (m_q[i]) k = i + 1;
