@@ -259,7 +259,7 @@ module rt_frame_dma
         aw_beats_q <= aw_beats_q + 17'(aw_len_q);
         blast_q[b_wr_q] <= aw_last_of_row_q;
         b_wr_q <= b_wr_q + 1'b1;
-        aw_addr_q <= aw_addr_q + 32'(aw_len_q) * 32'd8;
+        aw_addr_q <= aw_addr_q + (32'(aw_len_q) << 3);  // 8 bytes per beat
         if (aw_last_of_row_q) begin
           aw_inrow_q <= '0;
           aw_row_q <= aw_row_q + row_t'(1);
