@@ -21,16 +21,17 @@ qsys-script --script=soc_system.tcl --search-path="$PWD,\$"
 qsys-generate soc_system.qsys --synthesis=VERILOG --search-path="$PWD,\$" \
   --output-directory=soc_system
 
-# 2. Analysis and synthesis, then the HPS DDR3 pin assignments.
+# 2. Analysis and synthesis, then the HPS DDR3 pin assignments (the script
+#    needs the synthesised netlist to find the memory pins).
 quartus_map de1_soc
 # quartus_sta runs the pin script directly (under quartus_sh it relaunches
-# itself and its exit status is lost, as Intel's GHRD Makefile avoids too).
+# itself and its exit status is lost).
 quartus_sta -t soc_system/synthesis/submodules/hps_sdram_p0_pin_assignments.tcl de1_soc
 
-# 3. Fit, assemble, timing.
-quartus_fit de1_soc
-quartus_asm de1_soc
-quartus_sta de1_soc
+# 3. The full compile flow with those assignments in the .qsf: synthesis
+#    again, fit, assembler, timing analysis; as Intel's GHRD Makefile does
+#    after its pin-assignment step (`quartus_sh --flow compile`).
+quartus_sh --flow compile de1_soc
 
 # 4. Raw binary for U-Boot's `fpga load` (and for the FPGA manager).
 quartus_cpf -c -o bitstream_compression=$COMPRESS \

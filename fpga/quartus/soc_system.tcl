@@ -27,14 +27,32 @@ add_instance hps_0 altera_hps
 # Bridges: the lightweight HPS-to-FPGA bridge (registers) and one 64-bit
 # AXI-3 FPGA-to-SDRAM port, f2h_sdram0 (the frame DMA writes frames into
 # HPS SDRAM; docs/frame-dma.md#port). With one AXI port at 64 bits the
-# boot loader must release FPGA-port resets 0x311 (command ports 0 and 4,
-# read port 0, write port 0; docs/frame-dma.md#boot-loader).
+# boot loader must write fpgaportrst = 0x311 (Cyclone V HPS TRM, SDRAM
+# Controller Subsystem register map, fpgaportrst.portrstn: bits 3:0 read
+# data ports 0-3, bits 7:4 write data ports 0-3, bits 13:8 command ports
+# 0-5), which releases read port 0 (bit 0), write port 0 (bit 4) and
+# command ports 0 and 1 (bits 8 and 9: the AXI port's read and write
+# command ports); docs/frame-dma.md#boot-loader.
 set_instance_parameter_value hps_0 LWH2F_Enable {true}
 set_instance_parameter_value hps_0 S2F_Width {0}
 set_instance_parameter_value hps_0 F2S_Width {0}
 set_instance_parameter_value hps_0 F2SDRAM_Type {AXI-3}
 set_instance_parameter_value hps_0 F2SDRAM_Width {64}
 set_instance_parameter_value hps_0 F2SINTERRUPT_Enable {0}
+# FPGA-side HPS interfaces nothing here uses, off explicitly so the system
+# does not depend on a Quartus version's defaults:
+# MPU standby/event signals to the fabric
+set_instance_parameter_value hps_0 MPU_EVENTS_Enable {0}
+# System Trace Macrocell stimulus port from the fabric
+set_instance_parameter_value hps_0 STM_Enable {0}
+# FPGA-to-HPS cold reset request
+set_instance_parameter_value hps_0 F2SCLK_COLDRST_Enable {0}
+# FPGA-to-HPS warm reset request
+set_instance_parameter_value hps_0 F2SCLK_WARMRST_Enable {0}
+# FPGA-to-HPS debug reset request
+set_instance_parameter_value hps_0 F2SCLK_DBGRST_Enable {0}
+# boot from FPGA (the HPS boots from the SD card)
+set_instance_parameter_value hps_0 BOOTFROMFPGA_Enable {0}
 # Peripherals the firmware uses (docs/platform.md#two-targets): EMAC1 RGMII,
 # SD card, UART0.
 set_instance_parameter_value hps_0 EMAC1_PinMuxing {HPS I/O Set 0}

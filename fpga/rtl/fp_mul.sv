@@ -10,10 +10,12 @@ module fp_mul
   input  q_t   b_i,
   output q_t   y_o
 );
+  // Signed operands at their own width, extended by the 48-bit target:
+  // the exact product in one 27x27 DSP block.
   logic signed [47:0] p_q;
   always_ff @(posedge clk_i) begin
     if (en_i) begin
-      p_q <= 48'(a_i) * 48'(b_i);
+      p_q <= a_i * b_i;
       y_o <= qround(64'(p_q));
     end
   end

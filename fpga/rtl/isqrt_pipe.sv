@@ -24,11 +24,13 @@ module isqrt_pipe #(
   assign low[0] = n_i;
   assign root[0] = '0;
 
-  for (genvar s = 0; s < Stages; s++) begin : g_stage
+  generate
+  genvar s;
+  for (s = 0; s < Stages; s = s + 1) begin : g_stage
     logic [RemW-1:0] r, trial;
     logic [2*R_W-1:0] l;
     logic [R_W-1:0] q;
-    always_comb begin
+    always_comb begin : p_step
       r = rem[s];
       l = low[s];
       q = root[s];
@@ -61,6 +63,7 @@ module isqrt_pipe #(
     assign low[s+1] = l_q;
     assign root[s+1] = q_q;
   end
+  endgenerate
 
   assign root_o = root[Stages];
 endmodule

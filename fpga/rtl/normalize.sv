@@ -71,7 +71,7 @@ module normalize
   s_t s_q;
   logic zero_q;
   s_t s;
-  always_comb begin
+  always_comb begin : p_bit_length
     int k;
     k = 0;
     for (int i = 0; i < int'(IN_W); i++) if (m_q[i]) k = i + 1;
@@ -87,14 +87,16 @@ module normalize
     end
   end
 
-  // Cycles 3-4: squares, then their exact sum (< 2^30).
+  // Cycles 3-4: squares, then their exact sum (< 2^30). |w| <= 2^14, so a
+  // square is at most 2^28: the signed 15 x 15-bit product, extended to the
+  // 29-bit target, is exact.
   logic [28:0] sx_q, sy_q, sz_q;
   logic [29:0] q_q;
   always_ff @(posedge clk_i) begin
     if (en_i) begin
-      sx_q <= 29'($signed(30'(wx_q) * 30'(wx_q)));
-      sy_q <= 29'($signed(30'(wy_q) * 30'(wy_q)));
-      sz_q <= 29'($signed(30'(wz_q) * 30'(wz_q)));
+      sx_q <= wx_q * wx_q;
+      sy_q <= wy_q * wy_q;
+      sz_q <= wz_q * wz_q;
       q_q <= 30'(sx_q) + 30'(sy_q) + 30'(sz_q);
     end
   end
@@ -122,15 +124,16 @@ module normalize
     .clk_i, .en_i, .d_i(len_w), .q_o(len_w_d)
   );
 
-  // Cycle: w * recip (15 x 22 bits signed); then round half up and saturate.
+  // Cycle: w * recip (15 x 22 bits signed, the reciprocal with a zero sign
+  // bit) into 37-bit targets; then round half up and saturate.
   logic signed [36:0] px_q, py_q, pz_q;
   s_t s_m;
   logic zero_m;
   always_ff @(posedge clk_i) begin
     if (en_i) begin
-      px_q <= 37'(wx_d) * $signed({16'd0, recip});
-      py_q <= 37'(wy_d) * $signed({16'd0, recip});
-      pz_q <= 37'(wz_d) * $signed({16'd0, recip});
+      px_q <= wx_d * $signed({1'b0, recip});
+      py_q <= wy_d * $signed({1'b0, recip});
+      pz_q <= wz_d * $signed({1'b0, recip});
       s_m <= s_d;
       zero_m <= zero_d;
     end

@@ -9,6 +9,7 @@ module pipe_delay #(
   input  logic [WIDTH-1:0] d_i,
   output logic [WIDTH-1:0] q_o
 );
+  generate
   if (DEPTH == 0) begin : g_wire
     assign q_o = d_i;
     /* verilator lint_off UNUSEDSIGNAL */
@@ -25,4 +26,5 @@ module pipe_delay #(
     end
     assign q_o = sr_q[DEPTH*WIDTH-1 -: WIDTH];
   end
+  endgenerate
 endmodule

@@ -20,9 +20,7 @@
 module rt_avalon_slave
   import rt_pkg::*;
 #(
-  parameter int unsigned LANES = 1,
-  localparam int unsigned PerLane = Width / LANES,
-  localparam int unsigned IdxW = $clog2(PerLane)
+  parameter int unsigned LANES = 1
 ) (
   input  logic        clk_i,
   input  logic        rst_ni,
@@ -45,10 +43,12 @@ module rt_avalon_slave
   input  logic        frame_done_i,
   input  logic        frame_error_i,
   input  row_t        rows_landed_i,
-  // line-buffer read ports (slot 0), one per bank
-  output logic [IdxW-1:0]  lb_raddr_o,
+  // line-buffer read ports (slot 0), one per bank; IdxW bits (below)
+  output logic [$clog2(Width/LANES)-1:0] lb_raddr_o,
   input  rgb_t [LANES-1:0] lb_rdata_i
 );
+  localparam int unsigned PerLane = Width / LANES;
+  localparam int unsigned IdxW = $clog2(PerLane);
   localparam int unsigned LaneBits = $clog2(LANES);
   // Word offsets of the CSRs (byte offset / 4).
   localparam logic [10:0] AddrControl     = 11'h000;

@@ -22,10 +22,7 @@
 module rt_frame_dma
   import rt_pkg::*;
 #(
-  parameter int unsigned LANES = 1,
-  localparam int unsigned PerLane = Width / LANES,
-  localparam int unsigned IdxW = $clog2(PerLane),
-  localparam int unsigned BankAw = SlotW + IdxW
+  parameter int unsigned LANES = 1
 ) (
   input  logic              clk_i,
   input  logic              rst_ni,
@@ -35,7 +32,7 @@ module rt_frame_dma
   input  logic              row_done_i,      // the scheduler wrote a row ...
   input  slot_t             row_done_slot_i, // ... into this slot
   output logic [LbSlots-1:0] slot_release_o, // the packer has read a slot
-  output logic [BankAw-1:0] lb_raddr_o,      // line-buffer read, all banks
+  output logic [SlotW+$clog2(Width/LANES)-1:0] lb_raddr_o,  // line-buffer read, all banks: {slot, index}
   input  rgb_t [LANES-1:0]  lb_rdata_i,
   output logic              busy_o,
   output logic              done_o,
@@ -59,9 +56,14 @@ module rt_frame_dma
   input  logic              bvalid_i,
   output logic              bready_o
 );
+  localparam int unsigned PerLane = Width / LANES;
+  localparam int unsigned IdxW = $clog2(PerLane);
   localparam int unsigned LaneBits = $clog2(LANES);
+  localparam int unsigned LaneSelW = (LaneBits > 0) ? LaneBits : 1;  // bank select, one bit at least
   localparam int unsigned MaxBursts = 16;
+  localparam int unsigned OutstandingW = $clog2(MaxBursts) + 1;  // 0..MaxBursts
   localparam int unsigned FifoDepth = 8;
+  localparam int unsigned FifoCntW = $clog2(FifoDepth) + 1;      // 0..FifoDepth
 
   logic active_q, done_q;
 
@@ -71,25 +73,25 @@ module rt_frame_dma
   row_t prow_q;               // row the packer reads (rows before it are packed)
   logic [9:0] px_q;           // pixel reads issued in the row
   logic rd_q;                 // a read was issued last clock ...
-  logic [LaneBits > 0 ? LaneBits - 1 : 0 : 0] rd_lane_q;  // ... from this bank
+  logic [LaneSelW-1:0] rd_lane_q;  // ... from this bank
   logic rd_last_q;            // ... and it was the row's last pixel
 
   // ---- Packer and beat FIFO ------------------------------------------------------
   logic [127:0] acc_q;        // bytes in stream order, lowest first
   logic [4:0] acc_n_q;        // valid bytes in acc_q (0..10)
   logic [63:0] fifo_q [FifoDepth];
-  logic [$clog2(FifoDepth):0] fifo_n_q;
+  logic [FifoCntW-1:0] fifo_n_q;
   logic [$clog2(FifoDepth)-1:0] fifo_rd_q, fifo_wr_q;
 
   logic can_read, push, pop;
   assign can_read = active_q && filled_q[pslot_q] && (px_q < 10'(Width))
-                    && (fifo_n_q < ($clog2(FifoDepth)+1)'(FifoDepth - 2));
+                    && (fifo_n_q < FifoCntW'(FifoDepth - 2));
   assign lb_raddr_o = {pslot_q, IdxW'(px_q >> LaneBits)};
 
   rgb_t rd_pixel;
-  always_comb begin
+  always_comb begin : p_bank_select
     rd_pixel = lb_rdata_i[0];
-    for (int l = 0; l < int'(LANES); l++) if (LaneBits > 0 && rd_lane_q == $bits(rd_lane_q)'(l)) rd_pixel = lb_rdata_i[l];
+    for (int l = 0; l < int'(LANES); l++) if (LaneBits > 0 && rd_lane_q == LaneSelW'(l)) rd_pixel = lb_rdata_i[l];
   end
 
   // Append R, G, B at the next three byte positions; a full beat leaves.
@@ -123,7 +125,7 @@ module rt_frame_dma
   logic aw_pending_q;          // awvalid held
   logic [4:0] aw_len_q;
   logic aw_last_of_row_q;
-  logic [$clog2(MaxBursts):0] outstanding_q;
+  logic [OutstandingW-1:0] outstanding_q;
   // B bookkeeping: one entry per outstanding burst, "last burst of its row".
   logic [MaxBursts-1:0] blast_q;
   logic [$clog2(MaxBursts)-1:0] b_wr_q, b_rd_q;
@@ -132,7 +134,7 @@ module rt_frame_dma
   logic aw_may;
   assign aw_may = active_q && !aw_pending_q && (aw_row_q < row_t'(Height))
                   && (aw_row_q < prow_q || (aw_row_q == prow_q && filled_q[pslot_q]))
-                  && (outstanding_q < ($clog2(MaxBursts)+1)'(MaxBursts));
+                  && (outstanding_q < OutstandingW'(MaxBursts));
   // Beats whose burst address was accepted, and beats sent: W never runs
   // ahead of AW (allowed by AXI3, but not needed and not every slave likes it).
   logic [16:0] aw_beats_q, w_beats_q;
@@ -244,7 +246,7 @@ module rt_frame_dma
         fifo_wr_q <= fifo_wr_q + 1'b1;
       end
       if (pop) fifo_rd_q <= fifo_rd_q + 1'b1;
-      fifo_n_q <= fifo_n_q + ($clog2(FifoDepth)+1)'(push) - ($clog2(FifoDepth)+1)'(pop);
+      fifo_n_q <= fifo_n_q + FifoCntW'(push) - FifoCntW'(pop);
 
       // AW: one burst at a time, held until accepted.
       if (aw_may) begin
@@ -257,7 +259,7 @@ module rt_frame_dma
         aw_beats_q <= aw_beats_q + 17'(aw_len_q);
         blast_q[b_wr_q] <= aw_last_of_row_q;
         b_wr_q <= b_wr_q + 1'b1;
-        aw_addr_q <= aw_addr_q + 32'(aw_len_q) * 32'd8;
+        aw_addr_q <= aw_addr_q + (32'(aw_len_q) << 3);  // 8 bytes per beat
         if (aw_last_of_row_q) begin
           aw_inrow_q <= '0;
           aw_row_q <= aw_row_q + row_t'(1);
@@ -265,8 +267,8 @@ module rt_frame_dma
           aw_inrow_q <= aw_inrow_q + 8'(aw_len_q);
         end
       end
-      outstanding_q <= outstanding_q + ($clog2(MaxBursts)+1)'(awvalid_o && awready_i)
-                                     - ($clog2(MaxBursts)+1)'(b_fire);
+      outstanding_q <= outstanding_q + OutstandingW'(awvalid_o && awready_i)
+                                     - OutstandingW'(b_fire);
 
       // W: walk the same bursts as AW.
       if (pop) begin

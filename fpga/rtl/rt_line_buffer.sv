@@ -4,14 +4,14 @@
 // Quartus maps to M10K blocks.
 module rt_line_buffer #(
   parameter int unsigned DEPTH = 480,
-  parameter int unsigned WIDTH = 24,
-  localparam int unsigned AW = (DEPTH > 1) ? $clog2(DEPTH) : 1
+  parameter int unsigned WIDTH = 24
 ) (
+  // Addresses are $clog2(DEPTH) bits, at least one.
   input  logic             clk_i,
   input  logic             we_i,
-  input  logic [AW-1:0]    waddr_i,
+  input  logic [((DEPTH > 1) ? $clog2(DEPTH) : 1)-1:0] waddr_i,
   input  logic [WIDTH-1:0] wdata_i,
-  input  logic [AW-1:0]    raddr_i,
+  input  logic [((DEPTH > 1) ? $clog2(DEPTH) : 1)-1:0] raddr_i,
   output logic [WIDTH-1:0] rdata_o
 );
   logic [WIDTH-1:0] mem [DEPTH];

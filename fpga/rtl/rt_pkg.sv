@@ -163,18 +163,21 @@ package rt_pkg;
   endfunction
 
   // colour.rs lerp_channel: a + (((b - a) * t + 2^9) >> 10), kept to 8 bits.
+  // (b - a) is 9 bits signed, t 12 bits with its zero sign bit: the signed
+  // product and the rounding constant fit the 22-bit target.
   function automatic logic [7:0] lerp_ch(input logic [7:0] a, input logic [7:0] b,
                                          input logic [10:0] t);
+    logic signed [8:0] diff;
     logic signed [21:0] p;
-    p = (22'($signed({1'b0, b})) - 22'($signed({1'b0, a}))) * $signed({11'd0, t})
-        + 22'sd512;
+    diff = $signed({1'b0, b}) - $signed({1'b0, a});
+    p = diff * $signed({1'b0, t}) + 22'sd512;
     return a + 8'(p >>> FracBits);
   endfunction
 
   // colour.rs scale_channel: (a * t + 2^9) >> 10, t <= 1.0.
   function automatic logic [7:0] scale_ch(input logic [7:0] a, input logic [10:0] t);
     logic [19:0] p;
-    p = 20'(a) * 20'(t) + 20'd512;
+    p = a * t + 20'd512;  // 8 x 11 bits unsigned into the 20-bit target
     return 8'(p >> FracBits);
   endfunction
 
@@ -189,7 +192,7 @@ package rt_pkg;
   // trace.rs intensity: AMBIENT + fp_mul(1 - AMBIENT, clamp_unit(cos)), <= 1.0.
   function automatic logic [10:0] intensity(input q_t cosine);
     logic [20:0] p;
-    p = 21'd768 * 21'(clamp_unit(cosine)) + 21'd512;
+    p = 10'd768 * clamp_unit(cosine) + 21'd512;  // 10 x 11 bits into 21
     return 11'd256 + 11'(p >> FracBits);
   endfunction
 

@@ -18,10 +18,7 @@ module rt_row_scheduler
 #(
   parameter int unsigned LANES    = 1,
   parameter int unsigned SQRT_BPS = 2,
-  parameter int unsigned DIV_BPS  = 2,
-  localparam int unsigned PerLane = Width / LANES,
-  localparam int unsigned IdxW = $clog2(PerLane),
-  localparam int unsigned BankAw = SlotW + IdxW  // {slot, index}
+  parameter int unsigned DIV_BPS  = 2
 ) (
   input  logic                     clk_i,
   input  logic                     rst_ni,
@@ -36,13 +33,20 @@ module rt_row_scheduler
   output slot_t                    row_done_slot_o,
   // line-buffer write ports, one bank per lane: {slot, x / LANES}
   output logic [LANES-1:0]         lb_we_o,
-  output logic [LANES-1:0][BankAw-1:0] lb_waddr_o,
+  output logic [LANES-1:0][SlotW+$clog2(Width/LANES)-1:0] lb_waddr_o,
   output rgb_t [LANES-1:0]         lb_wdata_o
 );
+  localparam int unsigned PerLane = Width / LANES;
+  localparam int unsigned IdxW = $clog2(PerLane);
   localparam int unsigned LaneBits = $clog2(LANES);
+  // Elaboration check for simulation and lint only (Quartus never sees it).
+  // synthesis translate_off
+  generate
   if ((1 << LaneBits) != LANES || PerLane * LANES != Width) begin : g_lanes_check
     $error("LANES must be a power of two dividing 480");
   end
+  endgenerate
+  // synthesis translate_on
 
   logic   frame_q;     // the current job is a frame
   logic   issuing_q;   // rows left to issue
@@ -67,7 +71,7 @@ module rt_row_scheduler
   assign row_issued = issue_fire && (ik_q == 10'(PerLane - 1));
 
   logic [9:0] n_written;
-  always_comb begin
+  always_comb begin : p_count_written
     n_written = '0;
     for (int l = 0; l < int'(LANES); l++) n_written += 10'(out_valid[l]);
   end
@@ -137,7 +141,9 @@ module rt_row_scheduler
   assign row_done_o = row_written && frame_q;
   assign row_done_slot_o = wslot_q;
 
-  for (genvar l = 0; l < int'(LANES); l++) begin : g_lane
+  generate
+  genvar l;
+  for (l = 0; l < int'(LANES); l = l + 1) begin : g_lane
     pix_t pix;
     coord_t px;
     assign px = coord_t'(ik_q << LaneBits) + coord_t'(l);  // < 480: 9 bits
@@ -151,4 +157,5 @@ module rt_row_scheduler
     assign lb_waddr_o[l] = {wslot_q, IdxW'(out[l].x >> LaneBits)};
     assign lb_wdata_o[l] = out[l].rgb;
   end
+  endgenerate
 endmodule

@@ -86,9 +86,14 @@ module rt_stage_secondary
   vec3_t perp;
   vec3_dot u_b (.clk_i, .en_i(en), .a_i(oc_q), .b_i(ldir1_q), .y_o(sb));
   vec3_cross u_perp (.clk_i, .en_i(en), .a_i(oc_q), .b_i(ldir1_q), .y_o(perp));
+  // Elaboration check for simulation and lint only (Quartus never sees it).
+  // synthesis translate_off
+  generate
   if (CrossLat != DotLat) begin : g_cross_check
     $error("b and oc x L must arrive together");
   end
+  endgenerate
+  // synthesis translate_on
   q_t d2, sb3;
   vec3_dot u_d2 (.clk_i, .en_i(en), .a_i(perp), .b_i(perp), .y_o(d2));
   pipe_delay #(.WIDTH(WordBits), .DEPTH(DotLat)) u_sb3 (

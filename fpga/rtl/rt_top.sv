@@ -90,11 +90,14 @@ module rt_top
   // register interface's (slot 0).
   assign lb_raddr = dma_busy ? dma_raddr : {SlotW'(0), slave_raddr};
 
-  for (genvar l = 0; l < int'(LANES); l++) begin : g_bank
+  generate
+  genvar l;
+  for (l = 0; l < int'(LANES); l = l + 1) begin : g_bank
     rt_line_buffer #(.DEPTH(1 << BankAw), .WIDTH($bits(rgb_t))) u_lb (
       .clk_i,
       .we_i(lb_we[l]), .waddr_i(lb_waddr[l]), .wdata_i(lb_wdata[l]),
       .raddr_i(lb_raddr), .rdata_o(lb_rdata[l])
     );
   end
+  endgenerate
 endmodule

@@ -18,6 +18,7 @@ module stage_ctrl #(
   assign in_ready_o = en_o;
   assign out_valid_o = vld_q[LAT-1];
 
+  generate
   if (LAT == 1) begin : g_one
     always_ff @(posedge clk_i or negedge rst_ni) begin
       if (!rst_ni)   vld_q <= '0;
@@ -29,4 +30,5 @@ module stage_ctrl #(
       else if (en_o) vld_q <= {vld_q[LAT-2:0], in_valid_i};
     end
   end
+  endgenerate
 endmodule

@@ -30,11 +30,13 @@ module udiv_pipe #(
   assign quo[0] = '0;
   assign div[0] = d_i;
 
-  for (genvar s = 0; s < Stages; s++) begin : g_stage
+  generate
+  genvar s;
+  for (s = 0; s < Stages; s = s + 1) begin : g_stage
     logic [D_W-1:0] r;
     logic [Q_W-1:0] l, q;
     logic [D_W:0] r2;
-    always_comb begin
+    always_comb begin : p_step
       r = rem[s];
       l = low[s];
       q = quo[s];
@@ -68,6 +70,7 @@ module udiv_pipe #(
     assign quo[s+1] = q_q;
     assign div[s+1] = d_q;
   end
+  endgenerate
 
   assign q_o = quo[Stages];
 endmodule

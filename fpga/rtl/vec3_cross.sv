@@ -10,15 +10,16 @@ module vec3_cross
   input  vec3_t b_i,
   output vec3_t y_o
 );
+  // Signed 24 x 24-bit products into 48-bit targets (q_t members are signed).
   logic signed [47:0] p_q [6];
   always_ff @(posedge clk_i) begin
     if (en_i) begin
-      p_q[0] <= 48'(a_i.y) * 48'(b_i.z);
-      p_q[1] <= 48'(a_i.z) * 48'(b_i.y);
-      p_q[2] <= 48'(a_i.z) * 48'(b_i.x);
-      p_q[3] <= 48'(a_i.x) * 48'(b_i.z);
-      p_q[4] <= 48'(a_i.x) * 48'(b_i.y);
-      p_q[5] <= 48'(a_i.y) * 48'(b_i.x);
+      p_q[0] <= a_i.y * b_i.z;
+      p_q[1] <= a_i.z * b_i.y;
+      p_q[2] <= a_i.z * b_i.x;
+      p_q[3] <= a_i.x * b_i.z;
+      p_q[4] <= a_i.x * b_i.y;
+      p_q[5] <= a_i.y * b_i.x;
       y_o.x  <= qround(64'(p_q[0]) - 64'(p_q[1]));
       y_o.y  <= qround(64'(p_q[2]) - 64'(p_q[3]));
       y_o.z  <= qround(64'(p_q[4]) - 64'(p_q[5]));

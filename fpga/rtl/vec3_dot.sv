@@ -10,12 +10,13 @@ module vec3_dot
   input  vec3_t b_i,
   output q_t    y_o
 );
+  // Signed 24 x 24-bit products into 48-bit targets (q_t members are signed).
   logic signed [47:0] px_q, py_q, pz_q;
   always_ff @(posedge clk_i) begin
     if (en_i) begin
-      px_q <= 48'(a_i.x) * 48'(b_i.x);
-      py_q <= 48'(a_i.y) * 48'(b_i.y);
-      pz_q <= 48'(a_i.z) * 48'(b_i.z);
+      px_q <= a_i.x * b_i.x;
+      py_q <= a_i.y * b_i.y;
+      pz_q <= a_i.z * b_i.z;
       y_o  <= qround(64'(px_q) + 64'(py_q) + 64'(pz_q));
     end
   end

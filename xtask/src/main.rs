@@ -11,6 +11,7 @@ mod lossy;
 mod model_cmds;
 mod qemu_e2e;
 mod quartus_check;
+mod quartus_dialect;
 mod rtl;
 mod sdcard;
 mod soak;

@@ -81,6 +81,9 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
     let out = root.join("target/rtl");
     fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
 
+    // Forms Quartus Standard/Lite rejects, before any tool runs.
+    crate::quartus_dialect::run(&root)?;
+
     ensure_apt_packages(&["verilator", "g++", "make"], None)?;
     let files = rtl_files(&rtl)?;
 
