@@ -9,9 +9,11 @@
 //   0x18 ID      R  0x5254_0002.
 //   0x1C FRAME_BASE    RW bits 31:3 (byte address; bits 2:0 read 0).
 //   0x20 FRAME_CONTROL W bit0 start a frame at FRAME_BASE with LIGHT_*
-//                   (ignored while busy), bit1 clear frame done. Reads 0.
+//                   (ignored while busy), bit1 clear frame done, bit2 abort
+//                   the frame in progress (wins over bits 0 and 1). Reads 0.
 //   0x24 FRAME_STATUS  R bit0 busy, bit1 sticky frame done (every row
-//                   landed), bit2 sticky bus error (until the next frame).
+//                   landed), bit2 sticky bus error or stall (until the next
+//                   frame), bit3 sticky aborted (until the next frame).
 //   0x28 ROWS_DONE     R rows of the current or last frame whose bytes
 //                   have landed (write responses received), 0..360.
 //   0x1000 + 4x  R  line buffer word x (x < 480), 0x00RRGGBB (row mode).
@@ -34,6 +36,7 @@ module rt_avalon_slave
   output logic        row_start_o,
   output logic        frame_start_o,
   output logic        frame_clear_done_o,
+  output logic        frame_abort_o,
   output coord_t      row_o,
   output vec3_t       light_o,
   output logic [31:3] frame_base_o,
@@ -42,6 +45,7 @@ module rt_avalon_slave
   input  logic        frame_busy_i,  // DMA busy
   input  logic        frame_done_i,
   input  logic        frame_error_i,
+  input  logic        frame_aborted_i,
   input  row_t        rows_landed_i,
   // line-buffer read ports (slot 0), one per bank; IdxW bits (below)
   output logic [$clog2(Width/LANES)-1:0] lb_raddr_o,
@@ -72,8 +76,9 @@ module rt_avalon_slave
   assign ctl_write = write_i && (address_i == AddrControl);
   assign fctl_write = write_i && (address_i == AddrFrameCtl);
   assign row_start_o = ctl_write && writedata_i[0] && !busy_i;
-  assign frame_start_o = fctl_write && writedata_i[0] && !busy_i;
-  assign frame_clear_done_o = fctl_write && !writedata_i[0] && writedata_i[1];
+  assign frame_abort_o = fctl_write && writedata_i[2];
+  assign frame_start_o = fctl_write && writedata_i[0] && !writedata_i[2] && !busy_i;
+  assign frame_clear_done_o = fctl_write && !writedata_i[0] && writedata_i[1] && !writedata_i[2];
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
     if (!rst_ni) begin
@@ -134,7 +139,7 @@ module rt_avalon_slave
         AddrLightZ:      csr_rdata_q <= 32'(light_q.z);
         AddrId:          csr_rdata_q <= IdValue;
         AddrFrameBase:   csr_rdata_q <= {base_q, 3'b000};
-        AddrFrameStatus: csr_rdata_q <= {29'd0, frame_error_i, frame_done_i, frame_busy_i};
+        AddrFrameStatus: csr_rdata_q <= {28'd0, frame_aborted_i, frame_error_i, frame_done_i, frame_busy_i};
         AddrRowsDone:    csr_rdata_q <= {23'd0, rows_landed_i};
         default:         csr_rdata_q <= '0;
       endcase

@@ -15,20 +15,37 @@
 //   the AXI FPGA-to-SDRAM port answers once the write is ordered before any
 //   later access to the same address (Intel EMIF handbook, "MPFE operation
 //   ordering"), so the counter never runs ahead of data the CPU can read.
+// * W beats of a burst go out as soon as its AW is presented, without
+//   waiting for AWREADY (AXI3 A3.3.1: a master must not wait for AWREADY
+//   before asserting WVALID), never ahead of it; AW stays valid until
+//   accepted. Platform Designer's AXI master network interface, in front
+//   of every f2h_sdram port, takes a W beat only while AWVALID is high and
+//   accepts AW with the burst's WLAST beat.
 // * A response other than OKAY sets error_o (sticky until the next frame)
 //   and freezes rows_landed_o; the frame still runs to its end, so busy
 //   always clears. done_o is set in the same clock as busy clears when no
 //   response failed (sticky until the next frame or clear_done_i).
+// * Stopping (hal-avalon map.rs, "Stopping a frame"): abort_i, or
+//   STALL_CYCLES clocks without a transfer on any write channel while the
+//   DMA waits on the memory (which also sets error_o), stops the frame: no
+//   new burst, the bursts already announced finish with WSTRB 0, the
+//   outstanding responses are collected, then busy clears with aborted_o
+//   set; rows_landed_o stops counting. If the memory stays silent for
+//   another STALL_CYCLES while stopping, the DMA withdraws its requests and
+//   goes idle anyway. stop_o pulses when a stop begins (the scheduler stops
+//   issuing rows).
 module rt_frame_dma
   import rt_pkg::*;
 #(
-  parameter int unsigned LANES = 1
+  parameter int unsigned LANES = 1,
+  parameter int unsigned STALL_CYCLES = 1 << 17  // hal-avalon FRAME_STALL_CYCLES
 ) (
   input  logic              clk_i,
   input  logic              rst_ni,
   input  logic              start_i,         // a frame starts (scheduler idle)
   input  logic [31:3]       base_i,          // byte address / 8
   input  logic              clear_done_i,    // FRAME_CONTROL clear_done
+  input  logic              abort_i,         // FRAME_CONTROL abort
   input  logic              row_done_i,      // the scheduler wrote a row ...
   input  slot_t             row_done_slot_i, // ... into this slot
   output logic [LbSlots-1:0] slot_release_o, // the packer has read a slot
@@ -38,6 +55,8 @@ module rt_frame_dma
   output logic              done_o,
   output row_t              rows_landed_o,
   output logic              error_o,
+  output logic              aborted_o,       // sticky until the next frame
+  output logic              stop_o,          // a stop begins (pulse)
   // AXI3 write master (no read channels)
   output logic [31:0]       awaddr_o,
   output logic [3:0]        awlen_o,
@@ -64,8 +83,13 @@ module rt_frame_dma
   localparam int unsigned OutstandingW = $clog2(MaxBursts) + 1;  // 0..MaxBursts
   localparam int unsigned FifoDepth = 8;
   localparam int unsigned FifoCntW = $clog2(FifoDepth) + 1;      // 0..FifoDepth
+  localparam int unsigned StallW = $clog2(STALL_CYCLES) + 1;     // 0..STALL_CYCLES
 
   logic active_q, done_q;
+  logic stopping_q;           // no new bursts; announced ones finish blank
+  logic aborted_q;
+  logic w_blank_q;            // W beats go out with every strobe off
+  logic [StallW-1:0] stall_q; // clocks waiting on the memory without a transfer
 
   // ---- Rows waiting in the line buffer ---------------------------------------
   logic [LbSlots-1:0] filled_q;  // slot holds a finished row not yet packed
@@ -84,7 +108,7 @@ module rt_frame_dma
   logic [$clog2(FifoDepth)-1:0] fifo_rd_q, fifo_wr_q;
 
   logic can_read, push, pop;
-  assign can_read = active_q && filled_q[pslot_q] && (px_q < 10'(Width))
+  assign can_read = active_q && !stopping_q && filled_q[pslot_q] && (px_q < 10'(Width))
                     && (fifo_n_q < FifoCntW'(FifoDepth - 2));
   assign lb_raddr_o = {pslot_q, IdxW'(px_q >> LaneBits)};
 
@@ -132,12 +156,14 @@ module rt_frame_dma
 
   // AW only for rows whose data is packed or in the line buffer.
   logic aw_may;
-  assign aw_may = active_q && !aw_pending_q && (aw_row_q < row_t'(Height))
+  assign aw_may = active_q && !stopping_q && !aw_pending_q && (aw_row_q < row_t'(Height))
                   && (aw_row_q < prow_q || (aw_row_q == prow_q && filled_q[pslot_q]))
                   && (outstanding_q < OutstandingW'(MaxBursts));
-  // Beats whose burst address was accepted, and beats sent: W never runs
-  // ahead of AW (allowed by AXI3, but not needed and not every slave likes it).
-  logic [16:0] aw_beats_q, w_beats_q;
+  // Beats of bursts whose address was accepted, and beats sent. W runs up
+  // to the end of the burst whose address is presented, never further
+  // (AXI3 allows more, but not every slave likes it).
+  logic [16:0] aw_beats_q, w_beats_q, announced;
+  assign announced = aw_beats_q + (aw_pending_q ? 17'(aw_len_q) : 17'd0);
 
   // W side
   logic [31:0] w_addr_q;
@@ -145,11 +171,13 @@ module rt_frame_dma
   logic [4:0] w_left_q;        // beats left in the open burst (0: none open)
   logic [4:0] w_len_now;
   assign w_len_now = (w_left_q != 0) ? w_left_q : burst_len(w_addr_q[6:3], w_inrow_q);
-  assign wvalid_o = active_q && (fifo_n_q != 0) && (w_beats_q < aw_beats_q);
+  assign wvalid_o = active_q && (w_beats_q < announced) && (w_blank_q || fifo_n_q != 0);
   assign wdata_o = fifo_q[fifo_rd_q];
-  assign wstrb_o = 8'hff;
+  assign wstrb_o = w_blank_q ? 8'h00 : 8'hff;
   assign wlast_o = (w_len_now == 5'd1);
-  assign pop = wvalid_o && wready_i;
+  logic w_fire;
+  assign w_fire = wvalid_o && wready_i;
+  assign pop = w_fire && !w_blank_q;
 
   // B side
   row_t rows_acked_q;          // rows whose bursts all answered (errors too)
@@ -158,6 +186,16 @@ module rt_frame_dma
   assign bready_o = 1'b1;
   logic b_fire;
   assign b_fire = bvalid_i && (outstanding_q != 0);
+
+  // ---- Stopping ---------------------------------------------------------------------
+  logic aw_fire, waiting, stalled, stop_now, drained;
+  assign aw_fire = awvalid_o && awready_i;
+  // Something is owed by the memory: an address or a beat presented, or a
+  // response outstanding.
+  assign waiting = aw_pending_q || wvalid_o || (outstanding_q != 0);
+  assign stalled = waiting && !(aw_fire || w_fire || b_fire) && (stall_q == StallW'(STALL_CYCLES - 1));
+  assign stop_now = active_q && !stopping_q && (abort_i || stalled);
+  assign drained = stopping_q && !aw_pending_q && (w_beats_q == aw_beats_q) && (outstanding_q == 0);
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
     if (!rst_ni) begin
@@ -193,9 +231,17 @@ module rt_frame_dma
       rows_acked_q <= '0;
       rows_landed_q <= '0;
       error_q <= 1'b0;
+      stopping_q <= 1'b0;
+      aborted_q <= 1'b0;
+      w_blank_q <= 1'b0;
+      stall_q <= '0;
     end else if (start_i && !active_q) begin
       active_q <= 1'b1;
       done_q <= 1'b0;
+      stopping_q <= 1'b0;
+      aborted_q <= 1'b0;
+      w_blank_q <= 1'b0;
+      stall_q <= '0;
       filled_q <= '0;
       pslot_q <= '0;
       prow_q <= '0;
@@ -223,7 +269,28 @@ module rt_frame_dma
       error_q <= 1'b0;
     end else if (!active_q) begin
       if (clear_done_i) done_q <= 1'b0;
+    end else if (stopping_q && stalled) begin
+      // The memory answers nothing even now: withdraw and go idle.
+      active_q <= 1'b0;
+      aborted_q <= 1'b1;
+      error_q <= 1'b1;
+      aw_pending_q <= 1'b0;
+      outstanding_q <= '0;
+      stall_q <= '0;
+    end else if (drained) begin
+      active_q <= 1'b0;
+      aborted_q <= 1'b1;
     end else begin
+      if (stop_now) begin
+        stopping_q <= 1'b1;
+        if (stalled) error_q <= 1'b1;
+      end
+      // Strobes go off from the first beat presented after the stop; a
+      // beat already waiting for WREADY keeps its payload.
+      if (!(wvalid_o && !wready_i)) w_blank_q <= stopping_q || stop_now;
+      if (!waiting || aw_fire || w_fire || b_fire || stalled) stall_q <= '0;
+      else stall_q <= stall_q + StallW'(1);
+
       // Rows finished by the scheduler.
       if (row_done_i) filled_q[row_done_slot_i] <= 1'b1;
 
@@ -254,7 +321,7 @@ module rt_frame_dma
         aw_len_q <= burst_len(aw_addr_q[6:3], aw_inrow_q);
         aw_last_of_row_q <= (aw_inrow_q + 8'(burst_len(aw_addr_q[6:3], aw_inrow_q))) == 8'(RowBeats);
       end
-      if (awvalid_o && awready_i) begin
+      if (aw_fire) begin
         aw_pending_q <= 1'b0;
         aw_beats_q <= aw_beats_q + 17'(aw_len_q);
         blast_q[b_wr_q] <= aw_last_of_row_q;
@@ -267,11 +334,11 @@ module rt_frame_dma
           aw_inrow_q <= aw_inrow_q + 8'(aw_len_q);
         end
       end
-      outstanding_q <= outstanding_q + OutstandingW'(awvalid_o && awready_i)
+      outstanding_q <= outstanding_q + OutstandingW'(aw_fire)
                                      - OutstandingW'(b_fire);
 
       // W: walk the same bursts as AW.
-      if (pop) begin
+      if (w_fire) begin
         w_beats_q <= w_beats_q + 17'd1;
         w_left_q <= w_len_now - 5'd1;
         w_addr_q <= w_addr_q + 32'd8;
@@ -284,8 +351,10 @@ module rt_frame_dma
         if (bresp_i != 2'b00) error_q <= 1'b1;
         if (blast_q[b_rd_q]) begin
           rows_acked_q <= rows_acked_q + row_t'(1);
-          if (!error_q && bresp_i == 2'b00) rows_landed_q <= rows_landed_q + row_t'(1);
-          if (rows_acked_q == row_t'(Height - 1)) begin
+          // A row whose last burst answered after a stop may have blank
+          // beats: only rows answered before it count.
+          if (!error_q && !stopping_q && bresp_i == 2'b00) rows_landed_q <= rows_landed_q + row_t'(1);
+          if (rows_acked_q == row_t'(Height - 1) && !stopping_q) begin
             active_q <= 1'b0;
             done_q <= !error_q && bresp_i == 2'b00;
           end
@@ -306,4 +375,6 @@ module rt_frame_dma
   assign done_o = done_q;
   assign rows_landed_o = rows_landed_q;
   assign error_o = error_q;
+  assign aborted_o = aborted_q;
+  assign stop_o = stop_now;
 endmodule

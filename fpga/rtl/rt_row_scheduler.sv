@@ -12,7 +12,9 @@
 //              finished row is announced with row_done_o / row_done_slot_o.
 //
 // Outputs come back in issue order (fixed-latency lanes, never stalled), so
-// the write side tells rows apart by counting pixels.
+// the write side tells rows apart by counting pixels. An abort (the frame
+// DMA stopping a frame) ends issuing at once; the scheduler is idle when
+// the pixels already in the lanes have come out.
 module rt_row_scheduler
   import rt_pkg::*;
 #(
@@ -25,6 +27,7 @@ module rt_row_scheduler
   input  logic                     row_start_i,    // accepted only when idle
   input  coord_t                   row_i,
   input  logic                     frame_start_i,  // accepted only when idle
+  input  logic                     abort_i,        // frame mode: stop issuing
   input  vec3_t                    light_i,
   input  logic [LbSlots-1:0]       slot_release_i, // DMA done reading a slot
   output logic                     busy_o,
@@ -56,7 +59,7 @@ module rt_row_scheduler
   logic [9:0] ik_q;    // pixels issued per lane in the row
   logic [9:0] wpix_q;  // pixels written of the row being written
   slot_t  wslot_q;     // slot the row being written goes to
-  logic   inflight_q;  // issued pixels not yet written
+  logic [9:0] pend_q;  // issue beats not yet written (fewer than the lane latency)
   logic [LbSlots-1:0] held_q;  // slots holding a row the DMA has not released
   vec3_t  light_q;
   logic [LANES-1:0] in_ready, out_valid;
@@ -79,7 +82,7 @@ module rt_row_scheduler
   assign row_written = (n_written != 0) && (wpix_q + n_written == 10'(Width));
 
   logic idle;
-  assign idle = !issuing_q && !inflight_q;
+  assign idle = !issuing_q && (pend_q == '0);
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
     if (!rst_ni) begin
@@ -91,7 +94,7 @@ module rt_row_scheduler
       ik_q       <= '0;
       wpix_q     <= '0;
       wslot_q    <= '0;
-      inflight_q <= 1'b0;
+      pend_q     <= '0;
       held_q     <= '0;
       light_q    <= '0;
     end else begin
@@ -106,9 +109,13 @@ module rt_row_scheduler
         wpix_q    <= '0;
         wslot_q   <= '0;
         light_q   <= light_i;
+        // Rows an aborted frame left in the line buffer are forgotten.
+        held_q    <= '0;
       end else begin
+        // Lanes run in lockstep: one issue beat in, one write beat out.
+        pend_q <= pend_q + 10'(issue_fire) - 10'(out_valid[0]);
+        if (abort_i && frame_q) issuing_q <= 1'b0;
         if (issue_fire) begin
-          inflight_q <= 1'b1;
           if (frame_q && !iopen_q) begin
             iopen_q <= 1'b1;
             held_q[islot_q] <= 1'b1;
@@ -118,7 +125,7 @@ module rt_row_scheduler
             iopen_q <= 1'b0;
             islot_q <= frame_q ? islot_q + slot_t'(1) : '0;
             irow_q  <= irow_q + 9'd1;
-            if (!frame_q || irow_q == coord_t'(Height - 1)) issuing_q <= 1'b0;
+            if (!frame_q || irow_q == coord_t'(Height - 1) || abort_i) issuing_q <= 1'b0;
           end else begin
             ik_q <= ik_q + 10'd1;
           end
@@ -127,8 +134,6 @@ module rt_row_scheduler
           if (row_written) begin
             wpix_q  <= '0;
             wslot_q <= frame_q ? wslot_q + slot_t'(1) : '0;
-            // The last row of the job drains the pipeline.
-            if (!issuing_q && !(issue_fire)) inflight_q <= 1'b0;
           end else begin
             wpix_q <= wpix_q + n_written;
           end

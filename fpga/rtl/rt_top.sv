@@ -42,7 +42,7 @@ module rt_top
   localparam int unsigned BankAw = SlotW + IdxW;
 
   logic row_start, frame_start, frame_clear_done, sched_busy, dma_busy, dma_done, row_finish, row_done;
-  logic frame_error;
+  logic frame_error, frame_abort, frame_aborted, frame_stop;
   slot_t row_done_slot;
   logic [LbSlots-1:0] slot_release;
   row_t rows_landed;
@@ -60,15 +60,17 @@ module rt_top
     .address_i(avs_address_i), .read_i(avs_read_i), .write_i(avs_write_i),
     .writedata_i(avs_writedata_i), .readdata_o(avs_readdata_o),
     .row_start_o(row_start), .frame_start_o(frame_start), .frame_clear_done_o(frame_clear_done),
+    .frame_abort_o(frame_abort),
     .row_o(row), .light_o(light),
     .frame_base_o(frame_base), .busy_i(sched_busy || dma_busy), .row_finish_i(row_finish),
-    .frame_busy_i(dma_busy), .frame_done_i(dma_done), .frame_error_i(frame_error), .rows_landed_i(rows_landed),
+    .frame_busy_i(dma_busy), .frame_done_i(dma_done), .frame_error_i(frame_error),
+    .frame_aborted_i(frame_aborted), .rows_landed_i(rows_landed),
     .lb_raddr_o(slave_raddr), .lb_rdata_i(lb_rdata)
   );
 
   rt_row_scheduler #(.LANES(LANES), .SQRT_BPS(SQRT_BPS), .DIV_BPS(DIV_BPS)) u_sched (
     .clk_i, .rst_ni,
-    .row_start_i(row_start), .row_i(row), .frame_start_i(frame_start), .light_i(light),
+    .row_start_i(row_start), .row_i(row), .frame_start_i(frame_start), .abort_i(frame_stop), .light_i(light),
     .slot_release_i(slot_release),
     .busy_o(sched_busy), .row_finish_o(row_finish), .row_done_o(row_done), .row_done_slot_o(row_done_slot),
     .lb_we_o(lb_we), .lb_waddr_o(lb_waddr), .lb_wdata_o(lb_wdata)
@@ -76,10 +78,11 @@ module rt_top
 
   rt_frame_dma #(.LANES(LANES)) u_dma (
     .clk_i, .rst_ni,
-    .start_i(frame_start), .base_i(frame_base), .clear_done_i(frame_clear_done),
+    .start_i(frame_start), .base_i(frame_base), .clear_done_i(frame_clear_done), .abort_i(frame_abort),
     .row_done_i(row_done), .row_done_slot_i(row_done_slot), .slot_release_o(slot_release),
     .lb_raddr_o(dma_raddr), .lb_rdata_i(lb_rdata),
     .busy_o(dma_busy), .done_o(dma_done), .rows_landed_o(rows_landed), .error_o(frame_error),
+    .aborted_o(frame_aborted), .stop_o(frame_stop),
     .awaddr_o(axm_awaddr_o), .awlen_o(axm_awlen_o), .awsize_o(axm_awsize_o), .awburst_o(axm_awburst_o),
     .awcache_o(axm_awcache_o), .awprot_o(axm_awprot_o), .awvalid_o(axm_awvalid_o), .awready_i(axm_awready_i),
     .wdata_o(axm_wdata_o), .wstrb_o(axm_wstrb_o), .wlast_o(axm_wlast_o), .wvalid_o(axm_wvalid_o),

@@ -4,11 +4,16 @@
 // run_row): write ROW_Y and LIGHT_X/Y/Z, write CONTROL clear_done, write
 // CONTROL start, poll STATUS until done, read the 480 line-buffer words.
 // Frame mode: write FRAME_BASE and LIGHT_*, FRAME_CONTROL start, poll
-// ROWS_DONE and FRAME_STATUS while an AXI3 memory model with random wait
-// states and random write-response delays takes the frame DMA's bursts; at
-// every ROWS_DONE read the rows it reports must already have their write
-// responses sent (the counter never runs ahead of the data), and at the end
-// the bytes in memory must equal the golden frame as RGB888 wire bytes.
+// ROWS_DONE and FRAME_STATUS while an AXI3 memory model takes the frame
+// DMA's bursts, under three slave behaviours (Platform Designer's master
+// network interface, data before address, address long before data) with
+// random wait states and random write-response delays; at every ROWS_DONE
+// read the rows it reports must already have their write responses sent
+// (the counter never runs ahead of the data), and at the end the bytes in
+// memory must equal the golden frame as RGB888 wire bytes. An AXI3 protocol
+// checker watches every clock; a frame with no write transfer for 300,000
+// clocks fails as a deadlock. Then aborts, lost write responses and a port
+// that answers nothing.
 // Every pixel is compared with the golden file (`cargo xtask golden`
 // format: a `//` header `// golden rows A..B light raw X Y Z`, then one
 // 8-digit hex word per pixel).
@@ -43,9 +48,9 @@ constexpr uint32_t kControl = 0x00, kStatus = 0x04, kRowY = 0x08;
 constexpr uint32_t kLightX = 0x0C, kLightY = 0x10, kLightZ = 0x14, kId = 0x18;
 constexpr uint32_t kFrameBase = 0x1C, kFrameControl = 0x20, kFrameStatus = 0x24, kRowsDone = 0x28;
 constexpr uint32_t kLine = 0x1000;
-constexpr uint32_t kStart = 1, kClearDone = 2;
+constexpr uint32_t kStart = 1, kClearDone = 2, kAbort = 4;
 constexpr uint32_t kBusy = 1, kDone = 2;
-constexpr uint32_t kFrameBusy = 1, kFrameDone = 2, kFrameError = 4;
+constexpr uint32_t kFrameBusy = 1, kFrameDone = 2, kFrameError = 4, kFrameAborted = 8;
 constexpr uint32_t kIdValue = 0x52540002u;
 constexpr int kWidth = 480, kHeight = 360;
 constexpr uint32_t kRowBytes = kWidth * 3, kFrameBytes = kRowBytes * kHeight;
@@ -96,14 +101,132 @@ bool load_golden(const std::string &path, Golden &g) {
 
 void fail(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 
-// An AXI3 write slave in front of a byte array, with random AWREADY and
-// WREADY, and write responses after a random delay. It checks the burst
-// rules the master promises and records, per frame row, when the last of its
+// How the write slave behind the FPGA-to-SDRAM port takes AW and W. Every
+// frame-mode run repeats under each, with random stalls and random
+// write-response delays on top.
+enum class Slave {
+  // Platform Designer's AXI master network interface
+  // (altera_merlin_axi_master_ni, between every fabric AXI master and the
+  // f2h_sdram port): a W beat is taken only while AWVALID and WVALID are
+  // both high, and AW is accepted together with the burst's WLAST beat. A
+  // master that waits for AWREADY before raising WVALID deadlocks here.
+  kPlatformDesigner,
+  // W beats accepted before their AW: AWREADY only once a whole burst of
+  // data has arrived ahead of it.
+  kDataFirst,
+  // AW accepted long before any W: W beats only 16 or more clocks after
+  // their burst's AW handshake.
+  kAddressFirst,
+};
+
+const char *slave_name(Slave s) {
+  switch (s) {
+    case Slave::kPlatformDesigner: return "Platform-Designer-like";
+    case Slave::kDataFirst: return "data first";
+    case Slave::kAddressFirst: return "address first";
+  }
+  return "?";
+}
+
+// The payloads of the write channels as the master drives them.
+struct AwPayload {
+  uint32_t addr;
+  uint8_t len, size, burst, cache, prot;
+  bool operator==(const AwPayload &o) const {
+    return addr == o.addr && len == o.len && size == o.size && burst == o.burst && cache == o.cache && prot == o.prot;
+  }
+};
+struct WPayload {
+  uint64_t data;
+  uint8_t strb;
+  bool last;
+  bool operator==(const WPayload &o) const { return data == o.data && strb == o.strb && last == o.last; }
+};
+template <class T> AwPayload aw_payload(T *top) {
+  return AwPayload{top->axm_awaddr_o,  uint8_t(top->axm_awlen_o),   uint8_t(top->axm_awsize_o),
+                   uint8_t(top->axm_awburst_o), uint8_t(top->axm_awcache_o), uint8_t(top->axm_awprot_o)};
+}
+template <class T> WPayload w_payload(T *top) {
+  return WPayload{top->axm_wdata_o, uint8_t(top->axm_wstrb_o), bool(top->axm_wlast_o)};
+}
+
+// AXI3 protocol checker for the master side of the write channels (ARM IHI
+// 0022, AXI3 parts of issue E): every VALID stays high with a stable payload
+// until its READY (A3.2.1); AWVALID and WVALID low in reset (A3.1.2);
+// AWSIZE, AWBURST as the master promises (8-byte beats, INCR) and no burst
+// across a 4 KiB boundary (A3.4.1); WLAST exactly on a burst's last beat and
+// no more W beats than announced (A3.4.1, checked where the slave pairs W
+// with AW); a write response accepted within a bounded time (BREADY).
+class AxiChecker {
+ public:
+  // Only when the DMA gives up on a memory that answers nothing may a
+  // VALID fall without its READY (a documented last resort).
+  void allow_withdraw(bool on) { allow_withdraw_ = on; }
+  uint64_t violations() const { return violations_; }
+
+  template <class T> void sample(T *top, bool awready, bool wready, bool bvalid) {
+    if (!top->rst_ni) {
+      if (seen_reset_ && (top->axm_awvalid_o || top->axm_wvalid_o)) report("AWVALID/WVALID high in reset");
+      seen_reset_ = true;
+      aw_wait_ = w_wait_ = false;
+      return;
+    }
+    AwPayload aw = aw_payload(top);
+    WPayload w = w_payload(top);
+    if (aw_wait_ && !allow_withdraw_) {
+      if (!top->axm_awvalid_o) report("AWVALID fell before AWREADY");
+      else if (!(aw == aw_)) report("AW payload changed while waiting for AWREADY");
+    }
+    if (w_wait_ && !allow_withdraw_) {
+      if (!top->axm_wvalid_o) report("WVALID fell before WREADY");
+      else if (!(w == w_)) report("W payload changed while waiting for WREADY");
+    }
+    if (top->axm_awvalid_o) {
+      if (aw.size != 3) report("AWSIZE %u, promised 3 (8 bytes)", aw.size);
+      if (aw.burst != 1) report("AWBURST %u, promised INCR", aw.burst);
+      uint32_t end = aw.addr + 8u * (uint32_t(aw.len) + 1);
+      if ((aw.addr >> 12) != ((end - 1) >> 12)) report("burst 0x%08x+%u crosses 4 KiB", aw.addr, aw.len + 1u);
+      if (aw.addr % 8) report("AWADDR 0x%08x not 8-byte aligned", aw.addr);
+    }
+    if (top->axm_wvalid_o && w.strb != 0xff && w.strb != 0x00) report("WSTRB 0x%02x: neither a full beat nor none", w.strb);
+    aw_wait_ = top->axm_awvalid_o && !awready;
+    w_wait_ = top->axm_wvalid_o && !wready;
+    aw_ = aw;
+    w_ = w;
+    b_wait_ = (bvalid && !top->axm_bready_o) ? b_wait_ + 1 : 0;
+    if (b_wait_ == 1000) report("BVALID waited 1,000 clocks for BREADY");
+  }
+
+ private:
+  void report(const char *fmt, ...) __attribute__((format(printf, 2, 3))) {
+    ++violations_;
+    char buf[256];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, sizeof buf, fmt, ap);
+    va_end(ap);
+    fail("AXI protocol: %s", buf);
+  }
+
+  bool seen_reset_ = false, allow_withdraw_ = false;
+  bool aw_wait_ = false, w_wait_ = false;
+  AwPayload aw_{};
+  WPayload w_{};
+  uint64_t b_wait_ = 0, violations_ = 0;
+};
+
+// An AXI3 write slave in front of a byte array: takes AW and W as its
+// `Slave` behaviour says, with random stalls, pairs W beats with their
+// bursts (in either order), and answers each burst after a random delay.
+// It checks what only the slave can see (WLAST on the right beat, no W beat
+// beyond those announced) and records, per frame row, when the last of its
 // bytes got its write response.
 class AxiMemory {
  public:
   explicit AxiMemory(uint32_t seed) : rng_(seed), mem_(kMemSize, 0) {}
 
+  void set_behaviour(Slave s) { slave_ = s; }
+  Slave behaviour() const { return slave_; }
   // Back-pressure: percent of cycles each ready is low, and the largest
   // write-response delay in cycles.
   void set_pressure(int aw_stall_pct, int w_stall_pct, int max_b_delay) {
@@ -113,6 +236,20 @@ class AxiMemory {
   }
   // A write response SLVERR for any burst touching [addr, addr + len).
   void set_error_range(uint32_t addr, uint32_t len) { err_lo_ = addr, err_hi_ = addr + len; }
+  // Write responses are lost: never sent (and forgotten when this ends).
+  void set_lose_responses(bool on) {
+    lose_ = on;
+    if (!on) b_.clear();
+  }
+  // Nothing answers (a port held in reset); ending it resets the slave.
+  void set_dead(bool on) {
+    dead_ = on;
+    if (!on) {
+      aw_.clear();
+      w_.clear();
+      b_.clear();
+    }
+  }
 
   // A new frame at `base`: forget which rows landed.
   void begin_frame(uint32_t base) {
@@ -126,13 +263,37 @@ class AxiMemory {
     return n;
   }
   uint8_t *bytes(uint32_t addr) { return &mem_[addr - kMemBase]; }
+  const std::vector<uint8_t> &all() const { return mem_; }
   void fill(uint8_t v) { std::fill(mem_.begin(), mem_.end(), v); }
+  // Bursts, W beats or responses the slave still holds.
+  bool quiet() const { return aw_.empty() && w_.empty() && b_.empty(); }
+  // Clock of the last handshake on any write channel.
+  uint64_t last_transfer() const { return last_transfer_; }
+  bool awready() const { return awready_; }
+  bool wready() const { return wready_; }
+  bool bvalid() const { return bvalid_; }
 
-  // Inputs of the coming clock edge.
+  // Inputs of the coming clock edge, from the master's outputs as they are
+  // (AXI lets READY depend on VALID, never the other way round).
   template <class T> void drive(T *top, uint64_t now) {
-    awready_ = roll(aw_stall_);
-    wready_ = roll(w_stall_);
-    bvalid_ = !b_.empty() && b_.front().due <= now;
+    awready_ = wready_ = bvalid_ = false;
+    if (!dead_) {
+      switch (slave_) {
+        case Slave::kPlatformDesigner:
+          wready_ = top->axm_awvalid_o && top->axm_wvalid_o && roll(w_stall_);
+          awready_ = wready_ && top->axm_wlast_o;
+          break;
+        case Slave::kDataFirst:
+          wready_ = roll(w_stall_) && w_.size() < 64;
+          awready_ = roll(aw_stall_) && bursts_of_data_ > aw_.size();
+          break;
+        case Slave::kAddressFirst:
+          awready_ = roll(aw_stall_) && aw_.size() < 8;
+          wready_ = roll(w_stall_) && !aw_.empty() && aw_.front().accepted + 16 <= now;
+          break;
+      }
+      bvalid_ = !lose_ && !b_.empty() && b_.front().due <= now;
+    }
     top->axm_awready_i = awready_;
     top->axm_wready_i = wready_;
     top->axm_bvalid_i = bvalid_;
@@ -142,12 +303,26 @@ class AxiMemory {
   // The handshakes of the clock edge, with the outputs as they were.
   template <class T> void edge(T *top, uint64_t now) {
     if (!top->rst_ni) return;  // registers are random until the reset edge
-    if (top->axm_awvalid_o && awready_) accept_aw(top);
-    if (top->axm_wvalid_o && wready_) accept_w(top, now);
+    if (top->axm_awvalid_o && awready_) {
+      aw_.push_back(Burst{top->axm_awaddr_o, int(top->axm_awlen_o) + 1, 0, 0, false, now});
+      Burst &b = aw_.back();
+      uint32_t end = b.addr + 8u * b.beats;
+      if (b.addr < kMemBase || end > kMemBase + kMemSize) fail("burst 0x%08x outside memory", b.addr);
+      b.error = b.addr < err_hi_ && end > err_lo_;
+      last_transfer_ = now;
+    }
+    if (top->axm_wvalid_o && wready_) {
+      w_.push_back(w_payload(top));
+      if (top->axm_wlast_o) ++bursts_of_data_;
+      last_transfer_ = now;
+    }
+    pair(now);
     if (bvalid_ && top->axm_bready_o) {
       const Resp &r = b_.front();
-      if (r.resp == 0) land(r.addr, r.bytes);
+      for (int i = 0; i < r.beats; ++i)
+        if (r.strobed >> i & 1) land(r.addr + 8u * i, 8);
       b_.pop_front();
+      last_transfer_ = now;
     }
   }
 
@@ -155,47 +330,41 @@ class AxiMemory {
   struct Burst {
     uint32_t addr;
     int beats, done;
+    uint32_t strobed;  // beats written with their strobes on
     bool error;
+    uint64_t accepted;
   };
   struct Resp {
     uint64_t due;
-    uint32_t addr, bytes;
+    uint32_t addr;
+    int beats;
+    uint32_t strobed;
     uint8_t resp;
   };
 
   bool roll(int stall_pct) { return int(rng_() % 100) >= stall_pct; }
 
-  template <class T> void accept_aw(T *top) {
-    Burst b{top->axm_awaddr_o, int(top->axm_awlen_o) + 1, 0, false};
-    uint32_t end = b.addr + 8u * b.beats;
-    if (top->axm_awsize_o != 3) fail("AWSIZE %u, want 3 (8 bytes)", top->axm_awsize_o);
-    if (top->axm_awburst_o != 1) fail("AWBURST %u, want INCR", top->axm_awburst_o);
-    if (b.addr % 8) fail("AWADDR 0x%08x not 8-byte aligned", b.addr);
-    if ((b.addr >> 12) != ((end - 1) >> 12)) fail("burst 0x%08x+%d crosses 4 KiB", b.addr, b.beats);
-    if (b.addr < kMemBase || end > kMemBase + kMemSize) fail("burst 0x%08x outside memory", b.addr);
-    b.error = b.addr < err_hi_ && end > err_lo_;
-    aw_.push_back(b);
-  }
-
-  template <class T> void accept_w(T *top, uint64_t now) {
-    if (aw_.empty()) {
-      fail("W beat before its AW");
-      return;
-    }
-    Burst &b = aw_.front();
-    uint32_t at = b.addr + 8u * b.done;
-    if (top->axm_wstrb_o != 0xff) fail("WSTRB 0x%02x", top->axm_wstrb_o);
-    if (at >= kMemBase && at + 8 <= kMemBase + kMemSize && !b.error) {
-      uint64_t d = top->axm_wdata_o;
-      for (int i = 0; i < 8; ++i) mem_[at - kMemBase + i] = uint8_t(d >> (8 * i));
-    }
-    ++b.done;
-    bool last = b.done == b.beats;
-    if (bool(top->axm_wlast_o) != last) fail("WLAST %d on beat %d of %d", top->axm_wlast_o, b.done, b.beats);
-    if (last) {
-      uint64_t delay = max_b_delay_ ? rng_() % (max_b_delay_ + 1) : 0;
-      b_.push_back(Resp{now + 1 + delay, b.addr, 8u * b.beats, uint8_t(b.error ? 2 : 0)});
-      aw_.pop_front();
+  // W beats meet their bursts in order, whichever came first.
+  void pair(uint64_t now) {
+    while (!aw_.empty() && !w_.empty()) {
+      Burst &b = aw_.front();
+      WPayload w = w_.front();
+      w_.pop_front();
+      uint32_t at = b.addr + 8u * b.done;
+      if (!b.error && w.strb && at >= kMemBase && at + 8 <= kMemBase + kMemSize) {
+        for (int i = 0; i < 8; ++i)
+          if (w.strb >> i & 1) mem_[at - kMemBase + i] = uint8_t(w.data >> (8 * i));
+      }
+      if (w.strb == 0xff) b.strobed |= 1u << b.done;
+      ++b.done;
+      bool last = b.done == b.beats;
+      if (w.last != last) fail("AXI protocol: WLAST %d on beat %d of a %d-beat burst", w.last, b.done, b.beats);
+      if (last || w.last) {
+        uint64_t delay = max_b_delay_ ? rng_() % (max_b_delay_ + 1) : 0;
+        b_.push_back(Resp{now + 1 + delay, b.addr, b.done, b.strobed, uint8_t(b.error ? 2 : 0)});
+        aw_.pop_front();
+        --bursts_of_data_;
+      }
     }
   }
 
@@ -212,12 +381,17 @@ class AxiMemory {
   std::mt19937 rng_;
   std::vector<uint8_t> mem_;
   std::deque<Burst> aw_;
+  std::deque<WPayload> w_;
   std::deque<Resp> b_;
+  size_t bursts_of_data_ = 0;  // WLAST beats received, not yet paired
   std::vector<uint32_t> row_landed_bytes_ = std::vector<uint32_t>(kHeight, 0);
   uint32_t frame_base_ = kMemBase;
   uint32_t err_lo_ = 0, err_hi_ = 0;
+  Slave slave_ = Slave::kPlatformDesigner;
   int aw_stall_ = 0, w_stall_ = 0, max_b_delay_ = 0;
+  bool lose_ = false, dead_ = false;
   bool awready_ = true, wready_ = true, bvalid_ = false;
+  uint64_t last_transfer_ = 0;
 };
 
 class Bench {
@@ -247,6 +421,7 @@ class Bench {
     mem_.drive(top_.get(), cycles_);
     top_->clk_i = 0;
     top_->eval();
+    axi_.sample(top_.get(), mem_.awready(), mem_.wready(), mem_.bvalid());
     mem_.edge(top_.get(), cycles_);
     top_->clk_i = 1;
     top_->eval();
@@ -273,10 +448,12 @@ class Bench {
 
   uint64_t cycles() const { return cycles_; }
   AxiMemory &memory() { return mem_; }
+  AxiChecker &checker() { return axi_; }
 
  private:
   std::unique_ptr<Vrt_top> top_;
   AxiMemory mem_;
+  AxiChecker axi_;
   uint64_t cycles_ = 0;
 };
 
@@ -486,9 +663,38 @@ struct FrameRun {
   uint32_t status, rows;
 };
 
-// One frame at `base`, polled as the firmware does: ROWS_DONE, then
-// FRAME_STATUS, until busy clears. Every ROWS_DONE value is checked against
-// the rows whose write responses the memory has sent.
+// Clocks without any write-channel transfer after which a busy frame
+// counts as deadlocked: above the DMA's own limit of two stall periods
+// (2 * 2^17 clocks, hal-avalon map.rs FRAME_STALL_CYCLES), so the DMA's
+// stall handling always gets its chance first.
+constexpr uint64_t kDeadlockCycles = 300000;
+constexpr uint64_t kStallCycles = 1u << 17;
+
+// Poll a frame as the firmware does: ROWS_DONE, then FRAME_STATUS, until
+// busy clears. Every ROWS_DONE value is checked against the rows whose
+// write responses the memory has sent. A frame with no write-channel
+// transfer for kDeadlockCycles fails as a deadlock.
+FrameRun poll_frame(Bench &b, uint64_t t0) {
+  uint32_t last = 0, status = 0;
+  AxiMemory &m = b.memory();
+  for (;;) {
+    uint32_t rows = b.read(kRowsDone);
+    int landed = m.landed_rows();
+    if (int(rows) > landed) fail("ROWS_DONE %u ahead of the data: %d rows landed", rows, landed);
+    if (rows < last) fail("ROWS_DONE went back from %u to %u", last, rows);
+    last = rows;
+    status = b.read(kFrameStatus);
+    if (!(status & kFrameBusy)) return FrameRun{b.cycles() - t0, status, b.read(kRowsDone)};
+    uint64_t since = b.cycles() - std::max(m.last_transfer(), t0);
+    if (since > kDeadlockCycles) {
+      fail("deadlock under the %s slave: no AXI write transfer for %llu clocks (ROWS_DONE %u)",
+           slave_name(m.behaviour()), (unsigned long long)since, last);
+      return FrameRun{b.cycles() - t0, status, last};
+    }
+  }
+}
+
+// One frame at `base`.
 FrameRun run_frame(Bench &b, uint32_t base, const int32_t light[3]) {
   b.memory().begin_frame(base);
   b.write(kFrameBase, base);
@@ -497,26 +703,17 @@ FrameRun run_frame(Bench &b, uint32_t base, const int32_t light[3]) {
   b.write(kLightZ, light_reg(light[2]));
   uint64_t t0 = b.cycles();
   b.write(kFrameControl, kStart);
-  uint32_t last = 0, status = 0;
-  for (int i = 0; i < 5000000; ++i) {
-    uint32_t rows = b.read(kRowsDone);
-    int landed = b.memory().landed_rows();
-    if (int(rows) > landed) fail("ROWS_DONE %u ahead of the data: %d rows landed", rows, landed);
-    if (rows < last) fail("ROWS_DONE went back from %u to %u", last, rows);
-    last = rows;
-    status = b.read(kFrameStatus);
-    if (!(status & kFrameBusy)) return FrameRun{b.cycles() - t0, status, b.read(kRowsDone)};
-  }
-  fail("frame never finished (ROWS_DONE %u, %d rows landed)", last, b.memory().landed_rows());
-  return FrameRun{b.cycles() - t0, status, last};
+  return poll_frame(b, t0);
 }
 
 // A whole frame through the DMA under back-pressure: bytes equal the
 // golden frame, nothing outside it written.
-uint64_t check_frame_dma(Bench &b, const Golden &g, uint32_t base, int aw_stall, int w_stall, int b_delay) {
+uint64_t check_frame_dma(Bench &b, const Golden &g, uint32_t base, Slave slave, int aw_stall, int w_stall,
+                         int b_delay) {
   const uint8_t kGuard = 0xa5;
   AxiMemory &m = b.memory();
   m.fill(kGuard);
+  m.set_behaviour(slave);
   m.set_pressure(aw_stall, w_stall, b_delay);
   FrameRun r = run_frame(b, base, g.light);
   expect_eq("FRAME_STATUS after a frame", r.status, kFrameDone);
@@ -532,8 +729,9 @@ uint64_t check_frame_dma(Bench &b, const Golden &g, uint32_t base, int aw_stall,
   for (uint32_t a : {base - 64, base - 1, base + kFrameBytes, base + kFrameBytes + 63}) {
     if (*m.bytes(a) != kGuard) fail("frame DMA wrote outside the frame at 0x%08x", a);
   }
-  printf("frame DMA light raw (%d, %d, %d) at 0x%08x, stalls AW %d%% W %d%%, B delay <= %d: %d of %u bytes differ, %llu cycles\n",
-         g.light[0], g.light[1], g.light[2], base, aw_stall, w_stall, b_delay, bad, kFrameBytes,
+  if (!m.quiet()) fail("the %s slave still holds bursts, beats or responses after the frame", slave_name(slave));
+  printf("frame DMA light raw (%d, %d, %d) at 0x%08x, %s slave, stalls AW %d%% W %d%%, B delay <= %d: %d of %u bytes differ, %llu cycles\n",
+         g.light[0], g.light[1], g.light[2], base, slave_name(slave), aw_stall, w_stall, b_delay, bad, kFrameBytes,
          (unsigned long long)r.cycles);
   return r.cycles;
 }
@@ -578,10 +776,104 @@ void check_frame_semantics(Bench &b, const Golden &g) {
   printf("frame semantics checks done\n");
 }
 
+// The rows of the golden frame that ROWS_DONE covers hold its bytes.
+int compare_landed_rows(AxiMemory &m, const Golden &g, uint32_t base, uint32_t rows) {
+  std::vector<uint8_t> want = wire_bytes(g);
+  const uint8_t *got = m.bytes(base);
+  int bad = 0;
+  for (uint32_t i = 0; i < rows * kRowBytes; ++i)
+    if (got[i] != want[i] && ++bad <= 5) fail("landed row %u byte %u: got %02x want %02x", i / kRowBytes, i, got[i], want[i]);
+  return bad;
+}
+
+// Nothing is written, and nothing changes state, while the accelerator
+// sits idle for `clocks`.
+void expect_memory_still(Bench &b, const char *what, uint32_t status, int clocks) {
+  std::vector<uint8_t> snapshot = b.memory().all();
+  for (int i = 0; i < clocks; ++i) b.tick();
+  expect_eq(what, b.read(kFrameStatus), status);
+  if (b.memory().all() != snapshot) fail("%s: memory written after the frame went idle", what);
+}
+
+// FRAME_CONTROL abort in the middle of a frame: busy clears with aborted
+// set (neither done nor error), ROWS_DONE keeps the rows that landed and
+// they hold the model's bytes, the slave holds no burst, beat or response,
+// nothing is written afterwards, and row mode and the next frame work.
+void check_frame_abort(Bench &b, const Golden &g, Slave slave) {
+  AxiMemory &m = b.memory();
+  m.fill(0x3c);
+  m.set_behaviour(slave);
+  m.set_pressure(20, 20, 30);
+  const uint32_t base = kMemBase + 0x2008;
+  m.begin_frame(base);
+  b.write(kFrameBase, base);
+  b.write(kLightX, light_reg(g.light[0]));
+  b.write(kLightY, light_reg(g.light[1]));
+  b.write(kLightZ, light_reg(g.light[2]));
+  b.write(kFrameControl, kStart);
+  uint32_t before = 0;
+  for (int i = 0; i < 1000000 && before < 50; ++i) before = b.read(kRowsDone);
+  b.write(kFrameControl, kAbort);
+  uint64_t t0 = b.cycles();
+  FrameRun r = poll_frame(b, t0);
+  expect_eq("FRAME_STATUS after an abort", r.status, kFrameAborted);
+  if (r.rows < before || r.rows >= uint32_t(kHeight)) fail("ROWS_DONE %u after an abort at %u", r.rows, before);
+  if (!m.quiet()) fail("the %s slave still holds bursts after the abort went idle", slave_name(slave));
+  compare_landed_rows(m, g, base, r.rows);
+  expect_memory_still(b, "after an abort", kFrameAborted, 20000);
+  printf("abort under the %s slave: at ROWS_DONE %u, idle %llu clocks later with ROWS_DONE %u\n", slave_name(slave),
+         before, (unsigned long long)r.cycles, r.rows);
+  uint32_t row[kWidth];
+  run_row(b, 90, g.light, row);
+  compare_row(g, 90, row, "row mode after an abort");
+  check_frame_dma(b, g, base, slave, 10, 10, 10);
+}
+
+// A memory that stops answering: write responses lost (the port accepts
+// bursts and never answers), or no handshake at all (a port held in
+// reset). The frame ends by itself with error and aborted set, within two
+// stall periods of the last transfer, ROWS_DONE counting only rows that
+// landed; row mode works at once and the next frame is byte-exact.
+void check_frame_stall(Bench &b, const Golden &g, bool dead) {
+  AxiMemory &m = b.memory();
+  const char *what = dead ? "a port that answers nothing" : "lost write responses";
+  m.fill(0x5a);
+  m.set_behaviour(Slave::kPlatformDesigner);
+  m.set_pressure(10, 10, 8);
+  if (dead) {
+    m.set_dead(true);
+    b.checker().allow_withdraw(true);
+  } else {
+    m.set_lose_responses(true);
+  }
+  const uint32_t base = kMemBase + 0x1000;
+  FrameRun r = run_frame(b, base, g.light);
+  uint64_t after_last = b.cycles() - m.last_transfer();
+  expect_eq((std::string("FRAME_STATUS with ") + what).c_str(), r.status, kFrameError | kFrameAborted);
+  expect_eq((std::string("ROWS_DONE with ") + what).c_str(), r.rows, 0);
+  if (after_last > 2 * kStallCycles + 2000)
+    fail("%s: idle %llu clocks after the last transfer, beyond two stall periods", what, (unsigned long long)after_last);
+  expect_memory_still(b, what, kFrameError | kFrameAborted, 1000);
+  if (dead) {
+    m.set_dead(false);
+    b.checker().allow_withdraw(false);
+  } else {
+    m.set_lose_responses(false);
+  }
+  printf("frame with %s: ended with error and aborted after %llu clocks, %llu after the last transfer\n", what,
+         (unsigned long long)r.cycles, (unsigned long long)after_last);
+  uint32_t row[kWidth];
+  run_row(b, 45, g.light, row);
+  compare_row(g, 45, row, "row mode after a stalled frame");
+  check_frame_dma(b, g, base, Slave::kPlatformDesigner, 10, 10, 10);
+}
+
 }  // namespace
 
 int main(int argc, char **argv) {
   Verilated::commandArgs(argc, argv);
+  // Reports and mismatches (stderr) in the order they happen.
+  setvbuf(stdout, nullptr, _IOLBF, 0);
   std::vector<std::string> frames;
   std::string extra;
   bool dma_only = false;
@@ -615,23 +907,34 @@ int main(int argc, char **argv) {
   }
   if (!dma_only)
     for (const Golden &g : goldens) check_frame(bench, g);
-  // Frame mode: each frame under a different back-pressure and base (8-byte
-  // aligned, not always 128-byte aligned), then one clean run for the cycle
-  // count, then the semantics.
+  // Frame mode: each frame under every slave behaviour, with a different
+  // back-pressure and base (8-byte aligned, not always 128-byte aligned)
+  // each time; then one run without stalls behind the Platform-Designer-like
+  // slave for the cycle count; then the semantics, aborts and stalls.
   const int pressure[][3] = {{30, 40, 40}, {60, 20, 5}, {0, 70, 100}, {50, 50, 20}, {80, 0, 0}, {20, 80, 60}};
+  const Slave slaves[] = {Slave::kPlatformDesigner, Slave::kDataFirst, Slave::kAddressFirst};
+  int runs = 0;
   for (size_t i = 0; i < goldens.size(); ++i) {
-    const int *p = pressure[i % 6];
-    check_frame_dma(bench, goldens[i], kMemBase + 0x1000 + uint32_t(i) * 0x1238, p[0], p[1], p[2]);
+    for (Slave s : slaves) {
+      const int *p = pressure[runs % 6];
+      check_frame_dma(bench, goldens[i], kMemBase + 0x1000 + uint32_t(runs % 7) * 0x1238, s, p[0], p[1], p[2]);
+      ++runs;
+    }
   }
   if (!goldens.empty()) {
-    uint64_t c = check_frame_dma(bench, goldens[0], kMemBase + 0x1000, 0, 0, 0);
+    uint64_t c = check_frame_dma(bench, goldens[0], kMemBase + 0x1000, Slave::kPlatformDesigner, 0, 0, 0);
     printf("frame mode cycles per frame: %llu\n", (unsigned long long)c);
     printf("frame mode frames/s at 50 MHz: %.1f\n", 50e6 / double(c));
     check_frame_semantics(bench, goldens[0]);
+    for (Slave s : slaves) check_frame_abort(bench, goldens[0], s);
+    check_frame_stall(bench, goldens[0], false);
+    check_frame_stall(bench, goldens[0], true);
     // Row mode still works after frames.
     uint32_t row[kWidth];
     run_row(bench, 180, goldens[0].light, row);
     compare_row(goldens[0], 180, row, "row mode after frames");
+    printf("frame-mode runs: %d under %zu slave behaviours, AXI protocol violations: %llu\n", runs + 1,
+           sizeof slaves / sizeof slaves[0], (unsigned long long)bench.checker().violations());
   }
   if (g_errors) {
     printf("co-simulation FAILED: %d mismatches\n", g_errors);

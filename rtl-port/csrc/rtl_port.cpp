@@ -7,7 +7,9 @@
 // one clock with read asserted and readdata taken after it (fixed read
 // latency 1). The AXI slave accepts AW and W on every clock and answers B
 // one clock after a burst's last beat: OKAY if the callback took every beat,
-// SLVERR otherwise.
+// SLVERR otherwise. While the Rust memory does not answer
+// (`rtl_port_set_answering`), the slave takes nothing and answers nothing,
+// as a port held in reset; when it answers again it starts empty.
 #include <cstdint>
 #include <deque>
 #include <memory>
@@ -43,19 +45,20 @@ struct RtlPort {
   std::deque<Burst> aw;
   std::deque<Resp> b;
   bool bvalid = false;
+  bool answering = true;
 
   RtlPort() : ctx(new VerilatedContext), top(new Vrt_top(ctx.get(), "rt_top")) {}
 
   void drive() {
-    bvalid = !b.empty() && b.front().due <= cycles;
-    top->axm_awready_i = 1;
-    top->axm_wready_i = 1;
+    bvalid = answering && !b.empty() && b.front().due <= cycles;
+    top->axm_awready_i = answering;
+    top->axm_wready_i = answering;
     top->axm_bvalid_i = bvalid;
     top->axm_bresp_i = bvalid ? b.front().resp : 0;
   }
 
   void edge() {
-    if (!top->rst_ni) return;
+    if (!top->rst_ni || !answering) return;
     if (top->axm_awvalid_o) aw.push_back(Burst{top->axm_awaddr_o, int(top->axm_awlen_o) + 1, 0, false});
     if (top->axm_wvalid_o && !aw.empty()) {
       Burst &br = aw.front();
@@ -126,6 +129,14 @@ void rtl_port_free(RtlPort *p) {
 }
 
 void rtl_port_reset(RtlPort *p) { p->reset(); }
+
+void rtl_port_set_answering(RtlPort *p, int on) {
+  if (on && !p->answering) {
+    p->aw.clear();
+    p->b.clear();
+  }
+  p->answering = on != 0;
+}
 
 void rtl_port_set_dma(RtlPort *p, rtl_dma_write_fn f, void *ctx) {
   p->dma = f;

@@ -65,6 +65,7 @@ mod ffi {
         pub fn rtl_port_new() -> *mut RtlPort;
         pub fn rtl_port_free(p: *mut RtlPort);
         pub fn rtl_port_reset(p: *mut RtlPort);
+        pub fn rtl_port_set_answering(p: *mut RtlPort, on: i32);
         pub fn rtl_port_set_dma(p: *mut RtlPort, f: Option<DmaWrite>, ctx: *mut c_void);
         pub fn rtl_port_write(p: *mut RtlPort, byte_offset: u32, value: u32);
         pub fn rtl_port_read(p: *mut RtlPort, byte_offset: u32) -> u32;
@@ -153,6 +154,7 @@ impl<M: DmaTarget> RtlAccelerator<M> {
 
     /// Let `n` clocks pass with the bus idle.
     pub fn step(&mut self, n: u64) {
+        self.sync_answering();
         #[cfg(rtl_verilated)]
         // SAFETY: as in `reset`.
         unsafe {
@@ -162,9 +164,20 @@ impl<M: DmaTarget> RtlAccelerator<M> {
         let _ = n;
     }
 
+    /// Whether the AXI port answers follows the memory's
+    /// [`DmaTarget::answers`] at every access.
+    fn sync_answering(&mut self) {
+        #[cfg(rtl_verilated)]
+        // SAFETY: a live model; no callback runs in this call.
+        unsafe {
+            ffi::rtl_port_set_answering(self.raw.as_ptr(), i32::from(self.mem.answers()))
+        }
+    }
+
     /// A 32-bit read at byte `offset` of the bridge window, then the
     /// access's idle clocks.
     pub fn bus_read(&mut self, offset: usize) -> u32 {
+        self.sync_answering();
         #[cfg(rtl_verilated)]
         {
             // SAFETY: as in `reset`.
@@ -182,6 +195,7 @@ impl<M: DmaTarget> RtlAccelerator<M> {
     /// A 32-bit write at byte `offset` of the bridge window, then the
     /// access's idle clocks.
     pub fn bus_write(&mut self, offset: usize, value: u32) {
+        self.sync_answering();
         #[cfg(rtl_verilated)]
         {
             // SAFETY: as in `reset`.
