@@ -9,7 +9,7 @@
 //! [`Plan::frame_rows`], each read the moment ROWS_DONE covers it (as the
 //! frame server reads rows, so the write-completion rule is exercised on
 //! silicon: docs/frame-dma.md#write-completion). Everything is bounded: rows
-//! by the driver's [`PollTimeout`](crate::PollTimeout), the frame by
+//! by the driver's [`PollTimeout`], the frame by
 //! [`Plan::frame_wait`]. An accelerator whose map has no frame registers
 //! (version 1) is tested in row mode only.
 //!
