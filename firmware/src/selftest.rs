@@ -7,10 +7,12 @@
 //! accelerator is not used, and one more line says so. No accelerator: one
 //! line says the self-test was skipped.
 //!
-//! On the DE1-SoC it costs about 15 ms (19 rows rendered by the model,
-//! 9,120 pixels at about 1,070 instructions each, plus one FPGA frame:
-//! hal-avalon `selftest`'s "Cost on the board"); the line ends with the
-//! time measured on the global timer.
+//! On the DE1-SoC it should take 11 to 18 ms (the model renders 19
+//! reference rows, 9,120 pixels at about 1,070 instructions each, while the
+//! FPGA renders one frame: hal-avalon `selftest`'s "Cost on the board");
+//! the line ends with the time measured on the global timer. (On the
+//! emulated board the simulated accelerator renders on the guest CPU too,
+//! so there it takes about a second of QEMU time.)
 
 use core::fmt::Write;
 

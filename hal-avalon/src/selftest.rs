@@ -21,17 +21,19 @@
 //! # Cost on the board
 //!
 //! [`PLAN`] checks 19 rows (3 rows at 2 lights in row mode, 13 rows of the
-//! frame) = 9,120 pixels. The reference renderer costs about 185 M guest
-//! instructions a frame (`cargo xtask bench-fw`), 1,070 per pixel: 9.8 M
-//! instructions, about 11 ms on the 925 MHz A9 at 1 instruction a cycle
-//! (14 ms at the cost model's 800 MHz and IPC 0.7). The FPGA adds one frame
-//! (173,739 cycles at 50 MHz, 3.5 ms; the rows are checked while it
-//! renders) and 6 rows of about 1,000 cycles each (0.1 ms), the bus a few
-//! thousand accesses (row mode: 480 line-buffer words a row in bursts),
-//! the cache maintenance 13 x 45 lines. About 15 ms in all: well under the
-//! second allowed, and a failing accelerator is given up on after at most
-//! the driver's poll bound per row and [`Plan::frame_wait`] (0.5 s) for the
-//! frame.
+//! frame) = 9,120 pixels. The reference renderer costs about 185 M
+//! instructions a frame (`cargo xtask bench-fw`, guest instructions), 1,070
+//! a pixel: 9.8 M instructions, 10.6 ms on the 925 MHz A9 at 1 instruction
+//! a cycle, 17.4 ms at the board cost model's 800 MHz and IPC 0.7. The
+//! accelerator's share is small beside it: 6 rows in row mode, about 27 us
+//! each with the line-buffer read (docs/frame-dma.md's row-mode bridge
+//! figures), and one frame, 173,739 cycles at 50 MHz = 3.5 ms, during which
+//! the CPU already renders the reference rows of the rows that landed (the
+//! frame's 13 reference rows take about 7 ms, so the CPU is the bound);
+//! 13 x 45 cache lines invalidated, well under 0.1 ms. About 11 to 18 ms in
+//! all: far under the second allowed. A failing accelerator costs at most
+//! the driver's poll bound per row (10 ms) or [`Plan::frame_wait`] (0.5 s)
+//! for the frame, plus the reference rows checked before.
 
 use core::convert::Infallible;
 use core::fmt;
