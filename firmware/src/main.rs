@@ -10,7 +10,8 @@
 //! Start-up on core 0: the reset entry ([`start`]) cleans and turns off any
 //! caches a boot loader left on, then aarch32-rt sets up stacks, `.data`
 //! and `.bss` and calls `main` below: timer, MMU and caches, board set-up,
-//! renderer (FPGA or software), network bring-up, main loop. A failure is
+//! renderer (FPGA after its self-test, or software), network bring-up, main
+//! loop. A failure is
 //! reported on the UART before the core halts.
 #![no_std]
 #![no_main]
@@ -22,6 +23,7 @@ mod log;
 mod mem;
 mod net;
 mod render;
+mod selftest;
 mod start;
 
 use core::fmt::Write;

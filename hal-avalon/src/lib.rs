@@ -16,6 +16,8 @@
 //!   [`model`], bit-exact at the register level, with fault injection.
 //! * `sources` (feature `protocol`): the accelerator as the frame server's
 //!   row source (row mode) and frame engine (frame mode).
+//! * `selftest` (feature `protocol`): the boot-time self-test, rows and a
+//!   frame compared with the model.
 //!
 //! ```
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -47,6 +49,8 @@ pub mod driver;
 pub mod map;
 pub mod mmio;
 pub mod port;
+#[cfg(feature = "protocol")]
+pub mod selftest;
 #[cfg(feature = "sim")]
 pub mod sim;
 #[cfg(feature = "protocol")]

@@ -122,6 +122,8 @@ pub struct SimAccelerator<M = NoMemory> {
     frame_rows_per_poll: u16,
     mem: M,
     fault: Option<Fault>,
+    /// `(row, x)`: that pixel comes out inverted (self-test fault injection).
+    wrong_pixel: Option<(u16, u16)>,
     status_reads: u32,
     starts: u32,
     rows_finished: u32,
@@ -196,6 +198,7 @@ impl<M: DmaTarget> SimAccelerator<M> {
             frame_rows_per_poll: DEFAULT_FRAME_ROWS_PER_POLL,
             mem,
             fault: None,
+            wrong_pixel: None,
             status_reads: 0,
             starts: 0,
             rows_finished: 0,
@@ -257,6 +260,13 @@ impl<M: DmaTarget> SimAccelerator<M> {
     /// Inject a fault, or recover with `None`.
     pub fn set_fault(&mut self, fault: Option<Fault>) {
         self.fault = fault;
+    }
+
+    /// Make pixel `x` of row `y` come out wrong (RGB inverted) in row and
+    /// frame mode from now on, or right again with `None`: a computing
+    /// error, as opposed to the bus and timing [`Fault`]s.
+    pub fn set_wrong_pixel(&mut self, at: Option<(u16, u16)>) {
+        self.wrong_pixel = at;
     }
 
     /// STATUS reads so far (including unanswered ones).
@@ -435,6 +445,7 @@ impl<M: DmaTarget> SimAccelerator<M> {
             let landed = match &light {
                 Some(l) => {
                     model::render_row(y, l, &mut words);
+                    spoil(self.wrong_pixel, y, &mut words);
                     model::row_to_rgb888(&words, &mut bytes);
                     self.mem.write(addr, &bytes)
                 }
@@ -479,7 +490,10 @@ impl<M: DmaTarget> SimAccelerator<M> {
         // cannot fail; should it ever, the row stays poisoned instead of
         // panicking.
         match Light::from_raw(x, y, z) {
-            Ok(light) => model::render_row(self.latched_row_y as u16, &light, &mut self.line),
+            Ok(light) => {
+                model::render_row(self.latched_row_y as u16, &light, &mut self.line);
+                spoil(self.wrong_pixel, self.latched_row_y as u16, &mut self.line);
+            }
             Err(_) => {
                 for (x, word) in (0u32..).zip(self.line.iter_mut()) {
                     *word = LINE_POISON | x;
@@ -489,6 +503,13 @@ impl<M: DmaTarget> SimAccelerator<M> {
         self.busy = false;
         self.done = self.fault != Some(Fault::DoneNeverSet);
         self.rows_finished = self.rows_finished.wrapping_add(1);
+    }
+}
+
+/// Invert the RGB of the wrong pixel if it lies in row `y`.
+fn spoil(at: Option<(u16, u16)>, y: u16, words: &mut [u32; LINE_WORDS]) {
+    if let Some(w) = at.filter(|(row, _)| *row == y).and_then(|(_, x)| words.get_mut(usize::from(x))) {
+        *w ^= 0x00ff_ffff;
     }
 }
 

@@ -186,7 +186,7 @@ fn t_uart_log(g: &mut Guest) -> Result<()> {
     std::thread::sleep(Duration::from_millis(300));
     let uart = g.uart();
     let listening = format!("listening on TCP {FRAME_PORT} and {PERSISTENT_PORT}");
-    for needle in ["link up:", listening.as_str(), "core 1 parked"] {
+    for needle in ["link up:", listening.as_str(), "core 1 parked", SELFTEST_SKIPPED] {
         if !uart.contains(needle) {
             return Err(format!("UART log lacks {needle:?}:\n{uart}"));
         }
@@ -244,15 +244,45 @@ pub fn run(elf: &std::path::Path) -> Result<()> {
     Ok(())
 }
 
+/// The boot self-test's line without an accelerator.
+pub const SELFTEST_SKIPPED: &str = "self-test: skipped (no accelerator)";
+
+/// The start of the boot self-test's line on the simulated accelerator
+/// (hal-avalon `selftest::PLAN`).
+pub const SELFTEST_PASS: &str = "self-test: PASS: row mode rows 0, 180, 359 at light (3072, 4096, -2048) and (1500, 2500, 700); frame mode 13 rows (0..=359) of a frame at light (-5120, 6144, 1024), each read once ROWS_DONE covered it; 9120 pixels equal the software renderer";
+
+/// What the `selftest-fault` build must log: the self-test's failure at the
+/// wrong pixel (firmware/src/selftest.rs `FAULT_PIXEL`, row 270, x 123, a
+/// row of the frame half at hal-avalon `selftest::PLAN`'s frame light), with
+/// the model's value and the simulated accelerator's (its RGB inverted),
+/// and the fallback to software.
+pub fn selftest_fault_lines() -> Result<Vec<String>> {
+    let (row, x, raw) = (270u16, 123usize, [-5 << 10, 6 << 10, 1 << 10]);
+    let light = Light::from_raw(raw[0], raw[1], raw[2]).map_err(|e| format!("self-test light: {e}"))?;
+    let mut words = [0u32; WIDTH];
+    model::render_row(row, &light, &mut words);
+    let expected = words[x];
+    Ok(vec![
+        format!(
+            "self-test: FAIL: frame mode, row {row}, x {x}: expected {expected:#08x}, got {:#08x} (light (-5120, 6144, 1024))",
+            expected ^ 0xff_ffff
+        ),
+        "FPGA: failed its self-test: accelerator not used, software renderer from now on".into(),
+    ])
+}
+
 /// Another build of the firmware (`renderer` is what its UART log must say
-/// renders): frames on both ports byte-exact, and two clients at once.
-pub fn variant(elf: &std::path::Path, renderer: &str) -> Result<()> {
+/// renders; `uart` more text it must contain, the self-test's lines):
+/// frames on both ports byte-exact, and two clients at once.
+pub fn variant(elf: &std::path::Path, renderer: &str, uart: &[String]) -> Result<()> {
     let mut g = Guest::boot(elf, &[])?;
     let start = std::time::Instant::now();
     let result = (|| {
         let line = format!("renderer: {renderer}");
-        if !g.uart().contains(&line) {
-            return Err(format!("UART log lacks {line:?}"));
+        for needle in std::iter::once(&line).chain(uart) {
+            if !g.uart().contains(needle.as_str()) {
+                return Err(format!("UART log lacks {needle:?}"));
+            }
         }
         t_seed_port_frames(&mut g)?;
         t_persistent_port_pipelined(&mut g)?;
@@ -261,7 +291,8 @@ pub fn variant(elf: &std::path::Path, renderer: &str) -> Result<()> {
     match result {
         Ok(()) => {
             println!(
-                "qemu e2e: {renderer}: frames byte-exact on both ports ... ok ({:.1} s)",
+                "qemu e2e: {renderer}: {} UART line(s) as expected, frames byte-exact on both ports ... ok ({:.1} s)",
+                uart.len() + 1,
                 start.elapsed().as_secs_f64()
             );
             Ok(())

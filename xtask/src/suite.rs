@@ -96,14 +96,19 @@ pub fn qemu_tests() -> Result<()> {
     crate::qemu_e2e::reentry(&elf)?;
     // The other renderers: row mode, and the FPGA's code paths (driver,
     // frame DMA into the ring, pipelined rows) over the simulated
-    // accelerator.
-    for (features, renderer) in [
-        (&["row-mode"][..], "row mode, software renderer"),
-        (&["sim-accelerator"][..], "frame mode, FPGA frame DMA into the ring (software fallback)"),
-        (&["sim-accelerator", "row-mode"][..], "row mode, FPGA rows (software fallback)"),
+    // accelerator, which passes the boot self-test; and one whose
+    // simulated accelerator gets a pixel wrong: the self-test fails and
+    // software serves the frames.
+    use crate::qemu_e2e::{selftest_fault_lines, SELFTEST_PASS, SELFTEST_SKIPPED};
+    let (skipped, pass) = (vec![SELFTEST_SKIPPED.to_string()], vec![SELFTEST_PASS.to_string()]);
+    for (features, renderer, uart) in [
+        (&["row-mode"][..], "row mode, software renderer", skipped),
+        (&["sim-accelerator"][..], "frame mode, FPGA frame DMA into the ring (software fallback)", pass.clone()),
+        (&["sim-accelerator", "row-mode"][..], "row mode, FPGA rows (software fallback)", pass),
+        (&["selftest-fault"][..], "frame mode, software renderer into the ring", selftest_fault_lines()?),
     ] {
         let elf = crate::firmware::build("qemu-npcm750", features)?;
-        crate::qemu_e2e::variant(&elf, renderer)?;
+        crate::qemu_e2e::variant(&elf, renderer, &uart)?;
     }
     Ok(())
 }

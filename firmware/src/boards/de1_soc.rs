@@ -92,14 +92,15 @@ impl Board for De1Soc {
         let mut frames = match fpga(timer) {
             Ok((accel, version)) => {
                 let _ = writeln!(log, "FPGA: ray tracer, register map version {version}");
-                if version >= hal_avalon::map::ID_VERSION_FRAMES {
-                    Frames::ring(Some(accel), caches)
-                } else {
-                    Frames::rows(Some(accel))
+                match crate::selftest::gate(log, Some(accel), caches) {
+                    Some(accel) if version >= hal_avalon::map::ID_VERSION_FRAMES => Frames::ring(Some(accel), caches),
+                    Some(accel) => Frames::rows(Some(accel)),
+                    None => Frames::ring(None, caches),
                 }
             }
             Err(why) => {
                 let _ = writeln!(log, "FPGA: {why}");
+                crate::selftest::gate::<MmioPort>(log, None, caches);
                 Frames::ring(None, caches)
             }
         };

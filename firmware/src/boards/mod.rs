@@ -69,8 +69,9 @@ pub trait Board {
     /// How the accelerator's registers are reached.
     type Port: RegisterPort;
 
-    /// The frames: the FPGA accelerator's if one answers (frame mode when
-    /// its register map has the frame DMA, else row mode), else the
-    /// software renderer's. `caches` maintains the frame ring.
+    /// The frames: the FPGA accelerator's if one answers and passes the
+    /// boot self-test (`crate::selftest`; frame mode when its register map
+    /// has the frame DMA, else row mode), else the software renderer's.
+    /// `caches` maintains the frame ring.
     fn renderer(log: &mut impl Write, timer: &'static GlobalTimer, caches: Caches) -> Frames<Self::Port>;
 }

@@ -63,8 +63,13 @@ impl Board for QemuNpcm750 {
             let mut sim = SimAccelerator::with_memory(RingMemory::frames(caches), 2);
             // A row per status read: the main loop stays responsive.
             sim.set_frame_rows_per_poll(1);
+            // `selftest-fault`: one wrong pixel, for the self-test to catch.
+            if cfg!(feature = "selftest-fault") {
+                sim.set_wrong_pixel(Some(crate::selftest::FAULT_PIXEL));
+            }
             crate::render::accelerator(sim, timer)
         });
+        let fpga = crate::selftest::gate(log, fpga, caches);
         let mut frames = if cfg!(feature = "row-mode") { Frames::rows(fpga) } else { Frames::ring(fpga, caches) };
         let _ = writeln!(log, "renderer: {}", frames.describe());
         frames
