@@ -359,6 +359,36 @@ where
     let light = light_of(Mode::Frame, raw)?;
     let slot = plan.frame_slot;
     accel.start_frame(mem.slot_address(slot), &light).map_err(|error| fail(Problem::Driver { row: None, error }))?;
+    let result = compare_frame(accel, mem, reference, delay, plan, &light, fail);
+    if result.is_err() {
+        // A frame that failed or timed out is stopped before the slot is
+        // used again. Should even the abort time out, the DMA's own stall
+        // limit ends any frame that still writes within two stall periods
+        // of its last transfer (register map, "Stopping a frame").
+        let _ = accel.abort_frame();
+    }
+    result
+}
+
+/// Compare the planned rows of the frame in progress as ROWS_DONE covers
+/// them, until it is done.
+fn compare_frame<P, D, M, R, W>(
+    accel: &mut Accelerator<P, D>,
+    mem: &mut M,
+    reference: &mut R,
+    delay: &mut W,
+    plan: &Plan<'_>,
+    light: &Light,
+    fail: impl Fn(Problem) -> Failure,
+) -> Result<usize, Failure>
+where
+    P: RegisterPort,
+    D: DelayNs,
+    M: FrameMemory,
+    R: RowSource<Error = Infallible>,
+    W: DelayNs,
+{
+    let slot = plan.frame_slot;
     let mut want = [0u32; WIDTH];
     let (mut want_bytes, mut got_bytes) = ([0u8; ROW_BYTES], [0u8; ROW_BYTES]);
     // Next entry of `frame_rows` to compare; the first mismatch.
@@ -370,7 +400,7 @@ where
         // Compare every planned row the counter now covers, and only those.
         while let Some(&row) = plan.frame_rows.get(next).filter(|&&row| row < progress.rows && mismatch.is_none()) {
             mem.read_row(slot, row, 0, &mut got_bytes);
-            reference_row(reference, row, &light, &mut want);
+            reference_row(reference, row, light, &mut want);
             row_to_rgb888(&want, &mut want_bytes);
             if let Some(x) = (0..WIDTH).find(|&x| got_bytes[3 * x..3 * x + 3] != want_bytes[3 * x..3 * x + 3]) {
                 let rgb = |b: &[u8]| u32::from(b[0]) << 16 | u32::from(b[1]) << 8 | u32::from(b[2]);

@@ -7,7 +7,9 @@
 use std::cell::RefCell;
 use std::rc::Rc;
 
-use hal_avalon::map::{Csr, FRAME_CONTROL_START, FRAME_STATUS_DONE, ID_MAGIC};
+use hal_avalon::map::{
+    Csr, FRAME_CONTROL_ABORT, FRAME_CONTROL_START, FRAME_STATUS_ABORTED, FRAME_STATUS_DONE, ID_MAGIC,
+};
 use hal_avalon::selftest::{self, Mode, Outcome, Plan, Problem, PLAN};
 use hal_avalon::sim::{CountingDelay, DmaTarget, Fault, SimAccelerator};
 use hal_avalon::{Accelerator, Error, PollTimeout, RegisterPort};
@@ -74,6 +76,8 @@ struct Hooked {
     lagged: Option<u16>,
     stall_frames: bool,
     id: Option<u32>,
+    /// FRAME_CONTROL writes with the abort bit.
+    aborts: u32,
 }
 
 impl RegisterPort for Hooked {
@@ -107,6 +111,11 @@ impl RegisterPort for Hooked {
                 *lagged = 0;
             }
         }
+        if csr == Csr::FrameControl && value & FRAME_CONTROL_ABORT != 0 {
+            // A stalled frame still obeys an abort.
+            self.aborts += 1;
+            self.sim.set_fault(None);
+        }
         self.sim.write(csr, value);
         if csr == Csr::FrameControl && value & FRAME_CONTROL_START != 0 && self.stall_frames {
             self.sim.set_fault(Some(Fault::StuckBusy));
@@ -131,7 +140,7 @@ impl Bench {
             Rc::new(RefCell::new(Shared { bytes: vec![0xa5; SLOTS * FRAME_BYTES], ..Shared::default() }));
         let mem = Memory(shared.clone());
         let sim = SimAccelerator::with_memory(mem.clone(), 2);
-        let port = Hooked { sim, shared: shared.clone(), lagged: None, stall_frames: false, id: None };
+        let port = Hooked { sim, shared: shared.clone(), lagged: None, stall_frames: false, id: None, aborts: 0 };
         Bench {
             accel: Accelerator::new(port, CountingDelay::default(), PollTimeout::new(100, 1_000)),
             mem,
@@ -250,6 +259,8 @@ fn a_frame_that_never_finishes_times_out_within_the_bound() {
     assert_eq!(b.shared.borrow().rows_done_reads.len(), 200);
     assert_eq!(b.delay.total_ns, 199 * 5_000);
     assert!(report.to_string().contains("frame not done after 200 polls 5000 ns apart"), "{report}");
+    assert_eq!(b.accel.port().aborts, 1, "the timed-out frame is aborted");
+    assert_eq!(b.accel.port_mut().sim.read(Csr::FrameStatus), FRAME_STATUS_ABORTED, "idle: the slot is free");
 }
 
 #[test]
