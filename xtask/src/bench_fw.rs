@@ -28,7 +28,7 @@ use clap::Args;
 
 use crate::cost_model::{self, FrameCounts, CONSTANTS};
 use crate::firmware::{build, Guest};
-use crate::Result;
+use crate::support::Result;
 
 /// `cargo xtask bench-fw` options.
 #[derive(Args)]
@@ -219,7 +219,7 @@ fn print_estimate(name: &str, m: &Measured, fpga_cycles: f64) -> f64 {
 
 /// Run the three modes and print the figures and the cost model.
 pub fn run(args: &BenchArgs) -> Result<()> {
-    crate::tools::ensure_qemu()?;
+    crate::support::tools::ensure_qemu()?;
     let frames = args.frames.max(4);
     let frame_mode = measure(&["sim-accelerator"], frames)?;
     let row_mode = measure(&["sim-accelerator", "row-mode"], frames)?;

@@ -16,7 +16,7 @@ mod rtl;
 mod sdcard;
 mod soak;
 mod suite;
-mod tools;
+mod support;
 mod uimage;
 
 use std::process::ExitCode;
@@ -104,6 +104,3 @@ fn main() -> ExitCode {
         }
     }
 }
-
-/// Errors of xtask commands: one line for the user.
-pub type Result<T> = std::result::Result<T, String>;

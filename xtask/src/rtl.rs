@@ -15,8 +15,8 @@ use clap::Args;
 use model::arith::{fp_div, fp_mul, fp_sqrt, normalize, vec3_cross, vec3_dot, Vec3, WideVec3};
 use model::{render_row, Light, HEIGHT, Q, WIDTH};
 
-use crate::tools::{ensure_apt_packages, ensure_yowasp, root, step};
-use crate::Result;
+use crate::support::tools::{ensure_apt_packages, ensure_yowasp, root, step};
+use crate::support::Result;
 
 /// Lane count of the top level: the RTL default (`rt_top` parameter LANES).
 /// One lane: in frame mode it renders about 289 frames/s at 50 MHz

@@ -30,9 +30,9 @@ use std::process::Command;
 
 use clap::Args;
 
-use crate::tools::{ensure_apt_packages, ensure_apt_source, root, step};
+use crate::support::tools::{ensure_apt_packages, ensure_apt_source, root, step};
+use crate::support::Result;
 use crate::uimage::IH_MAGIC;
-use crate::Result;
 
 /// Bytes per sector.
 pub const SECTOR: u64 = 512;
@@ -243,7 +243,7 @@ fn uboot_source() -> Result<PathBuf> {
         fs::create_dir_all(&dl).map_err(|e| format!("{}: {e}", dl.display()))?;
         // deb-src for bookworm, copied from the machine's Debian entry.
         ensure_apt_source("raytracer-bookworm-src", "deb-src", "bookworm", "bookworm")?;
-        step("apt-get update", crate::tools::apt_get(&["update", "-q"]))?;
+        step("apt-get update", crate::support::tools::apt_get(&["update", "-q"]))?;
         run_in(&dl, "apt-get source u-boot (Debian bookworm)", "apt-get", &["source", "-q", "u-boot"])?;
         let tree = fs::read_dir(&dl)
             .map_err(|e| e.to_string())?

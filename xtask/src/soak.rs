@@ -12,7 +12,7 @@ use clap::Args;
 
 use crate::firmware::{build, Guest};
 use crate::qemu_e2e::connect;
-use crate::Result;
+use crate::support::Result;
 
 /// `cargo xtask soak` options.
 #[derive(Args)]
@@ -38,7 +38,7 @@ const SEED_EVERY: usize = 25;
 
 /// Run `frames` frames; the figures on one line.
 pub fn soak(frames: usize) -> Result<String> {
-    crate::tools::ensure_qemu()?;
+    crate::support::tools::ensure_qemu()?;
     let elf = build("qemu-npcm750", &[])?;
     let digests: Vec<u32> = LIGHTS
         .iter()

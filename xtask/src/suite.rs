@@ -3,10 +3,10 @@
 //! Each step prints a `==>` line; the first failure stops the run with a
 //! non-zero exit.
 
-use crate::tools::{
+use crate::support::tools::{
     cargo, ensure_apt_packages, ensure_qemu, ensure_rust_components, ensure_rust_target, step, BOARDS, FIRMWARE_TARGET,
 };
-use crate::Result;
+use crate::support::Result;
 
 /// Library crates that must build for the bare-metal target without `std`
 /// (with the features the firmware uses).
