@@ -3,16 +3,13 @@
 
 mod bench_fw;
 mod cost_model;
-mod depth;
 mod firmware;
+mod fpga;
 mod fuzz;
 mod live_test;
 mod lossy;
 mod model_cmds;
 mod qemu_e2e;
-mod quartus_check;
-mod quartus_dialect;
-mod rtl;
 mod sdcard;
 mod soak;
 mod suite;
@@ -73,7 +70,7 @@ enum Command {
     /// FPGA checks: Verilator lint, whole-frame co-simulation against the
     /// model, the Quartus files' consistency, Yosys resource estimate and
     /// logic depth.
-    Rtl(rtl::RtlArgs),
+    Rtl(fpga::rtl::RtlArgs),
 }
 
 fn main() -> ExitCode {
@@ -94,7 +91,7 @@ fn main() -> ExitCode {
         Command::Soak(args) => soak::run(&args),
         Command::Fuzz(args) => fuzz::run(&args),
         Command::LossyClient(args) => lossy::client(&args),
-        Command::Rtl(args) => rtl::run_cli(&args),
+        Command::Rtl(args) => fpga::rtl::run_cli(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -80,7 +80,7 @@ pub fn run() -> Result<()> {
     // The live viewer, end to end in a window under Xvfb.
     crate::live_test::run()?;
     // FPGA: lint, whole-frame co-simulation, resource estimate.
-    crate::rtl::run()?;
+    crate::fpga::rtl::run()?;
     println!("xtask test: all steps passed");
     Ok(())
 }
