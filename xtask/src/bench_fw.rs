@@ -27,7 +27,7 @@ use std::time::Duration;
 use clap::Args;
 
 use crate::cost_model::{self, FrameCounts, CONSTANTS};
-use crate::firmware::{build, Guest};
+use crate::images::firmware::{build, Guest};
 use crate::support::Result;
 
 /// `cargo xtask bench-fw` options.

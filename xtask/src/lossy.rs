@@ -24,7 +24,7 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 
-use crate::firmware::{build, Guest};
+use crate::images::firmware::{build, Guest};
 use crate::qemu_e2e::{expected_frame, LIGHTS};
 use crate::support::Result;
 

@@ -3,18 +3,16 @@
 
 mod bench_fw;
 mod cost_model;
-mod firmware;
 mod fpga;
 mod fuzz;
+mod images;
 mod live_test;
 mod lossy;
 mod model_cmds;
 mod qemu_e2e;
-mod sdcard;
 mod soak;
 mod suite;
 mod support;
-mod uimage;
 
 use std::process::ExitCode;
 
@@ -39,9 +37,9 @@ enum Command {
     Quality,
     /// Build the firmware for QEMU's npcm750-evb and boot it, forwarding
     /// host ports to the firmware's frame and persistent ports.
-    Qemu(firmware::QemuArgs),
+    Qemu(images::firmware::QemuArgs),
     /// Build the DE1-SoC payload: raw binary and U-Boot legacy image.
-    Image(firmware::ImageArgs),
+    Image(images::firmware::ImageArgs),
     /// Boot the QEMU firmware and run the end-to-end tests against it.
     QemuTest,
     /// Guest instructions per frame (QEMU -icount) and the board cost model.
@@ -49,7 +47,7 @@ enum Command {
     /// Write an SD-card image that boots the DE1-SoC into the firmware:
     /// U-Boot SPL and U-Boot (Debian's source, patched), boot script,
     /// firmware, and the FPGA image if given.
-    Sdcard(sdcard::SdcardArgs),
+    Sdcard(images::sdcard::SdcardArgs),
     /// The suite's SD-card test on its own: an image with a stand-in FPGA
     /// image, checked with the project's parsers and with the tools.
     SdcardTest,
@@ -80,12 +78,12 @@ fn main() -> ExitCode {
         Command::Render(args) => model_cmds::render(&args),
         Command::Golden(args) => model_cmds::golden(&args),
         Command::Quality => model_cmds::quality(),
-        Command::Qemu(args) => firmware::qemu(&args),
-        Command::Image(args) => firmware::image(&args),
+        Command::Qemu(args) => images::firmware::qemu(&args),
+        Command::Image(args) => images::firmware::image(&args),
         Command::QemuTest => suite::qemu_tests(),
         Command::BenchFw(args) => bench_fw::run(&args),
-        Command::Sdcard(args) => sdcard::run(&args),
-        Command::SdcardTest => sdcard::suite_test(),
+        Command::Sdcard(args) => images::sdcard::run(&args),
+        Command::SdcardTest => images::sdcard::suite_test(),
         Command::LiveTest => live_test::run(),
         Command::LossyBench(args) => lossy::bench(&args),
         Command::Soak(args) => soak::run(&args),

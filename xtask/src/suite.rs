@@ -66,12 +66,12 @@ pub fn run() -> Result<()> {
     step("rustdoc without warnings", doc)?;
     // Firmware: both boards build warning-free, then the QEMU end-to-end
     // tests boot the QEMU board.
-    crate::firmware::build("de1-soc", &[])?;
+    crate::images::firmware::build("de1-soc", &[])?;
     qemu_tests()?;
     // The SD-card image: U-Boot from Debian's source with the project's
     // patch, the firmware and a stand-in FPGA image, checked piece by piece.
     println!("==> SD-card image");
-    crate::sdcard::suite_test()?;
+    crate::images::sdcard::suite_test()?;
     // The emulated board behind a lossy link, the kernel's TCP as its peer,
     // and a short soak (cargo xtask soak runs 1,000 frames).
     crate::lossy::suite_test()?;
@@ -89,10 +89,10 @@ pub fn run() -> Result<()> {
 /// tests against it.
 pub fn qemu_tests() -> Result<()> {
     ensure_qemu()?;
-    let elf = crate::firmware::build("qemu-npcm750", &[])?;
+    let elf = crate::images::firmware::build("qemu-npcm750", &[])?;
     println!("==> QEMU end-to-end tests ({})", elf.display());
     crate::qemu_e2e::run(&elf)?;
-    let elf = crate::firmware::build("qemu-npcm750", &["reentry-test"])?;
+    let elf = crate::images::firmware::build("qemu-npcm750", &["reentry-test"])?;
     crate::qemu_e2e::reentry(&elf)?;
     // The other renderers: row mode, and the FPGA's code paths (driver,
     // frame DMA into the ring, pipelined rows) over the simulated
@@ -107,7 +107,7 @@ pub fn qemu_tests() -> Result<()> {
         (&["sim-accelerator", "row-mode"][..], "row mode, FPGA rows (software fallback)", pass),
         (&["selftest-fault"][..], "frame mode, software renderer into the ring", selftest_fault_lines()?),
     ] {
-        let elf = crate::firmware::build("qemu-npcm750", features)?;
+        let elf = crate::images::firmware::build("qemu-npcm750", features)?;
         crate::qemu_e2e::variant(&elf, renderer, &uart)?;
     }
     Ok(())

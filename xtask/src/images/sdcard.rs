@@ -30,9 +30,9 @@ use std::process::Command;
 
 use clap::Args;
 
+use super::uimage::IH_MAGIC;
 use crate::support::tools::{ensure_apt_packages, ensure_apt_source, root, step};
 use crate::support::Result;
-use crate::uimage::IH_MAGIC;
 
 /// Bytes per sector.
 pub const SECTOR: u64 = 512;
@@ -342,7 +342,7 @@ pub fn run(args: &SdcardArgs) -> Result<()> {
     let out_dir = dir();
     fs::create_dir_all(&out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
     let sfp = uboot()?;
-    crate::firmware::image(&crate::firmware::ImageArgs { out: out_dir.clone() })?;
+    super::firmware::image(&super::firmware::ImageArgs { out: out_dir.clone() })?;
     let firmware = out_dir.join(FIRMWARE_FILE);
     let script = boot_script(&out_dir)?;
     let mut files: Vec<(&Path, &str)> = vec![(script.as_path(), SCRIPT_FILE), (firmware.as_path(), FIRMWARE_FILE)];
