@@ -1,16 +1,12 @@
 //! `cargo xtask <command>`: project automation in Rust, so it runs wherever
 //! cargo does.
 
-mod bench_fw;
-mod cost_model;
+mod emulated;
 mod fpga;
 mod fuzz;
 mod images;
 mod live_test;
-mod lossy;
 mod model_cmds;
-mod qemu_e2e;
-mod soak;
 mod suite;
 mod support;
 
@@ -43,7 +39,7 @@ enum Command {
     /// Boot the QEMU firmware and run the end-to-end tests against it.
     QemuTest,
     /// Guest instructions per frame (QEMU -icount) and the board cost model.
-    BenchFw(bench_fw::BenchArgs),
+    BenchFw(emulated::bench_fw::BenchArgs),
     /// Write an SD-card image that boots the DE1-SoC into the firmware:
     /// U-Boot SPL and U-Boot (Debian's source, patched), boot script,
     /// firmware, and the FPGA image if given.
@@ -55,16 +51,16 @@ enum Command {
     LiveTest,
     /// The emulated board behind a lossy link, the kernel's TCP as the
     /// peer: clean, 2% and 10% loss; times, faults, retransmissions.
-    LossyBench(lossy::BenchArgs),
+    LossyBench(emulated::lossy::BenchArgs),
     /// A long run of the emulated board: 1,000 frames in one boot, every
     /// one checked, nothing leaked.
-    Soak(soak::SoakArgs),
+    Soak(emulated::soak::SoakArgs),
     /// The hostile-input harnesses with many cases (frame server, MAC
     /// receive path).
     Fuzz(fuzz::FuzzArgs),
     /// The client `lossy-bench` runs inside its network namespace.
     #[command(hide = true)]
-    LossyClient(lossy::ClientArgs),
+    LossyClient(emulated::lossy::ClientArgs),
     /// FPGA checks: Verilator lint, whole-frame co-simulation against the
     /// model, the Quartus files' consistency, Yosys resource estimate and
     /// logic depth.
@@ -81,14 +77,14 @@ fn main() -> ExitCode {
         Command::Qemu(args) => images::firmware::qemu(&args),
         Command::Image(args) => images::firmware::image(&args),
         Command::QemuTest => suite::qemu_tests(),
-        Command::BenchFw(args) => bench_fw::run(&args),
+        Command::BenchFw(args) => emulated::bench_fw::run(&args),
         Command::Sdcard(args) => images::sdcard::run(&args),
         Command::SdcardTest => images::sdcard::suite_test(),
         Command::LiveTest => live_test::run(),
-        Command::LossyBench(args) => lossy::bench(&args),
-        Command::Soak(args) => soak::run(&args),
+        Command::LossyBench(args) => emulated::lossy::bench(&args),
+        Command::Soak(args) => emulated::soak::run(&args),
         Command::Fuzz(args) => fuzz::run(&args),
-        Command::LossyClient(args) => lossy::client(&args),
+        Command::LossyClient(args) => emulated::lossy::client(&args),
         Command::Rtl(args) => fpga::rtl::run_cli(&args),
     };
     match result {

@@ -74,9 +74,9 @@ pub fn run() -> Result<()> {
     crate::images::sdcard::suite_test()?;
     // The emulated board behind a lossy link, the kernel's TCP as its peer,
     // and a short soak (cargo xtask soak runs 1,000 frames).
-    crate::lossy::suite_test()?;
+    crate::emulated::lossy::suite_test()?;
     println!("==> short soak of the emulated board");
-    println!("{}", crate::soak::soak(40)?);
+    println!("{}", crate::emulated::soak::soak(40)?);
     // The live viewer, end to end in a window under Xvfb.
     crate::live_test::run()?;
     // FPGA: lint, whole-frame co-simulation, resource estimate.
@@ -91,15 +91,15 @@ pub fn qemu_tests() -> Result<()> {
     ensure_qemu()?;
     let elf = crate::images::firmware::build("qemu-npcm750", &[])?;
     println!("==> QEMU end-to-end tests ({})", elf.display());
-    crate::qemu_e2e::run(&elf)?;
+    crate::emulated::qemu_e2e::run(&elf)?;
     let elf = crate::images::firmware::build("qemu-npcm750", &["reentry-test"])?;
-    crate::qemu_e2e::reentry(&elf)?;
+    crate::emulated::qemu_e2e::reentry(&elf)?;
     // The other renderers: row mode, and the FPGA's code paths (driver,
     // frame DMA into the ring, pipelined rows) over the simulated
     // accelerator, which passes the boot self-test; and one whose
     // simulated accelerator gets a pixel wrong: the self-test fails and
     // software serves the frames.
-    use crate::qemu_e2e::{selftest_fault_lines, SELFTEST_PASS, SELFTEST_SKIPPED};
+    use crate::emulated::qemu_e2e::{selftest_fault_lines, SELFTEST_PASS, SELFTEST_SKIPPED};
     let (skipped, pass) = (vec![SELFTEST_SKIPPED.to_string()], vec![SELFTEST_PASS.to_string()]);
     for (features, renderer, uart) in [
         (&["row-mode"][..], "row mode, software renderer", skipped),
@@ -108,7 +108,7 @@ pub fn qemu_tests() -> Result<()> {
         (&["selftest-fault"][..], "frame mode, software renderer into the ring", selftest_fault_lines()?),
     ] {
         let elf = crate::images::firmware::build("qemu-npcm750", features)?;
-        crate::qemu_e2e::variant(&elf, renderer, &uart)?;
+        crate::emulated::qemu_e2e::variant(&elf, renderer, &uart)?;
     }
     Ok(())
 }

@@ -24,8 +24,8 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 
+use super::qemu_e2e::{expected_frame, LIGHTS};
 use crate::images::firmware::{build, Guest};
-use crate::qemu_e2e::{expected_frame, LIGHTS};
 use crate::support::Result;
 
 /// Per-frame fault probabilities, the same both ways.

@@ -10,8 +10,8 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 
+use super::qemu_e2e::connect;
 use crate::images::firmware::{build, Guest};
-use crate::qemu_e2e::connect;
 use crate::support::Result;
 
 /// `cargo xtask soak` options.
@@ -42,7 +42,7 @@ pub fn soak(frames: usize) -> Result<String> {
     let elf = build("qemu-npcm750", &[])?;
     let digests: Vec<u32> = LIGHTS
         .iter()
-        .map(|l| crate::qemu_e2e::expected_frame(*l).map(|f| crc32fast::hash(&f)))
+        .map(|l| super::qemu_e2e::expected_frame(*l).map(|f| crc32fast::hash(&f)))
         .collect::<Result<_>>()?;
     let mut g = Guest::boot(&elf, &[])?;
     let start = Instant::now();
