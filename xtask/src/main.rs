@@ -3,10 +3,8 @@
 
 mod emulated;
 mod fpga;
-mod fuzz;
+mod host;
 mod images;
-mod live_test;
-mod model_cmds;
 mod suite;
 mod support;
 
@@ -26,9 +24,9 @@ enum Command {
     /// Run the whole test suite, installing missing tools first.
     Test,
     /// Render one frame with the fixed-point model to a PNG.
-    Render(model_cmds::RenderArgs),
+    Render(host::model_cmds::RenderArgs),
     /// Dump golden rows (one 0x00RRGGBB word per line) for the RTL co-simulation.
-    Golden(model_cmds::GoldenArgs),
+    Golden(host::model_cmds::GoldenArgs),
     /// Print the quality report: the model against the f64 reference.
     Quality,
     /// Build the firmware for QEMU's npcm750-evb and boot it, forwarding
@@ -57,7 +55,7 @@ enum Command {
     Soak(emulated::soak::SoakArgs),
     /// The hostile-input harnesses with many cases (frame server, MAC
     /// receive path).
-    Fuzz(fuzz::FuzzArgs),
+    Fuzz(host::fuzz::FuzzArgs),
     /// The client `lossy-bench` runs inside its network namespace.
     #[command(hide = true)]
     LossyClient(emulated::lossy::ClientArgs),
@@ -71,19 +69,19 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Test => suite::run(),
-        Command::Render(args) => model_cmds::render(&args),
-        Command::Golden(args) => model_cmds::golden(&args),
-        Command::Quality => model_cmds::quality(),
+        Command::Render(args) => host::model_cmds::render(&args),
+        Command::Golden(args) => host::model_cmds::golden(&args),
+        Command::Quality => host::model_cmds::quality(),
         Command::Qemu(args) => images::firmware::qemu(&args),
         Command::Image(args) => images::firmware::image(&args),
         Command::QemuTest => suite::qemu_tests(),
         Command::BenchFw(args) => emulated::bench_fw::run(&args),
         Command::Sdcard(args) => images::sdcard::run(&args),
         Command::SdcardTest => images::sdcard::suite_test(),
-        Command::LiveTest => live_test::run(),
+        Command::LiveTest => host::live_test::run(),
         Command::LossyBench(args) => emulated::lossy::bench(&args),
         Command::Soak(args) => emulated::soak::run(&args),
-        Command::Fuzz(args) => fuzz::run(&args),
+        Command::Fuzz(args) => host::fuzz::run(&args),
         Command::LossyClient(args) => emulated::lossy::client(&args),
         Command::Rtl(args) => fpga::rtl::run_cli(&args),
     };

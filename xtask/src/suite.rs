@@ -78,7 +78,7 @@ pub fn run() -> Result<()> {
     println!("==> short soak of the emulated board");
     println!("{}", crate::emulated::soak::soak(40)?);
     // The live viewer, end to end in a window under Xvfb.
-    crate::live_test::run()?;
+    crate::host::live_test::run()?;
     // FPGA: lint, whole-frame co-simulation, resource estimate.
     crate::fpga::rtl::run()?;
     println!("xtask test: all steps passed");
