@@ -1,5 +1,17 @@
 //! `cargo xtask <command>`: project automation in Rust, so it runs wherever
 //! cargo does.
+//!
+//! Modules by concern, in layers, each importing only from below or from
+//! its own folder (each folder's `mod.rs` says what it may import; the
+//! `layering` test holds the sources to it):
+//!
+//! * `main.rs`: the command line;
+//! * [`suite`]: `cargo xtask test`, every group in order;
+//! * the groups: [`emulated`] (the firmware on QEMU: end-to-end tests,
+//!   benches, soak), which uses [`images`] (firmware, U-Boot image, SD
+//!   card); [`fpga`] (RTL checks); [`host`] (model commands, live viewer,
+//!   fuzz harnesses);
+//! * [`support`]: paths, the step runner, tool installation, the error type.
 
 mod emulated;
 mod fpga;
@@ -7,6 +19,9 @@ mod host;
 mod images;
 mod suite;
 mod support;
+
+#[cfg(test)]
+mod layering;
 
 use std::process::ExitCode;
 

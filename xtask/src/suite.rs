@@ -2,6 +2,9 @@
 //!
 //! Each step prints a `==>` line; the first failure stops the run with a
 //! non-zero exit.
+//!
+//! May import: `emulated`, `fpga`, `host`, `images`, `support`. The suite
+//! sits above every group: it runs them all, in order.
 
 use crate::support::tools::{
     cargo, ensure_apt_packages, ensure_qemu, ensure_rust_components, ensure_rust_target, step, BOARDS, FIRMWARE_TARGET,

@@ -1,8 +1,8 @@
 //! The bottom layer: what every xtask command shares (paths, targets, the
 //! step runner, tool installation) and the error type.
 //!
-//! May import: nothing above it (only `support` itself), so every group can
-//! use it without a cycle; the `layering` test checks this.
+//! May import: `support` only. Nothing above it, so every group can use it
+//! without a cycle.
 
 pub mod tools;
 
