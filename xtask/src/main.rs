@@ -1,23 +1,27 @@
 //! `cargo xtask <command>`: project automation in Rust, so it runs wherever
 //! cargo does.
+//!
+//! Modules by concern, in layers, each importing only from below or from
+//! its own folder (each folder's `mod.rs` says what it may import; the
+//! `layering` test holds the sources to it):
+//!
+//! * `main.rs`: the command line;
+//! * [`suite`]: `cargo xtask test`, every group in order;
+//! * the groups: [`emulated`] (the firmware on QEMU: end-to-end tests,
+//!   benches, soak), which uses [`images`] (firmware, U-Boot image, SD
+//!   card); [`fpga`] (RTL checks); [`host`] (model commands, live viewer,
+//!   fuzz harnesses);
+//! * [`support`]: paths, the step runner, tool installation, the error type.
 
-mod bench_fw;
-mod cost_model;
-mod depth;
-mod firmware;
-mod fuzz;
-mod live_test;
-mod lossy;
-mod model_cmds;
-mod qemu_e2e;
-mod quartus_check;
-mod quartus_dialect;
-mod rtl;
-mod sdcard;
-mod soak;
+mod emulated;
+mod fpga;
+mod host;
+mod images;
 mod suite;
-mod tools;
-mod uimage;
+mod support;
+
+#[cfg(test)]
+mod layering;
 
 use std::process::ExitCode;
 
@@ -35,24 +39,24 @@ enum Command {
     /// Run the whole test suite, installing missing tools first.
     Test,
     /// Render one frame with the fixed-point model to a PNG.
-    Render(model_cmds::RenderArgs),
+    Render(host::model_cmds::RenderArgs),
     /// Dump golden rows (one 0x00RRGGBB word per line) for the RTL co-simulation.
-    Golden(model_cmds::GoldenArgs),
+    Golden(host::model_cmds::GoldenArgs),
     /// Print the quality report: the model against the f64 reference.
     Quality,
     /// Build the firmware for QEMU's npcm750-evb and boot it, forwarding
     /// host ports to the firmware's frame and persistent ports.
-    Qemu(firmware::QemuArgs),
+    Qemu(images::firmware::QemuArgs),
     /// Build the DE1-SoC payload: raw binary and U-Boot legacy image.
-    Image(firmware::ImageArgs),
+    Image(images::firmware::ImageArgs),
     /// Boot the QEMU firmware and run the end-to-end tests against it.
     QemuTest,
     /// Guest instructions per frame (QEMU -icount) and the board cost model.
-    BenchFw(bench_fw::BenchArgs),
+    BenchFw(emulated::bench_fw::BenchArgs),
     /// Write an SD-card image that boots the DE1-SoC into the firmware:
     /// U-Boot SPL and U-Boot (Debian's source, patched), boot script,
     /// firmware, and the FPGA image if given.
-    Sdcard(sdcard::SdcardArgs),
+    Sdcard(images::sdcard::SdcardArgs),
     /// The suite's SD-card test on its own: an image with a stand-in FPGA
     /// image, checked with the project's parsers and with the tools.
     SdcardTest,
@@ -60,41 +64,41 @@ enum Command {
     LiveTest,
     /// The emulated board behind a lossy link, the kernel's TCP as the
     /// peer: clean, 2% and 10% loss; times, faults, retransmissions.
-    LossyBench(lossy::BenchArgs),
+    LossyBench(emulated::lossy::BenchArgs),
     /// A long run of the emulated board: 1,000 frames in one boot, every
     /// one checked, nothing leaked.
-    Soak(soak::SoakArgs),
+    Soak(emulated::soak::SoakArgs),
     /// The hostile-input harnesses with many cases (frame server, MAC
     /// receive path).
-    Fuzz(fuzz::FuzzArgs),
+    Fuzz(host::fuzz::FuzzArgs),
     /// The client `lossy-bench` runs inside its network namespace.
     #[command(hide = true)]
-    LossyClient(lossy::ClientArgs),
+    LossyClient(emulated::lossy::ClientArgs),
     /// FPGA checks: Verilator lint, whole-frame co-simulation against the
     /// model, the Quartus files' consistency, Yosys resource estimate and
     /// logic depth.
-    Rtl(rtl::RtlArgs),
+    Rtl(fpga::rtl::RtlArgs),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Test => suite::run(),
-        Command::Render(args) => model_cmds::render(&args),
-        Command::Golden(args) => model_cmds::golden(&args),
-        Command::Quality => model_cmds::quality(),
-        Command::Qemu(args) => firmware::qemu(&args),
-        Command::Image(args) => firmware::image(&args),
+        Command::Render(args) => host::model_cmds::render(&args),
+        Command::Golden(args) => host::model_cmds::golden(&args),
+        Command::Quality => host::model_cmds::quality(),
+        Command::Qemu(args) => images::firmware::qemu(&args),
+        Command::Image(args) => images::firmware::image(&args),
         Command::QemuTest => suite::qemu_tests(),
-        Command::BenchFw(args) => bench_fw::run(&args),
-        Command::Sdcard(args) => sdcard::run(&args),
-        Command::SdcardTest => sdcard::suite_test(),
-        Command::LiveTest => live_test::run(),
-        Command::LossyBench(args) => lossy::bench(&args),
-        Command::Soak(args) => soak::run(&args),
-        Command::Fuzz(args) => fuzz::run(&args),
-        Command::LossyClient(args) => lossy::client(&args),
-        Command::Rtl(args) => rtl::run_cli(&args),
+        Command::BenchFw(args) => emulated::bench_fw::run(&args),
+        Command::Sdcard(args) => images::sdcard::run(&args),
+        Command::SdcardTest => images::sdcard::suite_test(),
+        Command::LiveTest => host::live_test::run(),
+        Command::LossyBench(args) => emulated::lossy::bench(&args),
+        Command::Soak(args) => emulated::soak::run(&args),
+        Command::Fuzz(args) => host::fuzz::run(&args),
+        Command::LossyClient(args) => emulated::lossy::client(&args),
+        Command::Rtl(args) => fpga::rtl::run_cli(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -104,6 +108,3 @@ fn main() -> ExitCode {
         }
     }
 }
-
-/// Errors of xtask commands: one line for the user.
-pub type Result<T> = std::result::Result<T, String>;

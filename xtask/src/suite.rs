@@ -2,11 +2,14 @@
 //!
 //! Each step prints a `==>` line; the first failure stops the run with a
 //! non-zero exit.
+//!
+//! May import: `emulated`, `fpga`, `host`, `images`, `support`. The suite
+//! sits above every group: it runs them all, in order.
 
-use crate::tools::{
+use crate::support::tools::{
     cargo, ensure_apt_packages, ensure_qemu, ensure_rust_components, ensure_rust_target, step, BOARDS, FIRMWARE_TARGET,
 };
-use crate::Result;
+use crate::support::Result;
 
 /// Library crates that must build for the bare-metal target without `std`
 /// (with the features the firmware uses).
@@ -66,21 +69,21 @@ pub fn run() -> Result<()> {
     step("rustdoc without warnings", doc)?;
     // Firmware: both boards build warning-free, then the QEMU end-to-end
     // tests boot the QEMU board.
-    crate::firmware::build("de1-soc", &[])?;
+    crate::images::firmware::build("de1-soc", &[])?;
     qemu_tests()?;
     // The SD-card image: U-Boot from Debian's source with the project's
     // patch, the firmware and a stand-in FPGA image, checked piece by piece.
     println!("==> SD-card image");
-    crate::sdcard::suite_test()?;
+    crate::images::sdcard::suite_test()?;
     // The emulated board behind a lossy link, the kernel's TCP as its peer,
     // and a short soak (cargo xtask soak runs 1,000 frames).
-    crate::lossy::suite_test()?;
+    crate::emulated::lossy::suite_test()?;
     println!("==> short soak of the emulated board");
-    println!("{}", crate::soak::soak(40)?);
+    println!("{}", crate::emulated::soak::soak(40)?);
     // The live viewer, end to end in a window under Xvfb.
-    crate::live_test::run()?;
+    crate::host::live_test::run()?;
     // FPGA: lint, whole-frame co-simulation, resource estimate.
-    crate::rtl::run()?;
+    crate::fpga::rtl::run()?;
     println!("xtask test: all steps passed");
     Ok(())
 }
@@ -89,17 +92,17 @@ pub fn run() -> Result<()> {
 /// tests against it.
 pub fn qemu_tests() -> Result<()> {
     ensure_qemu()?;
-    let elf = crate::firmware::build("qemu-npcm750", &[])?;
+    let elf = crate::images::firmware::build("qemu-npcm750", &[])?;
     println!("==> QEMU end-to-end tests ({})", elf.display());
-    crate::qemu_e2e::run(&elf)?;
-    let elf = crate::firmware::build("qemu-npcm750", &["reentry-test"])?;
-    crate::qemu_e2e::reentry(&elf)?;
+    crate::emulated::qemu_e2e::run(&elf)?;
+    let elf = crate::images::firmware::build("qemu-npcm750", &["reentry-test"])?;
+    crate::emulated::qemu_e2e::reentry(&elf)?;
     // The other renderers: row mode, and the FPGA's code paths (driver,
     // frame DMA into the ring, pipelined rows) over the simulated
     // accelerator, which passes the boot self-test; and one whose
     // simulated accelerator gets a pixel wrong: the self-test fails and
     // software serves the frames.
-    use crate::qemu_e2e::{selftest_fault_lines, SELFTEST_PASS, SELFTEST_SKIPPED};
+    use crate::emulated::qemu_e2e::{selftest_fault_lines, SELFTEST_PASS, SELFTEST_SKIPPED};
     let (skipped, pass) = (vec![SELFTEST_SKIPPED.to_string()], vec![SELFTEST_PASS.to_string()]);
     for (features, renderer, uart) in [
         (&["row-mode"][..], "row mode, software renderer", skipped),
@@ -107,8 +110,8 @@ pub fn qemu_tests() -> Result<()> {
         (&["sim-accelerator", "row-mode"][..], "row mode, FPGA rows (software fallback)", pass),
         (&["selftest-fault"][..], "frame mode, software renderer into the ring", selftest_fault_lines()?),
     ] {
-        let elf = crate::firmware::build("qemu-npcm750", features)?;
-        crate::qemu_e2e::variant(&elf, renderer, &uart)?;
+        let elf = crate::images::firmware::build("qemu-npcm750", features)?;
+        crate::emulated::qemu_e2e::variant(&elf, renderer, &uart)?;
     }
     Ok(())
 }

@@ -9,7 +9,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use crate::Result;
+use super::Result;
 
 /// The firmware's target; every `no_std` crate must build for it.
 pub const FIRMWARE_TARGET: &str = "armv7a-none-eabi";

@@ -6,8 +6,8 @@
 
 use clap::Args;
 
-use crate::tools::{cargo, step};
-use crate::Result;
+use crate::support::tools::{cargo, step};
+use crate::support::Result;
 
 /// `cargo xtask fuzz` options.
 #[derive(Args)]

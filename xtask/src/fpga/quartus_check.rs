@@ -17,7 +17,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
-use crate::Result;
+use crate::support::Result;
 
 /// A port of a SystemVerilog module header: name and width in bits.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -264,7 +264,7 @@ mod tests {
     use super::*;
 
     fn files() -> [String; 6] {
-        let q = crate::tools::root().join("fpga/quartus");
+        let q = crate::support::tools::root().join("fpga/quartus");
         ["de1_soc_top.sv", "de1_soc.qsf", "soc_system.tcl", "rt_accel_hw.tcl", "rt_accel.sv", "de1_soc.sdc"]
             .map(|f| std::fs::read_to_string(q.join(f)).expect("fpga/quartus file"))
     }

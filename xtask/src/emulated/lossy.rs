@@ -24,9 +24,9 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 
-use crate::firmware::{build, Guest};
-use crate::qemu_e2e::{expected_frame, LIGHTS};
-use crate::Result;
+use super::qemu_e2e::{expected_frame, LIGHTS};
+use crate::images::firmware::{build, Guest};
+use crate::support::Result;
 
 /// Per-frame fault probabilities, the same both ways.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -405,7 +405,7 @@ pub struct BenchArgs {
 /// Each scenario once; times, faults and the lossy-to-clean ratios.
 pub fn bench(args: &BenchArgs) -> Result<()> {
     available()?;
-    crate::tools::ensure_qemu()?;
+    crate::support::tools::ensure_qemu()?;
     let elf = build("qemu-npcm750", &[])?;
     let mut clean = None;
     for (name, faults) in SCENARIOS {

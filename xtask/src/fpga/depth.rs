@@ -22,7 +22,7 @@ use std::path::Path;
 
 use serde_json::Value;
 
-use crate::Result;
+use crate::support::Result;
 
 /// Delay model, ns (estimates; see the module doc).
 pub struct Delays {

@@ -7,8 +7,8 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::tools::{cargo, ensure_apt_packages, root, step};
-use crate::Result;
+use crate::support::tools::{cargo, ensure_apt_packages, root, step};
+use crate::support::Result;
 
 /// Drags, the wheel, keys and the automatic orbit, then quit.
 const SCRIPT: &str = "\

@@ -2,7 +2,7 @@
 //! with `-icount shift=0` (one guest nanosecond per instruction, so the
 //! figures are instruction counts; they move by a few in a million from
 //! run to run, with when the host's ACKs arrive), and the board cost model
-//! ([`crate::cost_model`]) applied to the counts.
+//! ([`crate::emulated::cost_model`]) applied to the counts.
 //!
 //! Three builds of the `bench` firmware serve pipelined frames on the
 //! persistent port:
@@ -26,9 +26,9 @@ use std::time::Duration;
 
 use clap::Args;
 
-use crate::cost_model::{self, FrameCounts, CONSTANTS};
-use crate::firmware::{build, Guest};
-use crate::Result;
+use super::cost_model::{self, FrameCounts, CONSTANTS};
+use crate::images::firmware::{build, Guest};
+use crate::support::Result;
 
 /// `cargo xtask bench-fw` options.
 #[derive(Args)]
@@ -154,10 +154,10 @@ fn measure(features: &[&str], frames: usize) -> Result<Measured> {
     let mut g = Guest::boot(&elf, &["-icount", "shift=0"])?;
     let mut s = TcpStream::connect(("127.0.0.1", g.port_persistent)).map_err(|e| e.to_string())?;
     s.set_read_timeout(Some(Duration::from_secs(600))).map_err(|e| e.to_string())?;
-    let light = crate::qemu_e2e::LIGHTS[0];
+    let light = super::qemu_e2e::LIGHTS[0];
     s.write_all(&rt_protocol::encode_raw_request(light).repeat(frames)).map_err(|e| e.to_string())?;
     let mut frame = vec![0u8; model::FRAME_BYTES];
-    let want = crate::qemu_e2e::expected_frame(light)?;
+    let want = super::qemu_e2e::expected_frame(light)?;
     for i in 0..frames {
         s.read_exact(&mut frame).map_err(|e| format!("frame {i}: {e}"))?;
         if frame != want {
@@ -219,7 +219,7 @@ fn print_estimate(name: &str, m: &Measured, fpga_cycles: f64) -> f64 {
 
 /// Run the three modes and print the figures and the cost model.
 pub fn run(args: &BenchArgs) -> Result<()> {
-    crate::tools::ensure_qemu()?;
+    crate::support::tools::ensure_qemu()?;
     let frames = args.frames.max(4);
     let frame_mode = measure(&["sim-accelerator"], frames)?;
     let row_mode = measure(&["sim-accelerator", "row-mode"], frames)?;

@@ -11,9 +11,9 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use rt_protocol::{persistent_port, FRAME_PORT, PERSISTENT_PORT};
 
-use crate::tools::{cargo, ensure_qemu, root, step, FIRMWARE_TARGET};
-use crate::uimage;
-use crate::Result;
+use super::uimage;
+use crate::support::tools::{cargo, ensure_qemu, root, step, FIRMWARE_TARGET};
+use crate::support::Result;
 
 /// The release ELF of the firmware.
 pub fn elf_path() -> PathBuf {

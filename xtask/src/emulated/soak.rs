@@ -10,9 +10,9 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 
-use crate::firmware::{build, Guest};
-use crate::qemu_e2e::connect;
-use crate::Result;
+use super::qemu_e2e::connect;
+use crate::images::firmware::{build, Guest};
+use crate::support::Result;
 
 /// `cargo xtask soak` options.
 #[derive(Args)]
@@ -38,11 +38,11 @@ const SEED_EVERY: usize = 25;
 
 /// Run `frames` frames; the figures on one line.
 pub fn soak(frames: usize) -> Result<String> {
-    crate::tools::ensure_qemu()?;
+    crate::support::tools::ensure_qemu()?;
     let elf = build("qemu-npcm750", &[])?;
     let digests: Vec<u32> = LIGHTS
         .iter()
-        .map(|l| crate::qemu_e2e::expected_frame(*l).map(|f| crc32fast::hash(&f)))
+        .map(|l| super::qemu_e2e::expected_frame(*l).map(|f| crc32fast::hash(&f)))
         .collect::<Result<_>>()?;
     let mut g = Guest::boot(&elf, &[])?;
     let start = Instant::now();

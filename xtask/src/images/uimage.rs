@@ -8,7 +8,7 @@
 //! time, data size, load address, entry point, data CRC-32, OS, arch, type,
 //! compression, 32-byte name.
 
-use crate::Result;
+use crate::support::Result;
 
 /// Legacy image magic.
 pub const IH_MAGIC: u32 = 0x2705_1956;

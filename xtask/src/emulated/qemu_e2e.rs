@@ -9,8 +9,8 @@ use std::time::Duration;
 use model::{render_frame, Light, FRAME_BYTES, WIDTH};
 use rt_protocol::{encode_raw_request, FRAME_PORT, PERSISTENT_PORT};
 
-use crate::firmware::Guest;
-use crate::Result;
+use crate::images::firmware::Guest;
+use crate::support::Result;
 
 const IO_TIMEOUT: Duration = Duration::from_secs(120);
 

@@ -15,8 +15,8 @@ use clap::Args;
 use model::arith::{fp_div, fp_mul, fp_sqrt, normalize, vec3_cross, vec3_dot, Vec3, WideVec3};
 use model::{render_row, Light, HEIGHT, Q, WIDTH};
 
-use crate::tools::{ensure_apt_packages, ensure_yowasp, root, step};
-use crate::Result;
+use crate::support::tools::{ensure_apt_packages, ensure_yowasp, root, step};
+use crate::support::Result;
 
 /// Lane count of the top level: the RTL default (`rt_top` parameter LANES).
 /// One lane: in frame mode it renders about 289 frames/s at 50 MHz
@@ -82,7 +82,7 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
     fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
 
     // Forms Quartus Standard/Lite rejects, before any tool runs.
-    crate::quartus_dialect::run(&root)?;
+    super::quartus_dialect::run(&root)?;
 
     ensure_apt_packages(&["verilator", "g++", "make"], None)?;
     let files = rtl_files(&rtl)?;
@@ -99,7 +99,7 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
         .args(&files)
         .arg("../quartus/rt_accel.sv");
     step("verilator lint, rt_accel (Platform Designer component top)", accel)?;
-    crate::quartus_check::run(&root)?;
+    super::quartus_check::run(&root)?;
 
     // The primitives on their own: random and edge-case operands far beyond
     // what the scene reaches (division by zero, MIN, saturation, 25-bit
@@ -460,14 +460,14 @@ fn estimate(root: &Path, out: &Path, files: &[String], lanes: u32) -> Result<()>
     )?;
     // Timing evidence without Quartus: the deepest register-to-register
     // paths, per stage of the lane and per block of the shell.
-    let worst = crate::depth::print_report("one rt_lane", &syn.join("lane.json"))?.max(crate::depth::print_report(
+    let worst = super::depth::print_report("one rt_lane", &syn.join("lane.json"))?.max(super::depth::print_report(
         "shell (slave, scheduler, DMA)",
         &syn.join(format!("shell-lanes{lanes}.json")),
     )?);
-    if worst > crate::depth::TARGET_NS {
+    if worst > super::depth::TARGET_NS {
         return Err(format!(
             "a register-to-register path is estimated at {worst:.1} ns, over the {:.0} ns bound",
-            crate::depth::TARGET_NS
+            super::depth::TARGET_NS
         ));
     }
     println!("  deepest path {worst:.1} ns: {:.0}% of the 50 MHz period, {:.1} ns to spare", 5.0 * worst, 20.0 - worst);

@@ -30,9 +30,9 @@ use std::process::Command;
 
 use clap::Args;
 
-use crate::tools::{ensure_apt_packages, ensure_apt_source, root, step};
-use crate::uimage::IH_MAGIC;
-use crate::Result;
+use super::uimage::IH_MAGIC;
+use crate::support::tools::{ensure_apt_packages, ensure_apt_source, root, step};
+use crate::support::Result;
 
 /// Bytes per sector.
 pub const SECTOR: u64 = 512;
@@ -243,7 +243,7 @@ fn uboot_source() -> Result<PathBuf> {
         fs::create_dir_all(&dl).map_err(|e| format!("{}: {e}", dl.display()))?;
         // deb-src for bookworm, copied from the machine's Debian entry.
         ensure_apt_source("raytracer-bookworm-src", "deb-src", "bookworm", "bookworm")?;
-        step("apt-get update", crate::tools::apt_get(&["update", "-q"]))?;
+        step("apt-get update", crate::support::tools::apt_get(&["update", "-q"]))?;
         run_in(&dl, "apt-get source u-boot (Debian bookworm)", "apt-get", &["source", "-q", "u-boot"])?;
         let tree = fs::read_dir(&dl)
             .map_err(|e| e.to_string())?
@@ -342,7 +342,7 @@ pub fn run(args: &SdcardArgs) -> Result<()> {
     let out_dir = dir();
     fs::create_dir_all(&out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
     let sfp = uboot()?;
-    crate::firmware::image(&crate::firmware::ImageArgs { out: out_dir.clone() })?;
+    super::firmware::image(&super::firmware::ImageArgs { out: out_dir.clone() })?;
     let firmware = out_dir.join(FIRMWARE_FILE);
     let script = boot_script(&out_dir)?;
     let mut files: Vec<(&Path, &str)> = vec![(script.as_path(), SCRIPT_FILE), (firmware.as_path(), FIRMWARE_FILE)];

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use clap::Args;
 use model::{render_row, Light, HEIGHT, WIDTH};
 
-use crate::Result;
+use crate::support::Result;
 
 #[derive(Args)]
 pub struct RenderArgs {

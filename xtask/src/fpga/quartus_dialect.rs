@@ -40,7 +40,7 @@ use std::fmt;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use crate::Result;
+use crate::support::Result;
 
 /// One rule broken at one place.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -1,0 +1,13 @@
+//! The emulated board: the firmware run on QEMU's npcm750-evb and tested
+//! or measured there (end-to-end tests, `bench-fw` and its board cost
+//! model, `lossy-bench`, `soak`).
+//!
+//! May import: `support`, `images`. The dependency on `images` is one-way:
+//! every test here boots the firmware that `images::firmware` builds and
+//! runs (`build`, `Guest`); nothing in `images` needs the tests.
+
+pub mod bench_fw;
+pub mod cost_model;
+pub mod lossy;
+pub mod qemu_e2e;
+pub mod soak;
