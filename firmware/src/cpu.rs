@@ -123,20 +123,21 @@ pub fn enable_mmu_and_caches<B: Board>(log: &mut impl Write) -> L2c310 {
     map.fill(&mut table.0, pages, pages_addr);
 
     // L2: invalidate all ways, then enable (the L2C-310 must be invalidated
-    // before it is enabled; ARM DDI 0246 2.3.1). A boot loader's L2 was
-    // cleaned and turned off by the reset entry.
-    let l2_on = if l2.is_enabled() {
-        true
-    } else {
-        match l2.invalidate_all() {
-            Ok(()) => {
-                l2.set_enabled(true);
-                true
-            }
-            Err(e) => {
-                let _ = writeln!(log, "mmu: {e}; L2 left off");
-                false
-            }
+    // before it is enabled; ARM DDI 0246 2.3.1). The reset entry cleaned and
+    // turned off a boot loader's L2 whatever SCTLR said; should it still be
+    // on, it is cleaned and turned off here first (writing the auxiliary
+    // control or enabling over stale lines is not allowed while it is on).
+    if let Err(e) = l2.flush_and_disable() {
+        let _ = writeln!(log, "mmu: {e} while turning the L2 off");
+    }
+    let l2_on = match l2.invalidate_all() {
+        Ok(()) => {
+            l2.set_enabled(true);
+            true
+        }
+        Err(e) => {
+            let _ = writeln!(log, "mmu: {e}; L2 left off");
+            false
         }
     };
 
