@@ -190,6 +190,10 @@ pub const LOAD_ADDRESS: u32 = 0x0010_0040;
 /// `firmware.img` (U-Boot legacy image, load and entry at the link address).
 pub fn image(args: &ImageArgs) -> Result<()> {
     let elf_path = build("de1-soc", &[])?;
+    // The reset entry: no literal load before the L2 clean, the L2 checked
+    // on every path (xtask/src/entry_check.rs).
+    crate::entry_check::check_elf(&elf_path, crate::entry_check::DE1_SOC_L2C)?;
+    println!("reset entry: constants by movw/movt, the L2C-310 checked whatever SCTLR says");
     let elf = std::fs::read(&elf_path).map_err(|e| format!("{}: {e}", elf_path.display()))?;
     let (start, bin, entry) = uimage::elf32_to_binary(&elf)?;
     if start != LOAD_ADDRESS {

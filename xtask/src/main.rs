@@ -4,6 +4,7 @@
 mod bench_fw;
 mod cost_model;
 mod depth;
+mod entry_check;
 mod firmware;
 mod fuzz;
 mod live_test;
