@@ -14,7 +14,7 @@ use dwmac::phy::PhyConfig;
 use hal_avalon::map::{ID_MAGIC, LINE_BUFFER_OFFSET, LW_BRIDGE_BASE};
 use hal_avalon::MmioPort;
 use soc::cyclone_v::{periph_clock_hz, FpgaMode, Managers, DE1_SOC_OSC1_HZ};
-use soc::global_timer::GlobalTimer;
+use soc::global_timer::{GlobalTimer, TimerDelay};
 use soc::mmu::{sections_of, MemType, PagedSection};
 
 use super::Board;
@@ -77,13 +77,20 @@ impl Board for De1Soc {
     }
 
     /// Stop the L4 watchdog (the boot ROM starts it and U-Boot SPL leaves it
-    /// running), then put EMAC1 on RGMII.
+    /// running), then put EMAC1 on RGMII (reset held around the select,
+    /// with `dsb`, read-backs and 2 us holds: soc::cyclone_v).
     fn init(log: &mut impl Write) {
         let m = managers();
         m.stop_watchdog();
         let _ = writeln!(log, "board: L4 watchdog 0 held in reset");
-        m.emac1_rgmii();
-        let _ = writeln!(log, "board: EMAC1 reset, RGMII selected");
+        match m.emac1_rgmii(&mut TimerDelay(&crate::TIMER), aarch32_cpu::asm::dsb) {
+            Ok(()) => {
+                let _ = writeln!(log, "board: EMAC1 reset, RGMII selected");
+            }
+            Err(e) => {
+                let _ = writeln!(log, "board: {e}");
+            }
+        }
     }
 
     type Port = MmioPort;
