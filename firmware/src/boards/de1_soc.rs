@@ -49,14 +49,15 @@ impl Board for De1Soc {
     /// The lightweight HPS-to-FPGA bridge, 2 MiB at 0xFF20_0000.
     const STRONGLY_ORDERED: &'static [Range<u32>] =
         &[sections_of(LW_BRIDGE_BASE..LW_BRIDGE_BASE + hal_avalon::map::LW_BRIDGE_SIZE)];
-    /// The bridge's first MiB page by page: the CSR page Strongly-ordered,
-    /// the line-buffer page (0xFF20_1000) Normal non-cacheable, where the
-    /// driver's `ldm` reads it in bursts (docs/frame-dma.md#row-mode).
-    const PAGED: Option<PagedSection<'static>> = Some(PagedSection {
-        section: (LW_BRIDGE_BASE >> 20) as u32,
-        default: MemType::StronglyOrdered,
-        pages: &[((LINE_BUFFER_OFFSET >> 12) as u32..(LINE_BUFFER_OFFSET >> 12) as u32 + 1, MemType::NormalUncached)],
-    });
+    /// The bridge's first MiB page by page, every page Strongly-ordered at
+    /// first, the line-buffer page (0xFF20_1000) included: Normal memory may
+    /// be read speculatively (ARM ARM DDI 0406C A3.5.7, B3.10.1), and a read
+    /// of the bridge with nothing behind it is an external abort or a hang.
+    /// Only once a row-mode accelerator has answered the probe does
+    /// [`Board::renderer`] map the line-buffer page Normal non-cacheable,
+    /// where the driver's `ldm` reads it in bursts (docs/frame-dma.md#row-mode).
+    const PAGED: Option<PagedSection<'static>> =
+        Some(PagedSection { section: (LW_BRIDGE_BASE >> 20) as u32, default: MemType::StronglyOrdered, pages: &[] });
     /// A locally administered address (bit 1 of the first octet): the board
     /// has no factory MAC address the firmware can read.
     const MAC_ADDR: [u8; 6] = [0x02, 0xde, 0x1c, 0x50, 0xc0, 0x01];
@@ -102,6 +103,12 @@ impl Board for De1Soc {
                 if version >= hal_avalon::map::ID_VERSION_FRAMES {
                     Frames::ring(Some(accel), caches)
                 } else {
+                    // A row-mode accelerator answered: its line buffer may
+                    // now be Normal non-cacheable (burst reads).
+                    let line = (LW_BRIDGE_BASE + LINE_BUFFER_OFFSET) as u32;
+                    if crate::cpu::retype_page::<Self>(line, MemType::NormalUncached, caches) {
+                        let _ = writeln!(log, "mmu: line-buffer page {line:#010x} Normal non-cacheable");
+                    }
                     Frames::rows(Some(accel))
                 }
             }
