@@ -6,11 +6,11 @@ if test -e ${devtype} ${devnum}:${distro_bootpart} raytracer.rbf; then
 	echo raytracer: configuring the FPGA from raytracer.rbf
 	load ${devtype} ${devnum}:${distro_bootpart} ${kernel_addr_r} raytracer.rbf
 	fpga load 0 ${kernel_addr_r} ${filesize}
-	# fpga load left the FPGA-to-SDRAM ports in reset: apply the port
-	# configuration the FPGA image carries (staticcfg.applycfg, with
-	# membl = 2) while they are, then `bridge enable` releases the bridges
-	# and the ports (fpgaportrst 0x311, from the patched handoff).
-	mw 0xffc2505c 0xa
+	# fpga load left the FPGA-to-SDRAM ports in reset. The patched
+	# `bridge enable` applies the port configuration the FPGA image carries
+	# (staticcfg.applycfg, from one I-cache line) while they are, then
+	# releases the ports (fpgaportrst 0x311, from the patched handoff) and
+	# the bridges.
 	bridge enable
 else
 	echo raytracer: no raytracer.rbf: the firmware renders in software

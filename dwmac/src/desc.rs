@@ -17,11 +17,17 @@
 //! | RDES1 | DIC 31, RER 25, RCH 24, RBS2 21:11, RBS1 10:0 | DIC 31, RBS2 28:16, RER 15, RCH 14, RBS1 12:0 |
 //!
 //! The driver uses ring mode (no chaining), one buffer per descriptor (buffer
-//! 2 size 0), one descriptor per frame, no interrupts, and full checksum
-//! insertion (CIC = 3: IPv4 header, and TCP/UDP/ICMP with the pseudo-header)
-//! when the MAC has it. QEMU implements CIC on IPv4 headers and TCP/UDP, not
-//! ICMP (`gmac_tx_get_csum` / `net_checksum_calculate` in npcm_gmac.c), so
-//! the stack still computes ICMP checksums itself.
+//! 2 size 0), one descriptor per frame, no interrupts, and checksum
+//! insertion chosen per frame when the MAC has it ([`crate::csum`]): CIC = 3
+//! (IPv4 header, and TCP/UDP with the pseudo-header) for TCP and UDP, CIC = 1
+//! (IPv4 header only) for ICMP and every other IPv4 payload, CIC = 0 for
+//! frames that are not IP (ARP). The stack computes ICMP checksums itself:
+//! the databook's engine would corrupt a filled-in ICMP checksum under
+//! CIC 2/3 (STM32 RM0090 rev 21, 33.5.2 "Transmit checksum offload": "for
+//! ICMP-over-IPv4 packets, the checksum field in the ICMP packet must
+//! always be 0x0000 in both modes"), and QEMU does not insert ICMP
+//! checksums at all (`gmac_tx_get_csum` / `net_checksum_calculate` in
+//! npcm_gmac.c).
 
 use crate::regs::HwFeature;
 
@@ -91,15 +97,38 @@ pub const RDES0_FL_MASK: u32 = 0x3fff;
 /// Bytes of frame check sequence at the end of every received frame.
 pub const FCS_LEN: usize = 4;
 
-/// Checksum insertion control (CIC): what the MAC computes on transmit.
+/// Checksum insertion control (CIC, TDES0 23:22 enhanced, TDES1 28:27
+/// normal): what the MAC computes on transmit. Encodings: STM32 RM0090 rev
+/// 21, "TDES0: Transmit descriptor Word0", bits 23:22 (the same
+/// Synopsys GMAC; the Cyclone V TRM's EMAC "Transmit Descriptor" table has
+/// the same field).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ChecksumInsertion {
     /// CIC = 0: the frame goes out as it is.
     Off = 0,
-    /// CIC = 3: the IPv4 header checksum and the TCP/UDP/ICMP checksum
-    /// including the pseudo-header ("full"; what Linux stmmac's
-    /// `TX_CIC_FULL` asks for).
+    /// CIC = 1: only the IPv4 header checksum is calculated and inserted.
+    HeaderOnly = 1,
+    /// CIC = 2: IPv4 header and payload (TCP/UDP/ICMP) checksums, the
+    /// pseudo-header *not* calculated in hardware (the engine's "first
+    /// mode": the field must hold the pseudo-header sum). Never used by the
+    /// driver; here for the engine model in the tests.
+    NoPseudoHeader = 2,
+    /// CIC = 3: the IPv4 header checksum and the TCP/UDP checksum including
+    /// the pseudo-header ("full"; what Linux stmmac's `TX_CIC_FULL` asks
+    /// for).
     Full = 3,
+}
+
+impl ChecksumInsertion {
+    /// The value of a 2-bit CIC field.
+    pub const fn from_bits(bits: u32) -> ChecksumInsertion {
+        match bits & 0b11 {
+            0 => ChecksumInsertion::Off,
+            1 => ChecksumInsertion::HeaderOnly,
+            2 => ChecksumInsertion::NoPseudoHeader,
+            _ => ChecksumInsertion::Full,
+        }
+    }
 }
 
 /// TDES0 and TDES1 for a whole frame of `len` bytes in buffer 1 (first and
@@ -126,6 +155,15 @@ pub const fn tx_control(format: DescFormat, len: usize, end_of_ring: bool, csum:
             }
             [tdes0, len as u32 & enhanced::TBS1_MASK]
         }
+    }
+}
+
+/// The CIC field of a transmit descriptor's TDES0 and TDES1 (what the MAC
+/// reads).
+pub const fn tx_checksum_insertion(format: DescFormat, [tdes0, tdes1]: [u32; 2]) -> ChecksumInsertion {
+    match format {
+        DescFormat::Normal => ChecksumInsertion::from_bits(tdes1 >> normal::TDES1_CIC_SHIFT),
+        DescFormat::Enhanced => ChecksumInsertion::from_bits(tdes0 >> enhanced::TDES0_CIC_SHIFT),
     }
 }
 
@@ -255,6 +293,21 @@ mod tests {
         assert_eq!(field(e0, 23, 22), 3, "enhanced: CIC in TDES0 23:22");
         assert_eq!(e0 & !(0b11 << 22), tx_control(DescFormat::Enhanced, 1514, false, Off)[0]);
         assert_eq!(e1, 1514);
+    }
+
+    #[test]
+    fn every_cic_value_round_trips_through_both_formats() {
+        use ChecksumInsertion::{HeaderOnly, NoPseudoHeader};
+        for format in [DescFormat::Normal, DescFormat::Enhanced] {
+            for cic in [Off, HeaderOnly, NoPseudoHeader, Full] {
+                let [t0, t1] = tx_control(format, 60, true, cic);
+                assert_eq!(tx_checksum_insertion(format, [t0, t1]), cic, "{format:?} {cic:?}");
+            }
+        }
+        let [n0, n1] = tx_control(DescFormat::Normal, 60, false, HeaderOnly);
+        assert_eq!((n0, field(n1, 28, 27)), (0, 1));
+        let [e0, _] = tx_control(DescFormat::Enhanced, 60, false, HeaderOnly);
+        assert_eq!(field(e0, 23, 22), 1);
     }
 
     #[test]

@@ -6,16 +6,19 @@
 //!   silent drop would cost a TCP retransmission time-out.
 //! * `receive` returns `None` unless a received frame *and* a free TX
 //!   descriptor exist, so an answer (an ACK) never finds the ring full.
-//! * Checksums: with the MAC inserting them (CIC = 3, [`crate::desc`]),
-//!   smoltcp computes IPv4, TCP and UDP checksums only on receive and
-//!   writes 0 into the fields it leaves to the MAC (smoltcp 0.14
-//!   `src/wire/tcp.rs`, `ipv4.rs`: `set_checksum(0)`); ICMP stays in
-//!   software because QEMU's model does not insert it.
+//! * Checksums: with the MAC inserting them, smoltcp computes IPv4, TCP and
+//!   UDP checksums only on receive and writes 0 into the fields it leaves
+//!   to the MAC (smoltcp 0.14 `src/wire/tcp.rs`, `ipv4.rs`:
+//!   `set_checksum(0)`); ICMP stays in software because QEMU's model does
+//!   not insert it. Each frame's descriptor asks for what that frame needs
+//!   ([`crate::csum`]): CIC 3 for TCP/UDP, 1 (IPv4 header only) for ICMP,
+//!   whose filled-in checksum CIC 3 would corrupt, 0 for ARP.
 
 use embedded_hal::delay::DelayNs;
 use smoltcp::phy::{Checksum, ChecksumCapabilities, Device, DeviceCapabilities, Medium};
 use smoltcp::time::Instant;
 
+use crate::csum;
 use crate::desc::{self, ChecksumInsertion, RxStatus, OWN};
 use crate::mac::{Dwmac, RxState, Shared, TxState, MAX_FRAME};
 use crate::regs::DmaStatus;
@@ -89,8 +92,12 @@ impl TxState {
         shared.sync.dmb();
         // SAFETY: the CPU owns descriptor `i` and its buffer until OWN is set
         // below, and this is the only slice of the buffer.
-        let r = f(unsafe { buffer.bytes_mut(TX_SKEW, len) });
-        let [tdes0, tdes1] = desc::tx_control(shared.format, len, i == TX_RING - 1, shared.csum);
+        let frame = unsafe { buffer.bytes_mut(TX_SKEW, len) };
+        let r = f(&mut *frame);
+        // Checksum insertion for this frame's protocol (crate::csum): never
+        // CIC 3 over a checksum the stack filled in (ICMP).
+        let cic = csum::for_frame(frame, shared.csum);
+        let [tdes0, tdes1] = desc::tx_control(shared.format, len, i == TX_RING - 1, cic);
         desc.set_word(1, tdes1);
         desc.set_word(2, buffer.bus_address() + TX_SKEW as u32);
         desc.set_word(3, 0);

@@ -5,7 +5,8 @@
 //!
 //! * [`regs`]: the register block, typed, ending before offset 0x1060 (QEMU's
 //!   model reads and writes past its register array from there on).
-//! * [`desc`]: both descriptor formats as pure encode/decode functions.
+//! * [`desc`]: both descriptor formats as pure encode/decode functions;
+//!   [`csum`]: the checksum insertion each frame asks for.
 //! * [`ring`]: descriptors and buffers in memory the MAC's DMA shares with
 //!   the CPU, accessed through volatile cells and raw pointers only.
 //! * [`mac`]: bring-up, link configuration and statistics; [`device`]: the
@@ -18,6 +19,7 @@
 //! No interrupts, no allocation; every wait is bounded ([`wait`]).
 #![cfg_attr(not(test), no_std)]
 
+pub mod csum;
 pub mod desc;
 pub mod device;
 pub mod mac;
@@ -31,5 +33,7 @@ pub use mac::{Dwmac, Error, Stats};
 pub use ring::{DmaArea, RX_RING, TX_RING};
 pub use sync::DmaSync;
 
+#[cfg(test)]
+mod gmac_csum_model;
 #[cfg(test)]
 mod tests;

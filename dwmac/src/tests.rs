@@ -175,6 +175,18 @@ fn transmit_one(mac: &mut TestMac<'_>, len: usize, fill: u8) {
     tok.consume(len, |b| b.fill(fill));
 }
 
+/// A `len`-byte frame whose headers say IPv4 and TCP (the rest `fill`).
+fn transmit_tcp(mac: &mut TestMac<'_>, len: usize, fill: u8) {
+    let tok = mac.transmit(Instant::ZERO).expect("room to transmit");
+    tok.consume(len, |b| {
+        b.fill(fill);
+        b[12..14].copy_from_slice(&[0x08, 0x00]);
+        b[14] = 0x45;
+        b[14 + 6..14 + 8].fill(0);
+        b[14 + 9] = 6;
+    });
+}
+
 #[test]
 fn start_builds_the_rings_and_starts_the_dma() {
     let mut rig = Rig::new(QEMU_HW_FEATURE);
@@ -258,7 +270,7 @@ fn transmit_fills_a_normal_descriptor_and_wraps() {
     transmit_one(&mut mac, 60, 0xab);
     let w = mac.shared.area.tx_descriptor(0).words();
     assert_eq!(w[0], OWN);
-    assert_eq!(w[1], (1 << 30) | (1 << 29) | (3 << 27) | 60, "normal: FS, LS, CIC full, TBS1 in TDES1");
+    assert_eq!(w[1], (1 << 30) | (1 << 29) | 60, "normal: FS, LS, TBS1 in TDES1; not IP: CIC 0");
     // SAFETY: the test plays the DMA and only reads.
     let buffer = unsafe { mac.shared.area.tx_buffer(0).bytes(62) };
     assert_eq!(buffer[TX_SKEW..], [0xab; 60], "the frame starts TX_SKEW bytes in");
@@ -276,6 +288,9 @@ fn transmit_fills_a_normal_descriptor_and_wraps() {
     assert_eq!(mac.shared.area.tx_descriptor(0).word(1) & 0x7ff, 42, "wrapped to descriptor 0");
     assert_eq!(mac.stats().tx_frames, TX_RING as u32 + 1);
     assert_eq!(mac.stats().tx_bytes, 60 + (TX_RING as u64 - 1) * 100 + 42);
+    mac.dma_transmitted(1);
+    transmit_tcp(&mut mac, 60, 0);
+    assert_eq!(mac.shared.area.tx_descriptor(1).word(1), (1 << 30) | (1 << 29) | (3 << 27) | 60, "TCP: CIC 3 in 28:27");
 }
 
 #[test]
@@ -285,9 +300,9 @@ fn enhanced_descriptors_and_checksum_capabilities_follow_the_hw_feature_register
     started(&mut mac);
     assert_eq!(mac.format(), DescFormat::Enhanced);
     assert_eq!(mac.shared.area.rx_descriptor(RX_RING - 1).word(1), (1 << 15) | BUFFER_SIZE as u32, "enhanced RER 15");
-    transmit_one(&mut mac, 1514, 1);
+    transmit_tcp(&mut mac, 1514, 1);
     let w = mac.shared.area.tx_descriptor(0).words();
-    assert_eq!(w[0], OWN | (1 << 29) | (1 << 28) | (3 << 22), "enhanced: OWN, LS, FS, CIC in TDES0");
+    assert_eq!(w[0], OWN | (1 << 29) | (1 << 28) | (3 << 22), "enhanced: OWN, LS, FS, CIC 3 (TCP) in TDES0");
     assert_eq!(w[1], 1514, "enhanced: TBS1 in TDES1");
     let caps = mac.capabilities().checksum;
     assert!(matches!(caps.tcp, Checksum::Rx) && matches!(caps.ipv4, Checksum::Rx), "the MAC inserts them");
@@ -447,4 +462,217 @@ fn the_phy_is_reset_before_each_dma_reset_attempt() {
     assert_eq!(reset_phy_then_dma(&mut never, phy, &cfg), Err(Error::ResetTimeout { attempts: RESET_ATTEMPTS }));
     assert_eq!(never.dma_resets, u32::from(RESET_ATTEMPTS), "bounded");
     assert!(Error::ResetTimeout { attempts: 3 }.to_string().contains("3 attempts"));
+}
+
+/// The peer of the ping tests: its addresses and the frames it sends.
+mod peer {
+    use smoltcp::phy::ChecksumCapabilities;
+    use smoltcp::wire::{
+        ArpOperation, ArpPacket, ArpRepr, EthernetAddress, EthernetFrame, EthernetProtocol, EthernetRepr, Icmpv4Packet,
+        Icmpv4Repr, IpProtocol, Ipv4Address, Ipv4Packet, Ipv4Repr, TcpControl, TcpPacket, TcpRepr, TcpSeqNumber,
+    };
+
+    pub const MAC: EthernetAddress = EthernetAddress([0x02, 0x00, 0x00, 0x00, 0x00, 0x01]);
+    pub const IP: Ipv4Address = Ipv4Address::new(10, 0, 2, 2);
+    pub const OURS: Ipv4Address = Ipv4Address::new(10, 0, 2, 15);
+
+    fn ethernet(
+        dst: EthernetAddress,
+        ethertype: EthernetProtocol,
+        len: usize,
+        emit: impl FnOnce(&mut [u8]),
+    ) -> Vec<u8> {
+        let mut f = vec![0u8; 14 + len];
+        let mut e = EthernetFrame::new_unchecked(&mut f[..]);
+        EthernetRepr { src_addr: MAC, dst_addr: dst, ethertype }.emit(&mut e);
+        emit(e.payload_mut());
+        f
+    }
+
+    /// "Who has OURS? Tell IP."
+    pub fn arp_request() -> Vec<u8> {
+        let r = ArpRepr::EthernetIpv4 {
+            operation: ArpOperation::Request,
+            source_hardware_addr: MAC,
+            source_protocol_addr: IP,
+            target_hardware_addr: EthernetAddress([0; 6]),
+            target_protocol_addr: OURS,
+        };
+        ethernet(EthernetAddress::BROADCAST, EthernetProtocol::Arp, r.buffer_len(), |b| {
+            r.emit(&mut ArpPacket::new_unchecked(b))
+        })
+    }
+
+    fn ipv4(to: EthernetAddress, protocol: IpProtocol, len: usize, emit: impl FnOnce(&mut [u8])) -> Vec<u8> {
+        let ip = Ipv4Repr { src_addr: IP, dst_addr: OURS, next_header: protocol, payload_len: len, hop_limit: 64 };
+        ethernet(to, EthernetProtocol::Ipv4, ip.buffer_len() + len, |b| {
+            let mut p = Ipv4Packet::new_unchecked(b);
+            ip.emit(&mut p, &ChecksumCapabilities::default());
+            emit(p.payload_mut());
+        })
+    }
+
+    /// An echo request with every checksum filled in, as a PC sends it.
+    pub fn echo_request(to: EthernetAddress, data: &[u8]) -> Vec<u8> {
+        let r = Icmpv4Repr::EchoRequest { ident: 0x4242, seq_no: 1, data };
+        ipv4(to, IpProtocol::Icmp, r.buffer_len(), |b| {
+            r.emit(&mut Icmpv4Packet::new_unchecked(b), &ChecksumCapabilities::default())
+        })
+    }
+
+    /// A SYN to `port`.
+    pub fn syn(to: EthernetAddress, port: u16) -> Vec<u8> {
+        let r = TcpRepr {
+            src_port: 50000,
+            dst_port: port,
+            control: TcpControl::Syn,
+            seq_number: TcpSeqNumber(1000),
+            ack_number: None,
+            window_len: 8192,
+            window_scale: None,
+            max_seg_size: Some(1460),
+            sack_permitted: false,
+            sack_ranges: [None; 3],
+            timestamp: None,
+            payload: &[],
+        };
+        ipv4(to, IpProtocol::Tcp, r.buffer_len(), |b| {
+            r.emit(&mut TcpPacket::new_unchecked(b), &IP.into(), &OURS.into(), &ChecksumCapabilities::default())
+        })
+    }
+}
+
+/// The board's side of the ping tests: the driver over enhanced descriptors
+/// with the checksum engine (the Cyclone V EMAC's HW feature bits), smoltcp
+/// on top, and the frames it transmits taken off the TX ring as the MAC
+/// would, through the model of the MAC's checksum engine.
+struct Board<'r> {
+    mac: TestMac<'r>,
+    iface: smoltcp::iface::Interface,
+    sockets: smoltcp::iface::SocketSet<'static>,
+    rx_next: usize,
+    tx_next: usize,
+}
+
+impl<'r> Board<'r> {
+    fn new(rig: &'r mut Rig) -> Board<'r> {
+        use smoltcp::iface::{Config, Interface, SocketSet};
+        use smoltcp::wire::{EthernetAddress, HardwareAddress, IpCidr};
+        let mut mac = rig.mac(true);
+        started(&mut mac);
+        assert_eq!(mac.format(), DescFormat::Enhanced);
+        assert_eq!(mac.checksum_insertion(), ChecksumInsertion::Full);
+        let config = Config::new(HardwareAddress::Ethernet(EthernetAddress(MAC)));
+        let mut iface = Interface::new(config, &mut mac, Instant::ZERO);
+        iface.update_ip_addrs(|a| a.push(IpCidr::new(peer::OURS.into(), 24)).expect("room for one address"));
+        Board { mac, iface, sockets: SocketSet::new(vec![]), rx_next: 0, tx_next: 0 }
+    }
+
+    /// The peer sends `frame`; smoltcp answers; every frame that left is
+    /// returned with the CIC its descriptor asked for, before the engine.
+    fn exchange(&mut self, frame: &[u8]) -> Vec<(ChecksumInsertion, Vec<u8>)> {
+        self.mac.dma_receive(self.rx_next, frame, FS_LS);
+        self.rx_next += 1;
+        self.iface.poll(Instant::ZERO, &mut self.mac, &mut self.sockets);
+        let mut out = vec![];
+        let area = self.mac.shared.area;
+        while area.tx_descriptor(self.tx_next).word(0) & OWN != 0 {
+            let w = area.tx_descriptor(self.tx_next).words();
+            let cic = desc::tx_checksum_insertion(DescFormat::Enhanced, [w[0], w[1]]);
+            let len = (w[1] & 0x1fff) as usize;
+            // SAFETY: the test plays the DMA, which owns the buffer now.
+            let bytes = unsafe { area.tx_buffer(self.tx_next).bytes(TX_SKEW + len) }[TX_SKEW..].to_vec();
+            self.mac.dma_transmitted(self.tx_next);
+            self.tx_next += 1;
+            out.push((cic, bytes));
+        }
+        out
+    }
+}
+
+/// Whether `frame`'s IPv4 header, and its ICMP or TCP checksum, verify
+/// (smoltcp's own checks, independent of the engine model).
+fn checksums_verify(frame: &[u8]) -> Result<(), String> {
+    use smoltcp::wire::{EthernetFrame, Icmpv4Packet, IpProtocol, Ipv4Packet, TcpPacket};
+    let eth = EthernetFrame::new_checked(frame).map_err(|e| e.to_string())?;
+    let ip = Ipv4Packet::new_checked(eth.payload()).map_err(|e| e.to_string())?;
+    if !ip.verify_checksum() {
+        return Err("IPv4 header checksum".into());
+    }
+    let ok = match ip.next_header() {
+        IpProtocol::Icmp => Icmpv4Packet::new_checked(ip.payload()).map_err(|e| e.to_string())?.verify_checksum(),
+        IpProtocol::Tcp => TcpPacket::new_checked(ip.payload())
+            .map_err(|e| e.to_string())?
+            .verify_checksum(&ip.src_addr().into(), &ip.dst_addr().into()),
+        other => return Err(format!("unexpected protocol {other}")),
+    };
+    if ok {
+        Ok(())
+    } else {
+        Err(format!("{} checksum", ip.next_header()))
+    }
+}
+
+#[test]
+fn a_ping_answered_through_the_driver_leaves_the_checksum_engine_with_valid_checksums() {
+    use crate::gmac_csum_model::insert;
+    use smoltcp::wire::{EthernetAddress, EthernetFrame, Icmpv4Packet, Icmpv4Repr, Ipv4Packet};
+    let mut rig = Rig::new(QEMU_HW_FEATURE | (1 << 24));
+    let mut board = Board::new(&mut rig);
+
+    // ARP first (smoltcp answers IP only to neighbours it knows).
+    let arp = board.exchange(&peer::arp_request());
+    assert_eq!(arp.len(), 1, "one ARP reply");
+
+    let data: Vec<u8> = (0..56u8).collect();
+    let out = board.exchange(&peer::echo_request(EthernetAddress(MAC), &data));
+    assert_eq!(out.len(), 1, "one echo reply");
+    let (cic, reply) = &out[0];
+
+    // On the wire, after the MAC's engine ran as the descriptor asked: both
+    // checksums right.
+    let mut wire = reply.clone();
+    insert(&mut wire, *cic);
+    assert_eq!(checksums_verify(&wire), Ok(()), "the echo reply as it leaves the MAC (CIC {cic:?})");
+    assert_eq!(*cic, ChecksumInsertion::HeaderOnly, "ICMP: the IPv4 header only");
+    assert_eq!(arp[0].0, ChecksumInsertion::Off, "ARP: no checksum insertion");
+    // What the stack left to the MAC and what it filled in itself.
+    let ip = Ipv4Packet::new_unchecked(&reply[14..]);
+    assert_eq!(ip.checksum(), 0, "IPv4 header checksum left to the MAC");
+    let icmp = Icmpv4Packet::new_unchecked(ip.payload());
+    assert!(icmp.verify_checksum(), "ICMP checksum computed by smoltcp");
+    let repr = Icmpv4Repr::parse(&icmp, &smoltcp::phy::ChecksumCapabilities::default()).expect("an echo reply");
+    assert_eq!(repr, Icmpv4Repr::EchoReply { ident: 0x4242, seq_no: 1, data: &data });
+    assert_eq!(EthernetFrame::new_unchecked(&reply[..]).dst_addr(), peer::MAC);
+
+    // The old descriptor (CIC 3 on every frame) on the same reply: the
+    // databook's engine corrupts the ICMP checksum the stack filled in.
+    let mut old = reply.clone();
+    insert(&mut old, ChecksumInsertion::Full);
+    assert_eq!(checksums_verify(&old), Err("ICMP checksum".into()));
+}
+
+#[test]
+fn a_syn_ack_through_the_driver_keeps_full_insertion_and_verifies_after_the_engine() {
+    use crate::gmac_csum_model::insert;
+    use smoltcp::socket::tcp;
+    use smoltcp::wire::{EthernetAddress, Ipv4Packet, TcpPacket};
+    let mut rig = Rig::new(QEMU_HW_FEATURE | (1 << 24));
+    let mut board = Board::new(&mut rig);
+    let mut socket = tcp::Socket::new(tcp::SocketBuffer::new(vec![0; 1024]), tcp::SocketBuffer::new(vec![0; 1024]));
+    socket.listen(7878).expect("listen");
+    board.sockets.add(socket);
+    board.exchange(&peer::arp_request());
+
+    let out = board.exchange(&peer::syn(EthernetAddress(MAC), 7878));
+    assert_eq!(out.len(), 1, "one SYN-ACK");
+    let (cic, segment) = &out[0];
+    assert_eq!(*cic, ChecksumInsertion::Full, "TCP: header and payload with the pseudo-header");
+    let ip = Ipv4Packet::new_unchecked(&segment[14..]);
+    assert_eq!(TcpPacket::new_unchecked(ip.payload()).checksum(), 0, "TCP checksum left to the MAC");
+    let mut wire = segment.clone();
+    insert(&mut wire, *cic);
+    assert_eq!(checksums_verify(&wire), Ok(()));
+    // Without insertion the segment would leave with zero checksums.
+    assert!(checksums_verify(segment).is_err());
 }

@@ -7,15 +7,15 @@
 //! below).
 
 use core::fmt::Write;
-use core::sync::atomic::{compiler_fence, Ordering};
+use core::sync::atomic::{compiler_fence, AtomicPtr, Ordering};
 
 use aarch32_cpu::asm::{dmb, dsb, isb};
 use aarch32_cpu::cache::invalidate_l1_data_cache;
 use aarch32_cpu::register::{BpIAll, Dacr, Iciallu, Sctlr, TlbIAll, Ttbr0};
 use dwmac::DmaSync;
-use soc::cache::CacheOps;
+use soc::cache::{CacheOps, Lines};
 use soc::l2c310::L2c310;
-use soc::mmu::{sections_of, MemoryMap, PageTable, PAGES, SECTIONS};
+use soc::mmu::{sections_of, MemType, MemoryMap, PageTable, PAGES, SECTIONS};
 use static_cell::ConstStaticCell;
 
 use crate::boards::Board;
@@ -121,22 +121,24 @@ pub fn enable_mmu_and_caches<B: Board>(log: &mut impl Write) -> L2c310 {
     };
     let pages_addr = pages.0.as_ptr() as u32;
     map.fill(&mut table.0, pages, pages_addr);
+    PAGED_TABLE.store(pages, Ordering::Release);
 
     // L2: invalidate all ways, then enable (the L2C-310 must be invalidated
-    // before it is enabled; ARM DDI 0246 2.3.1). A boot loader's L2 was
-    // cleaned and turned off by the reset entry.
-    let l2_on = if l2.is_enabled() {
-        true
-    } else {
-        match l2.invalidate_all() {
-            Ok(()) => {
-                l2.set_enabled(true);
-                true
-            }
-            Err(e) => {
-                let _ = writeln!(log, "mmu: {e}; L2 left off");
-                false
-            }
+    // before it is enabled; ARM DDI 0246 2.3.1). The reset entry cleaned and
+    // turned off a boot loader's L2 whatever SCTLR said; should it still be
+    // on, it is cleaned and turned off here first (writing the auxiliary
+    // control or enabling over stale lines is not allowed while it is on).
+    if let Err(e) = l2.flush_and_disable() {
+        let _ = writeln!(log, "mmu: {e} while turning the L2 off");
+    }
+    let l2_on = match l2.invalidate_all() {
+        Ok(()) => {
+            l2.set_enabled(true);
+            true
+        }
+        Err(e) => {
+            let _ = writeln!(log, "mmu: {e}; L2 left off");
+            false
         }
     };
 
@@ -180,6 +182,42 @@ pub fn enable_mmu_and_caches<B: Board>(log: &mut impl Write) -> L2c310 {
         l2.cache_id(),
     );
     l2
+}
+
+/// The second-level table of the board's paged section, once the MMU is on
+/// ([`retype_page`] changes it).
+static PAGED_TABLE: AtomicPtr<PageTable> = AtomicPtr::new(core::ptr::null_mut());
+
+/// Map the 4 KiB page at `addr` of the board's paged section with type
+/// `ty` while the MMU is on: write the small-page entry, clean it to the
+/// point of coherence (table walks are non-cacheable: TTBR0 IRGN/RGN 0),
+/// then invalidate the TLB and branch predictor, `dsb`, `isb` (ARM ARM DDI
+/// 0406C B3.10.1, "General TLB maintenance requirements"; B3.10.2 on
+/// cleaning table writes for a walk that does not look in the caches).
+/// False when `addr` is not in the paged section or the MMU set-up did not
+/// run. Core 0 only, from the board set-up.
+#[cfg_attr(not(feature = "de1-soc"), expect(dead_code, reason = "only the DE1-SoC has a line buffer"))]
+pub fn retype_page<B: Board>(addr: u32, ty: MemType, caches: Caches) -> bool {
+    let (Some(paged), Some(pages)) = (B::PAGED, core::ptr::NonNull::new(PAGED_TABLE.load(Ordering::Acquire))) else {
+        return false;
+    };
+    // SAFETY: the table was handed over by `enable_mmu_and_caches` (its
+    // `&'static mut` is not used after that); only core 0 runs, and this is
+    // the only reference made while it lives; the hardware only reads it.
+    let table = unsafe { &mut *pages.as_ptr() };
+    let Some(i) = table.retype(paged.section, addr, ty) else {
+        return false;
+    };
+    let entry = &table.0[i] as *const u32 as usize;
+    if let Some(lines) = Lines::covering(entry, 4) {
+        soc::cache::clean_for_device(&caches, &lines);
+    }
+    dsb();
+    TlbIAll::write();
+    BpIAll::write();
+    dsb();
+    isb();
+    true
 }
 
 /// DACR: every domain "client" (permissions from the table).

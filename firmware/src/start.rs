@@ -11,8 +11,12 @@
 //!   does; docs/board-bring-up.md#u-boot). With the D-cache on, the
 //!   start-up code's `.bss` zeroing would land in dirty lines that a later
 //!   cache disable throws away, so the caches are turned off first, in
-//!   assembly: D-cache off, clean and invalidate L1 by set/way, clean and
-//!   invalidate the L2C-310 by way and sync, L2 off, MMU and I-cache off.
+//!   assembly: D-cache off, clean and invalidate L1 by set/way (when SCTLR
+//!   has the D-cache or the MMU on), then, whenever the L2C-310's enable
+//!   bit is set, whatever SCTLR says (U-Boot's `dcache off` leaves the L2
+//!   on), clean and invalidate it by way, sync and turn it off; then MMU and
+//!   I-cache off. Constants are built with `movw`/`movt`: no literal-pool
+//!   load reads stale DRAM once the D-cache is off.
 //!   Then, on every entry, the I-cache and branch predictor are invalidated
 //!   and SCTLR.V is cleared (QEMU and the boot ROM enter with high vectors,
 //!   which would make the CPU ignore VBAR). The sequence is ARM's
@@ -41,11 +45,16 @@ core::arch::global_asm!(
     .type _start, %function
     .p2align 2
 _start:
+    @ No load from memory until the L2C-310 is clean and off: every constant
+    @ is built with movw/movt (a literal-pool load after the D-cache is off
+    @ would read DRAM under a dirty line). `cargo xtask image` checks this
+    @ in the disassembly (xtask/src/images/entry_check.rs).
     mrc     p15, 0, r0, c1, c0, 0       @ SCTLR
-    ldr     r1, ={entry_sctlr}          @ kept for the boot log (.uninit:
-    str     r0, [r1]                    @ the start-up code does not zero it)
+    movw    r1, #:lower16:{entry_sctlr} @ kept for the boot log (.uninit:
+    movt    r1, #:upper16:{entry_sctlr} @ the start-up code does not zero it)
+    str     r0, [r1]
     tst     r0, #((1 << 2) | (1 << 0))  @ D-cache (C) or MMU (M) on?
-    beq     5f
+    beq     3f
     @ 1. D-cache off: no new line is allocated from here on.
     bic     r1, r0, #(1 << 2)
     mcr     p15, 0, r1, c1, c0, 0
@@ -64,9 +73,12 @@ _start:
     cmp     r5, #{ways}
     blo     1b
     dsb
-    @ 3. L2C-310 on? Clean and invalidate every way, bounded wait, cache
-    @    sync, L2 off (soc::l2c310's register block and poll budget).
-    ldr     r6, ={l2c}
+3:  @ 3. L2C-310 on? Whatever SCTLR says (U-Boot's `dcache off` turns the
+    @    MMU and D-cache off but leaves the L2 on): clean and invalidate
+    @    every way, bounded wait, cache sync, L2 off (soc::l2c310's
+    @    register block, poll budget and `flush_and_disable`).
+    movw    r6, #{l2c_lo}
+    movt    r6, #{l2c_hi}
     ldr     r1, [r6, #{control}]
     tst     r1, #1
     beq     4f
@@ -75,22 +87,23 @@ _start:
     tst     r1, #(1 << 16)
     orrne   r2, r2, #0xff00
     str     r2, [r6, #{clean_invalidate_way}]
-    ldr     r7, ={polls}
-3:  ldr     r1, [r6, #{clean_invalidate_way}]
+    movw    r7, #{polls_lo}
+    movt    r7, #{polls_hi}
+6:  ldr     r1, [r6, #{clean_invalidate_way}]
     tst     r1, r2
-    beq     6f
+    beq     7f
     subs    r7, r7, #1
-    bne     3b
-6:  mov     r1, #0
+    bne     6b
+7:  mov     r1, #0
     str     r1, [r6, #{cache_sync}]
     str     r1, [r6, #{control}]
     dsb
-4:  @ 4. MMU, D-cache and I-cache off.
+4:  @ 4. MMU, D-cache and I-cache off (already off when SCTLR said so).
     bic     r0, r0, #((1 << 0) | (1 << 2))
     bic     r0, r0, #(1 << 12)
     mcr     p15, 0, r0, c1, c0, 0
     isb
-5:  @ Every entry: invalidate the I-cache and branch predictor, clear SCTLR.V.
+    @ Every entry: invalidate the I-cache and branch predictor, clear SCTLR.V.
     mov     r0, #0
     mcr     p15, 0, r0, c7, c5, 0       @ ICIALLU
     mcr     p15, 0, r0, c7, c5, 6       @ BPIALL
@@ -101,7 +114,6 @@ _start:
     mcr     p15, 0, r0, c1, c0, 0
     isb
     b       _default_start
-    .ltorg
     .size _start, . - _start
     .popsection
 
@@ -126,12 +138,14 @@ _asm_fiq_handler:
     .size _asm_fiq_handler, . - _asm_fiq_handler
     .popsection
     "#,
-    l2c = const Active::L2C,
+    l2c_lo = const Active::L2C & 0xffff,
+    l2c_hi = const Active::L2C >> 16,
     control = const offset_of!(RegisterBlock, control),
     aux_control = const offset_of!(RegisterBlock, aux_control),
     cache_sync = const offset_of!(RegisterBlock, cache_sync),
     clean_invalidate_way = const offset_of!(RegisterBlock, clean_invalidate_way),
-    polls = const WAY_OP_POLLS,
+    polls_lo = const WAY_OP_POLLS & 0xffff,
+    polls_hi = const WAY_OP_POLLS >> 16,
     way_shift = const 32 - cpu::L1_WAYS_LOG2,
     line_log2 = const cpu::L1_LINE_LOG2,
     sets = const 1 << cpu::L1_SETS_LOG2,

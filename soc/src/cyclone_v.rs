@@ -13,6 +13,7 @@ use core::ptr::NonNull;
 
 use arbitrary_int::{u13, u6, u9};
 use bitbybit::{bitenum, bitfield};
+use embedded_hal::delay::DelayNs;
 use volatile_register::{RO, RW, WO};
 
 /// Reset manager base.
@@ -278,6 +279,27 @@ pub struct L3 {
     pub remap: WO<Remap>,
 }
 
+/// How long EMAC1 stays in reset before and after its PHY interface select
+/// is written: 2 us. No public source names a minimum (U-Boot and Linux
+/// write the select between assert and release with no delay at all); this
+/// is a margin of hundreds of cycles of any HPS clock, so that the EMAC
+/// holds the select settled, in reset, on both sides of the write.
+pub const EMAC_RESET_HOLD_NS: u32 = 2_000;
+
+/// Read-backs (1 us apart) after the release until the reset bit reads
+/// clear: 1 ms (U-Boot allows 500 ms; the bit is a plain register bit).
+pub const EMAC_RELEASE_POLLS: u32 = 1_000;
+
+/// EMAC1's reset bit still read set after the release.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EmacResetTimeout;
+
+impl core::fmt::Display for EmacResetTimeout {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("EMAC1 reset bit still set after the release")
+    }
+}
+
 // ---- The handle ----------------------------------------------------------------
 
 /// The Cyclone V system managers, for the board set-up at start-up.
@@ -357,19 +379,43 @@ impl Managers {
     }
 
     /// Put EMAC1 on RGMII at the HPS pins: hold it in reset, select RGMII,
-    /// route it away from the FPGA, release it (Cyclone V TRM, EMAC
-    /// "Functional description": the PHY interface is selected while the
-    /// EMAC is in reset; U-Boot `socfpga_dw_eth_probe` does the same).
-    pub fn emac1_rgmii(&self) {
+    /// route it away from the FPGA, release it. The order is U-Boot's
+    /// (`drivers/net/dwmac_socfpga.c` `dwmac_socfpga_probe`: reset asserted,
+    /// `emacgrp_ctrl` physel written, reset released; Linux
+    /// `dwmac-socfpga.c` `socfpga_gen5_set_phy_mode` likewise: the EMAC
+    /// samples the PHY interface select when its reset is released). Each
+    /// step is made to have arrived before the next: `dsb` (the `barrier`
+    /// the caller passes) and a read-back of the register written, then
+    /// [`EMAC_RESET_HOLD_NS`] on each side of the select write. After the
+    /// release the reset bit is read back until it is clear, as U-Boot's
+    /// `socfpga_reset_deassert` does (`drivers/reset/reset-socfpga.c`,
+    /// `wait_for_bit_le32`), bounded by [`EMAC_RELEASE_POLLS`].
+    pub fn emac1_rgmii(&self, delay: &mut impl DelayNs, barrier: impl Fn()) -> Result<(), EmacResetTimeout> {
         let (r, s) = (self.rst(), self.sys());
         // SAFETY: EMAC1's reset, interface select and routing affect only
         // EMAC1, which nothing uses yet.
+        unsafe { r.permodrst.write(r.permodrst.read().with_emac1(true)) };
+        barrier();
+        let _ = r.permodrst.read();
+        delay.delay_ns(EMAC_RESET_HOLD_NS);
+        // SAFETY: as above; EMAC1 is held in reset.
         unsafe {
-            r.permodrst.write(r.permodrst.read().with_emac1(true));
             s.emac_ctrl.write(s.emac_ctrl.read().with_physel_1(PhySel::Rgmii));
             s.fpgaintf_module.write(s.fpgaintf_module.read().with_emac_1(false));
-            r.permodrst.write(r.permodrst.read().with_emac1(false));
         }
+        barrier();
+        let _ = s.emac_ctrl.read();
+        delay.delay_ns(EMAC_RESET_HOLD_NS);
+        // SAFETY: as above.
+        unsafe { r.permodrst.write(r.permodrst.read().with_emac1(false)) };
+        barrier();
+        for _ in 0..EMAC_RELEASE_POLLS {
+            if !r.permodrst.read().emac1() {
+                return Ok(());
+            }
+            delay.delay_ns(1_000);
+        }
+        Err(EmacResetTimeout)
     }
 
     /// The bridges' reset state.
@@ -462,6 +508,81 @@ mod tests {
         }
     }
 
+    struct NoDelay;
+    impl DelayNs for NoDelay {
+        fn delay_ns(&mut self, _: u32) {}
+    }
+
+    /// What the EMAC saw at each barrier and delay: (event, EMAC1 held in
+    /// reset, EMAC1's PHY select, EMAC1 routed to the FPGA).
+    type Seen = (&'static str, bool, u32, bool);
+
+    /// Snapshots the fake's reset and select registers on every barrier and
+    /// delay.
+    struct Watch {
+        permodrst: *const u32,
+        emac_ctrl: *const u32,
+        module: *const u32,
+        log: std::cell::RefCell<Vec<Seen>>,
+        /// Delays seen, in ns.
+        delays: std::cell::RefCell<Vec<u32>>,
+    }
+
+    impl Watch {
+        fn snap(&self, what: &'static str) {
+            // SAFETY: the pointers point into the test's live fake registers.
+            let (r, c, m) = unsafe { (*self.permodrst, *self.emac_ctrl, *self.module) };
+            self.log.borrow_mut().push((what, r & 2 != 0, (c >> 2) & 3, m & 8 != 0));
+        }
+    }
+
+    impl DelayNs for &Watch {
+        fn delay_ns(&mut self, ns: u32) {
+            self.delays.borrow_mut().push(ns);
+            self.snap("delay");
+        }
+    }
+
+    #[test]
+    fn emac1_is_held_in_reset_around_the_phy_select_with_barriers_and_holds() {
+        let mut f = Fake::new();
+        f.sys[0x60 / 4] = 0b10_00; // EMAC1 RMII
+        f.sys[0x28 / 4] = 0b1000; // EMAC1 through the FPGA
+        let w = Watch {
+            permodrst: &f.rst[0x14 / 4],
+            emac_ctrl: &f.sys[0x60 / 4],
+            module: &f.sys[0x28 / 4],
+            log: Default::default(),
+            delays: Default::default(),
+        };
+        let m = f.managers();
+        assert_eq!(m.emac1_rgmii(&mut &w, || w.snap("dsb")), Ok(()));
+        let hold = EMAC_RESET_HOLD_NS;
+        assert!(hold >= 2_000);
+        assert_eq!(
+            *w.log.borrow(),
+            [
+                ("dsb", true, 2, true),    // reset asserted, old select
+                ("delay", true, 2, true),  // held before the select
+                ("dsb", true, 1, false),   // RGMII, HPS pins, still in reset
+                ("delay", true, 1, false), // held after the select
+                ("dsb", false, 1, false),  // released last
+            ]
+        );
+        assert_eq!(*w.delays.borrow(), [hold, hold]);
+    }
+
+    #[test]
+    fn a_reset_bit_that_stays_set_after_the_release_is_reported() {
+        let mut f = Fake::new();
+        let permodrst: *mut u32 = &mut f.rst[0x14 / 4];
+        let m = f.managers();
+        // SAFETY: points into the live fake; the "hardware" sets the bit
+        // again behind every barrier.
+        let stuck = || unsafe { *permodrst |= 2 };
+        assert_eq!(m.emac1_rgmii(&mut NoDelay, stuck), Err(EmacResetTimeout));
+    }
+
     #[test]
     fn board_setup_writes_the_documented_bits() {
         let mut f = Fake::new();
@@ -472,7 +593,7 @@ mod tests {
         f.clk[0xe0 / 4] = 1;
         let m = f.managers();
         m.stop_watchdog();
-        m.emac1_rgmii();
+        m.emac1_rgmii(&mut NoDelay, || ()).expect("the fake's reset bit reads back clear");
         m.remap_bridges();
         assert!(m.watchdog_stopped());
         assert_eq!(m.fpga_mode(), Ok(FpgaMode::User));

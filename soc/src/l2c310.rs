@@ -206,6 +206,25 @@ impl L2c310 {
         Err(WayOpTimeout)
     }
 
+    /// Whenever the enable bit (control register bit 0) is set, whatever
+    /// the CPU's SCTLR says: clean and invalidate every way, cache sync, and
+    /// turn the cache off, the L2C-310 TRM's order for disabling (DDI 0246,
+    /// 2.3.1 and 3.3.10: clean and invalidate before the enable bit is
+    /// cleared). A boot loader that ran `dcache off` (U-Boot's
+    /// `cache_disable`: L1 and MMU off) leaves the L2 on. The cache goes off
+    /// even when the way operation times out. Returns whether it was on.
+    /// The firmware's reset entry does the same in assembly before any
+    /// memory is written (firmware/src/start.rs).
+    pub fn flush_and_disable(&self) -> Result<bool, WayOpTimeout> {
+        if !self.is_enabled() {
+            return Ok(false);
+        }
+        let cleaned = self.clean_invalidate_all();
+        self.cache_sync();
+        self.set_enabled(false);
+        cleaned.map(|()| true)
+    }
+
     /// Turn the cache on or off (call [`invalidate_all`](Self::invalidate_all)
     /// before turning it on, [`clean_invalidate_all`](Self::clean_invalidate_all)
     /// before turning it off).
@@ -251,6 +270,26 @@ mod tests {
         c.set_enabled(true);
         assert!(c.is_enabled());
         assert_eq!(w[0x100 / 4], 1);
+    }
+
+    #[test]
+    fn an_enabled_cache_is_cleaned_and_turned_off_and_a_disabled_one_left_alone() {
+        let mut w = block();
+        let c = l2(&mut w);
+        assert_eq!(c.flush_and_disable(), Ok(false));
+        assert!(w.iter().all(|x| *x == 0), "off: nothing written");
+
+        // On, 16 ways, a sync register holding junk; the fake's way register
+        // keeps the written mask, so the wait runs out.
+        w[0x100 / 4] = 1;
+        w[0x104 / 4] = 1 << 16;
+        w[0x730 / 4] = 0xdead_beef;
+        let c = l2(&mut w);
+        assert_eq!(c.flush_and_disable(), Err(WayOpTimeout));
+        assert_eq!(w[0x7fc / 4], 0xffff, "clean and invalidate all 16 ways");
+        assert_eq!(w[0x730 / 4], 0, "cache sync");
+        assert_eq!(w[0x100 / 4], 0, "off even after the time-out");
+        assert_eq!(w[0x77c / 4], 0, "no invalidate-only way operation: dirty lines are written back");
     }
 
     #[test]

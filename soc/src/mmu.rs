@@ -97,6 +97,21 @@ impl PagedSection<'_> {
     }
 }
 
+impl PageTable {
+    /// Map the 4 KiB page holding `addr`, in section `section`, with type
+    /// `ty`; the entry's index, or `None` when `addr` is outside the
+    /// section. The caller makes the change visible to the table walk and
+    /// invalidates the TLB (ARM ARM B3.10.1).
+    pub fn retype(&mut self, section: u32, addr: u32, ty: MemType) -> Option<usize> {
+        if addr >> 20 != section {
+            return None;
+        }
+        let i = ((addr >> 12) & 0xff) as usize;
+        self.0[i] = small_page_entry(addr, ty);
+        Some(i)
+    }
+}
+
 /// The first-level entry that points to the second-level table at bus
 /// address `table` (1 KiB aligned): bits 1:0 = 0b01, domain 0, base 31:10.
 pub const fn page_table_entry(table: u32) -> u32 {
@@ -221,6 +236,27 @@ mod tests {
         for (i, e) in t.iter().enumerate() {
             assert_eq!((*e >> 20) as usize, i, "flat");
         }
+    }
+
+    #[test]
+    fn the_line_buffer_page_starts_strongly_ordered_and_is_retyped_alone() {
+        // The DE1-SoC's paged section before the probe: every page
+        // Strongly-ordered, the line buffer (0xFF20_1000) included.
+        let paged = PagedSection { section: 0xff2, default: MemType::StronglyOrdered, pages: &[] };
+        let mut pages = PageTable([0; PAGES]);
+        paged.fill(&mut pages);
+        let before = pages.0;
+        assert_eq!(before[1], small_page_entry(0xff20_1000, MemType::StronglyOrdered));
+        assert_eq!((before[1] >> 6) & 0b111, 0, "TEX 000: no speculative access");
+        // After a row-mode accelerator answered: that page alone Normal
+        // non-cacheable.
+        assert_eq!(pages.retype(0xff2, 0xff20_1000, MemType::NormalUncached), Some(1));
+        assert_eq!(pages.0[1], small_page_entry(0xff20_1000, MemType::NormalUncached));
+        assert_eq!((pages.0[1] >> 6) & 0b111, 0b001, "TEX 001: Normal");
+        for i in (0..PAGES).filter(|i| *i != 1) {
+            assert_eq!(pages.0[i], before[i], "page {i} unchanged");
+        }
+        assert_eq!(pages.retype(0xff2, 0xff30_1000, MemType::NormalUncached), None, "another section");
     }
 
     #[test]

@@ -14,7 +14,7 @@ use dwmac::phy::PhyConfig;
 use hal_avalon::map::{ID_MAGIC, LINE_BUFFER_OFFSET, LW_BRIDGE_BASE};
 use hal_avalon::MmioPort;
 use soc::cyclone_v::{periph_clock_hz, FpgaMode, Managers, DE1_SOC_OSC1_HZ};
-use soc::global_timer::GlobalTimer;
+use soc::global_timer::{GlobalTimer, TimerDelay};
 use soc::mmu::{sections_of, MemType, PagedSection};
 
 use super::Board;
@@ -49,14 +49,15 @@ impl Board for De1Soc {
     /// The lightweight HPS-to-FPGA bridge, 2 MiB at 0xFF20_0000.
     const STRONGLY_ORDERED: &'static [Range<u32>] =
         &[sections_of(LW_BRIDGE_BASE..LW_BRIDGE_BASE + hal_avalon::map::LW_BRIDGE_SIZE)];
-    /// The bridge's first MiB page by page: the CSR page Strongly-ordered,
-    /// the line-buffer page (0xFF20_1000) Normal non-cacheable, where the
-    /// driver's `ldm` reads it in bursts (docs/frame-dma.md#row-mode).
-    const PAGED: Option<PagedSection<'static>> = Some(PagedSection {
-        section: (LW_BRIDGE_BASE >> 20) as u32,
-        default: MemType::StronglyOrdered,
-        pages: &[((LINE_BUFFER_OFFSET >> 12) as u32..(LINE_BUFFER_OFFSET >> 12) as u32 + 1, MemType::NormalUncached)],
-    });
+    /// The bridge's first MiB page by page, every page Strongly-ordered at
+    /// first, the line-buffer page (0xFF20_1000) included: Normal memory may
+    /// be read speculatively (ARM ARM DDI 0406C A3.5.7, B3.10.1), and a read
+    /// of the bridge with nothing behind it is an external abort or a hang.
+    /// Only once a row-mode accelerator has answered the probe does
+    /// [`Board::renderer`] map the line-buffer page Normal non-cacheable,
+    /// where the driver's `ldm` reads it in bursts (docs/frame-dma.md#row-mode).
+    const PAGED: Option<PagedSection<'static>> =
+        Some(PagedSection { section: (LW_BRIDGE_BASE >> 20) as u32, default: MemType::StronglyOrdered, pages: &[] });
     /// A locally administered address (bit 1 of the first octet): the board
     /// has no factory MAC address the firmware can read.
     const MAC_ADDR: [u8; 6] = [0x02, 0xde, 0x1c, 0x50, 0xc0, 0x01];
@@ -77,13 +78,20 @@ impl Board for De1Soc {
     }
 
     /// Stop the L4 watchdog (the boot ROM starts it and U-Boot SPL leaves it
-    /// running), then put EMAC1 on RGMII.
+    /// running), then put EMAC1 on RGMII (reset held around the select,
+    /// with `dsb`, read-backs and 2 us holds: soc::cyclone_v).
     fn init(log: &mut impl Write) {
         let m = managers();
         m.stop_watchdog();
         let _ = writeln!(log, "board: L4 watchdog 0 held in reset");
-        m.emac1_rgmii();
-        let _ = writeln!(log, "board: EMAC1 reset, RGMII selected");
+        match m.emac1_rgmii(&mut TimerDelay(&crate::TIMER), aarch32_cpu::asm::dsb) {
+            Ok(()) => {
+                let _ = writeln!(log, "board: EMAC1 reset, RGMII selected");
+            }
+            Err(e) => {
+                let _ = writeln!(log, "board: {e}");
+            }
+        }
     }
 
     type Port = MmioPort;
@@ -94,7 +102,15 @@ impl Board for De1Soc {
                 let _ = writeln!(log, "FPGA: ray tracer, register map version {version}");
                 match crate::selftest::gate(log, Some(accel), caches) {
                     Some(accel) if version >= hal_avalon::map::ID_VERSION_FRAMES => Frames::ring(Some(accel), caches),
-                    Some(accel) => Frames::rows(Some(accel)),
+                    Some(accel) => {
+                        // A row-mode accelerator answered: its line buffer
+                        // may now be Normal non-cacheable (burst reads).
+                        let line = (LW_BRIDGE_BASE + LINE_BUFFER_OFFSET) as u32;
+                        if crate::cpu::retype_page::<Self>(line, MemType::NormalUncached, caches) {
+                            let _ = writeln!(log, "mmu: line-buffer page {line:#010x} Normal non-cacheable");
+                        }
+                        Frames::rows(Some(accel))
+                    }
                     None => Frames::ring(None, caches),
                 }
             }

@@ -49,8 +49,10 @@ pub trait Board {
     /// Sections (MiB indexes) mapped Strongly-ordered: the FPGA bridge
     /// windows.
     const STRONGLY_ORDERED: &'static [Range<u32>];
-    /// A section mapped page by page (the accelerator's: its line-buffer
-    /// page Normal non-cacheable for burst reads).
+    /// A section mapped page by page (the accelerator's: all
+    /// Strongly-ordered until a row-mode accelerator answers the probe,
+    /// then its line-buffer page Normal non-cacheable for burst reads,
+    /// `cpu::retype_page`).
     const PAGED: Option<PagedSection<'static>>;
     /// The interface's Ethernet address.
     const MAC_ADDR: [u8; 6];

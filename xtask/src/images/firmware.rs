@@ -12,7 +12,7 @@ use clap::Args;
 use rt_protocol::{persistent_port, FRAME_PORT, PERSISTENT_PORT};
 
 use super::uimage;
-use crate::support::tools::{cargo, ensure_qemu, root, step, FIRMWARE_TARGET};
+use crate::support::tools::{cargo, ensure_apt_packages, ensure_qemu, root, step, FIRMWARE_TARGET};
 use crate::support::Result;
 
 /// The release ELF of the firmware.
@@ -190,6 +190,12 @@ pub const LOAD_ADDRESS: u32 = 0x0010_0040;
 /// `firmware.img` (U-Boot legacy image, load and entry at the link address).
 pub fn image(args: &ImageArgs) -> Result<()> {
     let elf_path = build("de1-soc", &[])?;
+    // The reset entry: no literal load before the L2 clean, the L2 checked
+    // on every path (xtask/src/images/entry_check.rs), read with
+    // llvm-objdump (Debian's llvm: it knows the Arm encodings).
+    ensure_apt_packages(&["llvm"], None)?;
+    super::entry_check::check_elf(&elf_path, super::entry_check::DE1_SOC_L2C)?;
+    println!("reset entry: constants by movw/movt, the L2C-310 checked whatever SCTLR says");
     let elf = std::fs::read(&elf_path).map_err(|e| format!("{}: {e}", elf_path.display()))?;
     let (start, bin, entry) = uimage::elf32_to_binary(&elf)?;
     if start != LOAD_ADDRESS {

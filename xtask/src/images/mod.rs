@@ -6,6 +6,7 @@
 //! way round: its tests and benches boot the firmware built here
 //! (`firmware::build`, `firmware::Guest`).
 
+pub mod entry_check;
 pub mod firmware;
 pub mod sdcard;
 pub mod uimage;

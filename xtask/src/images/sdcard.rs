@@ -474,6 +474,41 @@ pub fn check_uboot_config(config: &str) -> Result<()> {
     Ok(())
 }
 
+/// What the boot script must (not) do: load the FPGA before `bridge
+/// enable`, and leave the SDRAM controller's registers to U-Boot's code
+/// (`bridge enable` applies `staticcfg` from one I-cache line; a `mw` to it
+/// would run out of SDRAM).
+pub fn check_boot_script(script: &str) -> Result<()> {
+    let lines: Vec<&str> = script.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with('#')).collect();
+    let at = |cmd: &str| lines.iter().position(|l| l.starts_with(cmd));
+    if let Some(l) = lines.iter().find(|l| {
+        let l = l.to_ascii_lowercase();
+        l.starts_with("mw") && l.contains("0xffc25")
+    }) {
+        return Err(format!("boot script writes the SDRAM controller itself: {l:?}"));
+    }
+    match (at("fpga load"), at("bridge enable")) {
+        (Some(load), Some(enable)) if load < enable => Ok(()),
+        (load, enable) => Err(format!("boot script: fpga load at {load:?}, bridge enable at {enable:?}")),
+    }
+}
+
+/// The patched `do_bridge_reset` applies the static configuration before it
+/// releases the FPGA-to-SDRAM ports.
+pub fn check_bridge_applycfg(misc_gen5_c: &str) -> Result<()> {
+    let body = misc_gen5_c.split("void do_bridge_reset(").nth(1).ok_or("no do_bridge_reset")?;
+    let enable = body.split("} else {").next().unwrap_or(body);
+    let apply = enable.find("socfpga_sdram_apply_static_cfg();").ok_or("bridge enable does not apply staticcfg")?;
+    let release = enable.find("&sdr_ctrl->fpgaport_rst").ok_or("bridge enable does not release the ports")?;
+    if apply > release {
+        return Err("bridge enable releases the ports before it applies staticcfg".into());
+    }
+    if !misc_gen5_c.contains(".balign 32") {
+        return Err("the applycfg routine is not aligned to an I-cache line".into());
+    }
+    Ok(())
+}
+
 /// The handoff value the patched source carries.
 pub fn fpgaportrst_in(sdram_config_h: &str) -> Option<u32> {
     sdram_config_h.lines().find_map(|l| {
@@ -520,6 +555,10 @@ pub fn suite_test() -> Result<()> {
         Some(FPGAPORTRST) => {}
         other => return Err(format!("patched handoff FPGAPORTRST is {other:?}, want {FPGAPORTRST:#x}")),
     }
+    let misc =
+        fs::read_to_string(dir().join("u-boot/src/arch/arm/mach-socfpga/misc_gen5.c")).map_err(|e| e.to_string())?;
+    check_bridge_applycfg(&misc)?;
+    check_boot_script(&fs::read_to_string(root().join("boot/boot.cmd")).map_err(|e| e.to_string())?)?;
     let dts = fs::read_to_string(dir().join("u-boot/src/arch/arm/dts/socfpga_cyclone5_de1_soc.dts"))
         .map_err(|e| e.to_string())?;
     if !dts.contains("&watchdog0 {\n\tstatus = \"disabled\";") {
@@ -620,5 +659,38 @@ mod tests {
         let patch = std::fs::read_to_string(root().join("boot/u-boot-2023.01-de1-soc.patch")).expect("patch");
         assert!(patch.contains(&format!("+#define CFG_HPS_SDR_CTRLCFG_FPGAPORTRST\t\t\t{FPGAPORTRST:#x}")));
         assert!(patch.contains("+CONFIG_BOOTCOMMAND=\"run distro_bootcmd\""));
+        assert!(patch.contains(
+            "+\t\tsocfpga_sdram_apply_static_cfg();\n \t\twritel(iswgrp_handoff[3], &sdr_ctrl->fpgaport_rst);"
+        ));
+    }
+
+    #[test]
+    fn the_boot_script_leaves_the_sdram_controller_to_bridge_enable() {
+        let script = std::fs::read_to_string(root().join("boot/boot.cmd")).expect("boot.cmd");
+        assert_eq!(check_boot_script(&script), Ok(()));
+        let with_mw = script.replace("\tbridge enable", "\tmw 0xffc2505c 0xa\n\tbridge enable");
+        assert!(check_boot_script(&with_mw).is_err(), "a mw to staticcfg");
+        assert!(
+            check_boot_script(&script.replace("\tbridge enable", "\tmw.l 0xFFC25080 0x311\n\tbridge enable")).is_err()
+        );
+        assert!(check_boot_script(&script.replace("bridge enable", "echo no bridges")).is_err());
+        assert!(check_boot_script("bridge enable\nfpga load 0 0 0\n").is_err(), "order");
+        assert_eq!(check_boot_script("# mw 0xffc2505c 0xa\nfpga load 0 0 0\nbridge enable\n"), Ok(()), "comments");
+    }
+
+    #[test]
+    fn bridge_enable_applies_staticcfg_before_the_port_release() {
+        let good = "void do_bridge_reset(int enable, unsigned int mask)\n{\n\tif (enable) {\n\t\tsocfpga_sdram_apply_static_cfg();\n\
+                    \t\twritel(iswgrp_handoff[3], &sdr_ctrl->fpgaport_rst);\n\t} else {\n\t\twritel(0, &sdr_ctrl->fpgaport_rst);\n\t}\n}\n";
+        let routine = "asm volatile(\".balign 32\\n\"";
+        assert_eq!(check_bridge_applycfg(&format!("{routine}\n{good}")), Ok(()));
+        assert!(check_bridge_applycfg(good).is_err(), "not aligned");
+        let late = good.replace(
+            "\t\tsocfpga_sdram_apply_static_cfg();\n\t\twritel(iswgrp_handoff[3], &sdr_ctrl->fpgaport_rst);",
+            "\t\twritel(iswgrp_handoff[3], &sdr_ctrl->fpgaport_rst);\n\t\tsocfpga_sdram_apply_static_cfg();",
+        );
+        assert!(check_bridge_applycfg(&format!("{routine}\n{late}")).is_err(), "released first");
+        let none = good.replace("\t\tsocfpga_sdram_apply_static_cfg();\n", "");
+        assert!(check_bridge_applycfg(&format!("{routine}\n{none}")).is_err(), "never applied");
     }
 }
