@@ -29,6 +29,35 @@ pub trait Device {
     fn bus_write(&mut self, offset: usize, value: u32);
     /// The frame DMA's memory.
     fn memory(&mut self) -> &mut TestMemory;
+    /// Drive the board's input pins: `keys` held down (bit n: KEYn
+    /// pressed), `switches` (bit n: SWn up).
+    fn set_board_inputs(&mut self, keys: u8, switches: u16);
+    /// The board's output pins: LEDR9..0 (1 = lit) and each 7-segment
+    /// display's segment pins (active low: 0 = lit), HEX0 first.
+    fn board_outputs(&mut self) -> BoardPins;
+    /// Let `clocks` fabric clocks pass with the bus idle.
+    fn pass_clocks(&mut self, clocks: u32);
+}
+
+/// The board's output pins as a [`Device`] drives them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BoardPins {
+    /// LEDR9..LEDR0, 1 = lit.
+    pub ledr: u16,
+    /// HEX0..HEX5 segment pins, bit s = segment s, active low.
+    pub hex_n: [u8; 6],
+}
+
+impl BoardPins {
+    /// The pins as the registers say they should be: LEDS as is, HEX_LO
+    /// and HEX_HI inverted (1 = lit in the registers, 0 = lit on the pins).
+    pub fn from_registers(leds: u32, hex_lo: u32, hex_hi: u32) -> BoardPins {
+        let seg = |word: u32, n: u32| !((word >> (8 * n)) as u8) & 0x7F;
+        BoardPins {
+            ledr: (leds & LEDS_MASK) as u16,
+            hex_n: [seg(hex_lo, 0), seg(hex_lo, 1), seg(hex_lo, 2), seg(hex_lo, 3), seg(hex_hi, 0), seg(hex_hi, 1)],
+        }
+    }
 }
 
 /// Where the test memory starts on the bus.
@@ -160,7 +189,7 @@ pub fn id_is_fixed(d: &mut impl Device) {
 pub fn unmapped_offsets_read_zero(d: &mut impl Device) {
     with_done(d);
     let line = read_line(d);
-    for off in (0x2C..CSR_WINDOW).step_by(4).chain([line_word_offset(LINE_WORDS), 0x1FFC]) {
+    for off in (0x4C..CSR_WINDOW).step_by(4).chain([line_word_offset(LINE_WORDS), 0x1FFC]) {
         d.bus_write(off, 0xFFFF_FFFF);
         assert_eq!(d.bus_read(off), 0, "offset {off:#x}");
     }
@@ -548,5 +577,18 @@ impl Device for crate::sim::SimAccelerator<TestMemory> {
 
     fn memory(&mut self) -> &mut TestMemory {
         self.memory_mut()
+    }
+
+    fn set_board_inputs(&mut self, keys: u8, switches: u16) {
+        crate::sim::SimAccelerator::set_board_inputs(self, keys, switches)
+    }
+
+    fn board_outputs(&mut self) -> BoardPins {
+        let b = *self.board();
+        BoardPins::from_registers(b.leds, b.hex_lo, b.hex_hi)
+    }
+
+    fn pass_clocks(&mut self, clocks: u32) {
+        crate::sim::SimAccelerator::pass_clocks(self, clocks)
     }
 }

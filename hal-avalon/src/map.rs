@@ -7,18 +7,20 @@
 //!
 //! | window | bridge offset | size | contents |
 //! |---|---|---|---|
-//! | CSR block | [`CSR_OFFSET`] `0x0000` | 11 registers (`0x00..=0x28`) | [`Csr`] |
+//! | CSR block | [`CSR_OFFSET`] `0x0000` | 19 registers (`0x00..=0x48`) | [`Csr`] |
 //! | line buffer | [`LINE_BUFFER_OFFSET`] `0x1000` | [`LINE_WORDS`] x 32 bit | pixel `x` at `0x1000 + 4 * x`, word `0x00RRGGBB` |
 //!
 //! Every register is 32 bits wide and word aligned. Offsets of the bridge
-//! window outside the eleven registers and the 480 line-buffer words are not
+//! window outside the nineteen registers and the 480 line-buffer words are not
 //! part of the contract, except that unmapped offsets of the CSR block read 0.
 //!
 //! Map version 2 adds the frame DMA (`0x1C..=0x28`) to version 1's row
 //! registers (`0x00..=0x18`, unchanged): the ID register tells a driver which
 //! it has ([`ID_VERSION_FRAMES`]). The frame abort and the stall limit
 //! ([Stopping a frame](#stopping-a-frame)) belong to version 2: no
-//! version 2 bitstream without them was ever released.
+//! version 2 bitstream without them was ever released. Map version 3 adds
+//! the VGA scan-out and the board I/O block (`0x2C..=0x48`,
+//! [`ID_VERSION_VGA`]); earlier registers are unchanged.
 //!
 //! # CSR block
 //!
@@ -30,11 +32,19 @@
 //! | `0x0C` | [`Csr::LightX`] | R/W | light x, Q13.10 in bits 23:0 ([`LIGHT_MASK`]); reads return the stored 24 bits sign-extended to 32. |
 //! | `0x10` | [`Csr::LightY`] | R/W | light y, as light x. |
 //! | `0x14` | [`Csr::LightZ`] | R/W | light z, as light x. |
-//! | `0x18` | [`Csr::Id`] | R | [`ID_VALUE`] `0x5254_0002`: magic `0x5254` ("RT") in bits 31:16, map version 2 in bits 15:0. Writes ignored. |
+//! | `0x18` | [`Csr::Id`] | R | [`ID_VALUE`] `0x5254_0003`: magic `0x5254` ("RT") in bits 31:16, map version 3 in bits 15:0. Writes ignored. |
 //! | `0x1C` | [`Csr::FrameBase`] | R/W | bus address of the frame buffer; bits 31:3 stored ([`FRAME_BASE_MASK`]), bits 2:0 read 0. |
 //! | `0x20` | [`Csr::FrameControl`] | W | bit 0 [`FRAME_CONTROL_START`]: render a whole frame for `LIGHT_*` into `FRAME_BASE` (ignored while busy); bit 1 [`FRAME_CONTROL_CLEAR_DONE`]: clear frame done; bit 2 [`FRAME_CONTROL_ABORT`]: stop the frame in progress (wins over the other bits). Reads 0. |
 //! | `0x24` | [`Csr::FrameStatus`] | R | bit 0 [`FRAME_STATUS_BUSY`]: a frame is in progress (or stopping); bit 1 [`FRAME_STATUS_DONE`]: sticky, every row landed; bit 2 [`FRAME_STATUS_ERROR`]: sticky until the next frame, a write to memory failed or the memory stopped answering; bit 3 [`FRAME_STATUS_ABORTED`]: sticky until the next frame, the frame was stopped before its end (an abort or the stall limit). Writes ignored. |
 //! | `0x28` | [`Csr::RowsDone`] | R | rows `0..n` of the current (or last) frame whose bytes have landed in memory, `0..=360`. Writes ignored. |
+//! | `0x2C` | [`Csr::VgaControl`] | R/W | bit 0 [`VGA_CONTROL_ENABLE`]: scan frames out to the VGA port; bit 1 [`VGA_CONTROL_LETTERBOX`]: letterbox instead of full screen. Other bits read 0. |
+//! | `0x30` | [`Csr::VgaBase`] | R/W | bus address of the frame to show (480 x 360 RGB888 wire bytes, as frame mode writes them); bits 31:3 stored ([`FRAME_BASE_MASK`]). Taken at the start of vertical blanking. |
+//! | `0x34` | [`Csr::VgaStatus`] | R, W1C | bits 15:0 [`VGA_STATUS_FRAMES`]: frames scanned out since enable (wrapping); bit 16 [`VGA_STATUS_UNDERRUN`]: sticky, the reader was late and a line was cut (write 1 to clear; enable clears it too). |
+//! | `0x38` | [`Csr::Keys`] | R, W1C | bits 3:0 [`KEYS_DOWN`]: KEY3..KEY0 held down now (debounced; 1 = pressed, though the pins are active low); bits 7:4 [`KEYS_PRESSED`]: sticky, the key went down since last cleared (write 1 to clear). |
+//! | `0x3C` | [`Csr::Switches`] | R | bits 9:0: SW9..SW0 (1 = up), synchronised. Writes ignored. |
+//! | `0x40` | [`Csr::Leds`] | R/W | bits 9:0: LEDR9..LEDR0 (1 = lit). |
+//! | `0x44` | [`Csr::HexLo`] | R/W | HEX0..HEX3, 7 bits each at bits `8n+6..8n` (segment a = bit 0 .. g = bit 6; 1 = lit: the RTL drives the active-low pins inverted). |
+//! | `0x48` | [`Csr::HexHi`] | R/W | HEX4 in bits 6:0, HEX5 in bits 14:8, as [`Csr::HexLo`]. |
 //!
 //! # Behaviour
 //!
@@ -68,6 +78,26 @@
 //!   end (busy clears), done stays clear.
 //! * A row start or a frame start while busy is ignored; the line buffer
 //!   and `STATUS.done` are not part of frame mode.
+//!
+//! # VGA scan-out (map version 3)
+//!
+//! With [`VGA_CONTROL_ENABLE`] set the accelerator drives 640x480@60 (see
+//! [`model::display`]) from the frame at `VGA_BASE`, read through its AXI
+//! read master on the same FPGA-to-SDRAM port the frame DMA writes
+//! through. `VGA_BASE` and the letterbox bit are latched at the start of
+//! vertical blanking, the moment [`VGA_STATUS_FRAMES`] counts, so a frame
+//! is never torn: once the counter has moved after a `VGA_BASE` write, the
+//! new frame is on screen and the one before is no longer read. A line the
+//! reader could not fetch in time is cut (black to its end) and sets
+//! [`VGA_STATUS_UNDERRUN`]; the next frame starts over. Disabled, the
+//! outputs are blank and black and the counter holds 0.
+//!
+//! # Board I/O (map version 3)
+//!
+//! Keys are synchronised and debounced in the fabric
+//! ([`KEY_DEBOUNCE_CLOCKS`] of a stable level); switches are synchronised.
+//! LEDs and 7-segment displays show what software wrote; all are 0 (dark)
+//! after reset.
 //!
 //! # Stopping a frame
 //!
@@ -149,11 +179,27 @@ pub enum Csr {
     FrameStatus,
     /// `0x28`, read-only: rows of the frame that have landed.
     RowsDone,
+    /// `0x2C`, read/write: VGA enable and layout.
+    VgaControl,
+    /// `0x30`, read/write: the frame to show, bits 31:3.
+    VgaBase,
+    /// `0x34`, read, write 1 to clear: frames scanned, underrun.
+    VgaStatus,
+    /// `0x38`, read, write 1 to clear: keys down and pressed.
+    Keys,
+    /// `0x3C`, read-only: switches.
+    Switches,
+    /// `0x40`, read/write: red LEDs.
+    Leds,
+    /// `0x44`, read/write: HEX0..HEX3 segments.
+    HexLo,
+    /// `0x48`, read/write: HEX4 and HEX5 segments.
+    HexHi,
 }
 
 impl Csr {
     /// Every register, in address order.
-    pub const ALL: [Csr; 11] = [
+    pub const ALL: [Csr; 19] = [
         Csr::Control,
         Csr::Status,
         Csr::RowY,
@@ -165,6 +211,14 @@ impl Csr {
         Csr::FrameControl,
         Csr::FrameStatus,
         Csr::RowsDone,
+        Csr::VgaControl,
+        Csr::VgaBase,
+        Csr::VgaStatus,
+        Csr::Keys,
+        Csr::Switches,
+        Csr::Leds,
+        Csr::HexLo,
+        Csr::HexHi,
     ];
 
     /// Byte offset of the register inside the CSR block.
@@ -181,6 +235,14 @@ impl Csr {
             Csr::FrameControl => 0x20,
             Csr::FrameStatus => 0x24,
             Csr::RowsDone => 0x28,
+            Csr::VgaControl => 0x2C,
+            Csr::VgaBase => 0x30,
+            Csr::VgaStatus => 0x34,
+            Csr::Keys => 0x38,
+            Csr::Switches => 0x3C,
+            Csr::Leds => 0x40,
+            Csr::HexLo => 0x44,
+            Csr::HexHi => 0x48,
         }
     }
 
@@ -199,6 +261,14 @@ impl Csr {
             0x20 => Some(Csr::FrameControl),
             0x24 => Some(Csr::FrameStatus),
             0x28 => Some(Csr::RowsDone),
+            0x2C => Some(Csr::VgaControl),
+            0x30 => Some(Csr::VgaBase),
+            0x34 => Some(Csr::VgaStatus),
+            0x38 => Some(Csr::Keys),
+            0x3C => Some(Csr::Switches),
+            0x40 => Some(Csr::Leds),
+            0x44 => Some(Csr::HexLo),
+            0x48 => Some(Csr::HexHi),
             _ => None,
         }
     }
@@ -227,10 +297,12 @@ pub const LIGHT_MASK: u32 = (1 << model::word::WORD_BITS) - 1;
 
 /// Magic in ID bits 31:16: ASCII "RT".
 pub const ID_MAGIC: u16 = 0x5254;
-/// Register-map version in ID bits 15:0; this document describes version 2.
-pub const ID_VERSION: u16 = 2;
+/// Register-map version in ID bits 15:0; this document describes version 3.
+pub const ID_VERSION: u16 = 3;
 /// The first map version with the frame DMA registers (version 1: rows only).
 pub const ID_VERSION_FRAMES: u16 = 2;
+/// The first map version with the VGA scan-out and the board I/O block.
+pub const ID_VERSION_VGA: u16 = 3;
 /// The value the ID register reads on a configured accelerator.
 pub const ID_VALUE: u32 = (ID_MAGIC as u32) << 16 | ID_VERSION as u32;
 
@@ -271,6 +343,41 @@ pub const FRAME_ROW_BYTES: u32 = model::ROW_BYTES as u32;
 /// Bytes of one frame in the frame buffer.
 pub const FRAME_BYTES: u32 = model::FRAME_BYTES as u32;
 
+/// VGA_CONTROL bit 0: scan frames out to the VGA port.
+pub const VGA_CONTROL_ENABLE: u32 = 1 << 0;
+/// VGA_CONTROL bit 1: letterbox ([`model::display::Layout::Letterbox`])
+/// instead of full screen.
+pub const VGA_CONTROL_LETTERBOX: u32 = 1 << 1;
+/// The VGA_CONTROL bits that are stored.
+pub const VGA_CONTROL_MASK: u32 = VGA_CONTROL_ENABLE | VGA_CONTROL_LETTERBOX;
+/// VGA_STATUS bits 15:0: frames scanned out since enable (wrapping).
+pub const VGA_STATUS_FRAMES: u32 = 0xFFFF;
+/// VGA_STATUS bit 16: sticky; a line was cut because the reader was late.
+pub const VGA_STATUS_UNDERRUN: u32 = 1 << 16;
+/// The VGA_STATUS bits that can be set.
+pub const VGA_STATUS_MASK: u32 = VGA_STATUS_FRAMES | VGA_STATUS_UNDERRUN;
+/// Fabric clocks per VGA frame: 800 x 525 pixels, two 50 MHz clocks each
+/// (16.8 ms).
+pub const VGA_FRAME_CLOCKS: u32 = 800 * 525 * 2;
+/// KEYS bits 3:0: keys held down now (debounced).
+pub const KEYS_DOWN: u32 = 0xF;
+/// KEYS bits 7:4: sticky, keys that went down since last cleared.
+pub const KEYS_PRESSED: u32 = 0xF0;
+/// Fabric clocks a key must hold a new level before KEYS follows it:
+/// 2^20 clocks, 21 ms at 50 MHz (push-button bounce lasts a few ms).
+pub const KEY_DEBOUNCE_CLOCKS: u32 = 1 << 20;
+/// SWITCHES: the stored bits (SW9..SW0).
+pub const SWITCHES_MASK: u32 = 0x3FF;
+/// LEDS: the stored bits (LEDR9..LEDR0).
+pub const LEDS_MASK: u32 = 0x3FF;
+/// HEX_LO: the stored bits (four 7-bit displays, one per byte).
+pub const HEX_LO_MASK: u32 = 0x7F7F_7F7F;
+/// HEX_HI: the stored bits (two 7-bit displays).
+pub const HEX_HI_MASK: u32 = 0x7F7F;
+/// The fabric clock the accelerator runs on (Platform Designer's 50 MHz
+/// clock source, fpga/quartus/soc_system.tcl).
+pub const FABRIC_HZ: u32 = 50_000_000;
+
 /// A light component as the LIGHT registers store it (bits 23:0).
 pub const fn light_to_register(raw: i32) -> u32 {
     raw as u32 & LIGHT_MASK
@@ -292,13 +399,15 @@ mod tests {
             assert_eq!(Csr::at_offset(csr.offset()), Some(csr));
             assert_eq!(Csr::at_offset(csr.offset() + 3), Some(csr));
         }
-        assert_eq!(Csr::at_offset(0x2C), None);
+        assert_eq!(Csr::at_offset(0x4C), None);
         assert_eq!(Csr::at_offset(CSR_WINDOW - 4), None);
     }
 
     #[test]
     fn constants_match_the_decided_map() {
-        assert_eq!(ID_VALUE, 0x5254_0002);
+        assert_eq!(ID_VALUE, 0x5254_0003);
+        assert_eq!(Csr::HexHi.offset(), 0x48);
+        assert_eq!(VGA_FRAME_CLOCKS, 840_000);
         assert_eq!(Csr::RowsDone.offset(), 0x28);
         assert_eq!(FRAME_ROW_BYTES * 360, FRAME_BYTES);
         assert_eq!(ROW_Y_MASK, 0x1ff);

@@ -47,6 +47,22 @@ pub struct CsrBlock {
     pub frame_status: RO<u32>,
     /// `0x28` ROWS_DONE.
     pub rows_done: RO<u32>,
+    /// `0x2C` VGA_CONTROL.
+    pub vga_control: RW<u32>,
+    /// `0x30` VGA_BASE.
+    pub vga_base: RW<u32>,
+    /// `0x34` VGA_STATUS (write 1 to clear).
+    pub vga_status: RW<u32>,
+    /// `0x38` KEYS (write 1 to clear).
+    pub keys: RW<u32>,
+    /// `0x3C` SWITCHES.
+    pub switches: RO<u32>,
+    /// `0x40` LEDS.
+    pub leds: RW<u32>,
+    /// `0x44` HEX_LO.
+    pub hex_lo: RW<u32>,
+    /// `0x48` HEX_HI.
+    pub hex_hi: RW<u32>,
 }
 
 /// Words between the end of the CSR block and the line buffer.
@@ -78,6 +94,14 @@ const _: () = {
     assert!(offset_of!(CsrBlock, frame_control) == Csr::FrameControl.offset());
     assert!(offset_of!(CsrBlock, frame_status) == Csr::FrameStatus.offset());
     assert!(offset_of!(CsrBlock, rows_done) == Csr::RowsDone.offset());
+    assert!(offset_of!(CsrBlock, vga_control) == Csr::VgaControl.offset());
+    assert!(offset_of!(CsrBlock, vga_base) == Csr::VgaBase.offset());
+    assert!(offset_of!(CsrBlock, vga_status) == Csr::VgaStatus.offset());
+    assert!(offset_of!(CsrBlock, keys) == Csr::Keys.offset());
+    assert!(offset_of!(CsrBlock, switches) == Csr::Switches.offset());
+    assert!(offset_of!(CsrBlock, leds) == Csr::Leds.offset());
+    assert!(offset_of!(CsrBlock, hex_lo) == Csr::HexLo.offset());
+    assert!(offset_of!(CsrBlock, hex_hi) == Csr::HexHi.offset());
     assert!(offset_of!(RegisterBlock, line) == LINE_BUFFER_OFFSET - CSR_OFFSET);
 };
 
@@ -150,6 +174,14 @@ impl RegisterPort for MmioPort {
             Csr::FrameBase => c.frame_base.read(),
             Csr::FrameStatus => c.frame_status.read(),
             Csr::RowsDone => c.rows_done.read(),
+            Csr::VgaControl => c.vga_control.read(),
+            Csr::VgaBase => c.vga_base.read(),
+            Csr::VgaStatus => c.vga_status.read(),
+            Csr::Keys => c.keys.read(),
+            Csr::Switches => c.switches.read(),
+            Csr::Leds => c.leds.read(),
+            Csr::HexLo => c.hex_lo.read(),
+            Csr::HexHi => c.hex_hi.read(),
         }
     }
 
@@ -168,7 +200,14 @@ impl RegisterPort for MmioPort {
                 // Read-only registers ignore writes: skip the bus access.
                 Csr::FrameBase => c.frame_base.write(value),
                 Csr::FrameControl => c.frame_control.write(value),
-                Csr::Status | Csr::Id | Csr::FrameStatus | Csr::RowsDone => {}
+                Csr::VgaControl => c.vga_control.write(value),
+                Csr::VgaBase => c.vga_base.write(value),
+                Csr::VgaStatus => c.vga_status.write(value),
+                Csr::Keys => c.keys.write(value),
+                Csr::Leds => c.leds.write(value),
+                Csr::HexLo => c.hex_lo.write(value),
+                Csr::HexHi => c.hex_hi.write(value),
+                Csr::Status | Csr::Id | Csr::FrameStatus | Csr::RowsDone | Csr::Switches => {}
             }
         }
     }

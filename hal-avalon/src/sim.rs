@@ -34,8 +34,10 @@ use model::Light;
 use crate::map::{
     light_from_register, Csr, BUS_ALL_ONES, CONTROL_CLEAR_DONE, CONTROL_START, CSR_OFFSET, CSR_WINDOW, FRAME_BASE_MASK,
     FRAME_CONTROL_ABORT, FRAME_CONTROL_CLEAR_DONE, FRAME_CONTROL_START, FRAME_ROW_BYTES, FRAME_STATUS_ABORTED,
-    FRAME_STATUS_BUSY, FRAME_STATUS_DONE, FRAME_STATUS_ERROR, ID_VALUE, LIGHT_MASK, LINE_BUFFER_OFFSET, LINE_WORDS,
-    ROWS, ROW_Y_MASK, STATUS_BUSY, STATUS_DONE,
+    FRAME_STATUS_BUSY, FRAME_STATUS_DONE, FRAME_STATUS_ERROR, HEX_HI_MASK, HEX_LO_MASK, ID_VALUE, KEYS_DOWN,
+    KEYS_PRESSED, KEY_DEBOUNCE_CLOCKS, LEDS_MASK, LIGHT_MASK, LINE_BUFFER_OFFSET, LINE_WORDS, ROWS, ROW_Y_MASK,
+    STATUS_BUSY, STATUS_DONE, SWITCHES_MASK, VGA_CONTROL_ENABLE, VGA_CONTROL_MASK, VGA_FRAME_CLOCKS, VGA_STATUS_FRAMES,
+    VGA_STATUS_UNDERRUN,
 };
 use crate::port::RegisterPort;
 
@@ -121,6 +123,8 @@ pub struct SimAccelerator<M = NoMemory> {
     frame: FrameState,
     frame_rows_per_poll: u16,
     mem: M,
+    /// VGA and board I/O registers as stored (map version 3).
+    board: BoardRegs,
     fault: Option<Fault>,
     /// `(row, x)`: that pixel comes out inverted (self-test fault injection).
     wrong_pixel: Option<(u16, u16)>,
@@ -128,6 +132,34 @@ pub struct SimAccelerator<M = NoMemory> {
     starts: u32,
     rows_finished: u32,
     frames_started: u32,
+}
+
+/// The VGA and board I/O registers (map version 3), as stored, and the
+/// board's pins and time as the simulated device sees them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BoardRegs {
+    /// Keys held down on the pins (bit n: KEYn pressed).
+    pub key_pins: u8,
+    /// Fabric clocks the key pins have held their level.
+    pub key_stable: u32,
+    /// Fabric clocks since the last VGA frame began counting.
+    pub vga_clocks: u32,
+    /// VGA_CONTROL.
+    pub vga_control: u32,
+    /// VGA_BASE.
+    pub vga_base: u32,
+    /// VGA_STATUS.
+    pub vga_status: u32,
+    /// KEYS.
+    pub keys: u32,
+    /// SWITCHES.
+    pub switches: u32,
+    /// LEDS.
+    pub leds: u32,
+    /// HEX_LO.
+    pub hex_lo: u32,
+    /// HEX_HI.
+    pub hex_hi: u32,
 }
 
 /// Frame mode's registers and progress.
@@ -197,6 +229,19 @@ impl<M: DmaTarget> SimAccelerator<M> {
             },
             frame_rows_per_poll: DEFAULT_FRAME_ROWS_PER_POLL,
             mem,
+            board: BoardRegs {
+                key_pins: 0,
+                key_stable: 0,
+                vga_clocks: 0,
+                vga_control: 0,
+                vga_base: 0,
+                vga_status: 0,
+                keys: 0,
+                switches: 0,
+                leds: 0,
+                hex_lo: 0,
+                hex_hi: 0,
+            },
             fault: None,
             wrong_pixel: None,
             status_reads: 0,
@@ -219,6 +264,45 @@ impl<M: DmaTarget> SimAccelerator<M> {
         self.polls_left = 0;
         self.line = [0; LINE_WORDS];
         self.frame = FrameState::default();
+        self.board = BoardRegs::default();
+    }
+
+    /// The VGA and board I/O registers as stored.
+    pub fn board(&self) -> &BoardRegs {
+        &self.board
+    }
+
+    /// The board's inputs as the pins carry them: `keys` held down (bit n:
+    /// KEYn pressed), `switches` (bit n: SWn up). Switches show at once
+    /// (synchronised); keys only after they held the new level for
+    /// [`KEY_DEBOUNCE_CLOCKS`] of [`pass_clocks`](Self::pass_clocks).
+    pub fn set_board_inputs(&mut self, keys: u8, switches: u16) {
+        let keys = keys & KEYS_DOWN as u8;
+        if keys != self.board.key_pins {
+            self.board.key_pins = keys;
+            self.board.key_stable = 0;
+        }
+        self.board.switches = u32::from(switches) & SWITCHES_MASK;
+    }
+
+    /// Let `clocks` fabric clocks pass: keys that held their level long
+    /// enough show in KEYS; an enabled VGA port counts a frame every
+    /// [`VGA_FRAME_CLOCKS`].
+    pub fn pass_clocks(&mut self, clocks: u32) {
+        let b = &mut self.board;
+        b.key_stable = b.key_stable.saturating_add(clocks);
+        let down = u32::from(b.key_pins);
+        if b.key_stable >= KEY_DEBOUNCE_CLOCKS && down != b.keys & KEYS_DOWN {
+            let went_down = down & !(b.keys & KEYS_DOWN);
+            b.keys = (b.keys & KEYS_PRESSED) | (went_down << 4) | down;
+        }
+        if b.vga_control & VGA_CONTROL_ENABLE != 0 {
+            let total = u64::from(b.vga_clocks) + u64::from(clocks);
+            let frames = (total / u64::from(VGA_FRAME_CLOCKS)) as u32;
+            b.vga_clocks = (total % u64::from(VGA_FRAME_CLOCKS)) as u32;
+            let count = (b.vga_status & VGA_STATUS_FRAMES).wrapping_add(frames) & VGA_STATUS_FRAMES;
+            b.vga_status = (b.vga_status & !VGA_STATUS_FRAMES) | count;
+        }
     }
 
     /// STATUS reads a row stays busy for.
@@ -336,7 +420,21 @@ impl<M: DmaTarget> SimAccelerator<M> {
             Csr::LightZ => self.light[2] = value & LIGHT_MASK,
             Csr::FrameBase => self.frame.base = value & FRAME_BASE_MASK,
             Csr::FrameControl => self.frame_control(value),
-            Csr::Status | Csr::Id | Csr::FrameStatus | Csr::RowsDone => {}
+            Csr::VgaControl => {
+                // Enable clears the counter and the underrun.
+                if value & VGA_CONTROL_ENABLE != 0 && self.board.vga_control & VGA_CONTROL_ENABLE == 0 {
+                    self.board.vga_status = 0;
+                    self.board.vga_clocks = 0;
+                }
+                self.board.vga_control = value & VGA_CONTROL_MASK;
+            }
+            Csr::VgaBase => self.board.vga_base = value & FRAME_BASE_MASK,
+            Csr::VgaStatus => self.board.vga_status &= !(value & VGA_STATUS_UNDERRUN),
+            Csr::Keys => self.board.keys &= !(value & KEYS_PRESSED),
+            Csr::Leds => self.board.leds = value & LEDS_MASK,
+            Csr::HexLo => self.board.hex_lo = value & HEX_LO_MASK,
+            Csr::HexHi => self.board.hex_hi = value & HEX_HI_MASK,
+            Csr::Status | Csr::Id | Csr::FrameStatus | Csr::RowsDone | Csr::Switches => {}
         }
     }
 
@@ -365,6 +463,14 @@ impl<M: DmaTarget> SimAccelerator<M> {
                 self.advance_frame();
                 u32::from(self.frame.rows_done)
             }
+            Csr::VgaControl => self.board.vga_control,
+            Csr::VgaBase => self.board.vga_base,
+            Csr::VgaStatus => self.board.vga_status,
+            Csr::Keys => self.board.keys,
+            Csr::Switches => self.board.switches,
+            Csr::Leds => self.board.leds,
+            Csr::HexLo => self.board.hex_lo,
+            Csr::HexHi => self.board.hex_hi,
         }
     }
 

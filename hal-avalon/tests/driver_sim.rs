@@ -1,7 +1,7 @@
 //! The row driver over the simulated accelerator: whole frames against the
 //! model, the protocol on the bus, every error path and its bound.
 
-use hal_avalon::map::{line_word_offset, Csr, CONTROL_START, LINE_WORDS, ROWS, STATUS_BUSY};
+use hal_avalon::map::{line_word_offset, Csr, CONTROL_START, ID_VERSION, LINE_WORDS, ROWS, STATUS_BUSY};
 use hal_avalon::sim::{CountingDelay, Fault, SimAccelerator, LINE_POISON};
 use hal_avalon::{Accelerator, Capabilities, Error, PollTimeout, RegisterPort};
 use model::light::Axis;
@@ -110,7 +110,7 @@ fn absent_device_is_not_present_and_rows_fail_without_writes() {
     assert_eq!(accel.delay().calls, 0);
     // Once the fabric is configured, the same driver works.
     accel.port_mut().set_fault(None);
-    assert_eq!(accel.probe(), Ok(Capabilities { version: 2 }));
+    assert_eq!(accel.probe(), Ok(Capabilities { version: ID_VERSION }));
     accel.run_row(5, &lights()[1], &mut row).unwrap();
     assert_eq!(row, model_row(5, &lights()[1]));
     assert_eq!(accel.port().starts(), 1, "the failed row never started");

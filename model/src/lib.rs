@@ -10,6 +10,7 @@
 //! * [`trace`]: [`trace_pixel`] and [`render_row`]; [`frame`]: the 518,400-byte
 //!   wire format.
 //! * [`light`]: the validated light position.
+//! * [`display`]: the VGA display (640 x 480) and how it maps onto the frame.
 //! * With the `std` feature, [`mod@reference`] (an `f64` renderer of the same
 //!   scene) and [`quality`] (PSNR and the share of pixels within +-8).
 #![cfg_attr(not(feature = "std"), no_std)]
@@ -17,6 +18,7 @@
 
 pub mod arith;
 pub mod colour;
+pub mod display;
 pub mod frame;
 pub mod light;
 pub mod scene;
