@@ -1,13 +1,16 @@
 # Platform Designer component: the ray-tracer accelerator (rt_accel.sv:
-# rt_top with the whole AXI3 master signal set).
+# rt_top with the whole AXI3 master signal set, and the VGA and board I/O
+# conduits).
 #
 # One 32-bit Avalon-MM slave, word addressing over an 8 KiB span:
 #   0x0000 CSR block (CONTROL, STATUS, ROW_Y, LIGHT_X/Y/Z, ID, FRAME_*)
 #   0x1000 line buffer, 480 words 0x00RRGGBB
-# and one write-only AXI3 master (64-bit data, bursts of at most 16 beats,
-# at most 16 writes outstanding) for the frame DMA: connect it to
-# hps_0.f2h_sdram0_data (F2SDRAM_Type AXI-3, F2SDRAM_Width 64).
-# Connect it to hps_0.h2f_lw_axi_master at base 0x0000_0000: the CPU then
+# one AXI3 master (64-bit data, bursts of at most 16 beats) that the frame
+# DMA writes through (at most 16 writes outstanding) and the VGA reader
+# reads through (at most 4 read bursts outstanding): connect it to
+# hps_0.f2h_sdram0_data (F2SDRAM_Type AXI-3, F2SDRAM_Width 64); and two
+# conduits for the board's pins, vga and board (export both).
+# Connect the slave to hps_0.h2f_lw_axi_master at base 0x0000_0000: the CPU then
 # sees it at 0xFF20_0000 (hal-avalon's CSR_OFFSET / LINE_BUFFER_OFFSET).
 # Fixed read latency 1, no waitrequest, no byte enables (32-bit accesses
 # only, as the driver makes).
@@ -80,16 +83,17 @@ add_interface_port s0 avs_readdata_o readdata Output 32
 set_interface_assignment s0 embeddedsw.configuration.isFlash 0
 set_interface_assignment s0 embeddedsw.configuration.isMemoryDevice 0
 
-# ---- AXI3 master: the frame DMA ------------------------------------------------
+# ---- AXI3 master: the frame DMA (writes) and the VGA reader (reads) -------
 # Every AXI3 signal is declared, as Altera's own AXI3 master templates do
-# (merlin axi_interface.tcl); rt_accel.sv ties off the IDs, the locks and
-# the read channel, which the DMA never uses.
+# (merlin axi_interface.tcl); rt_accel.sv ties off the IDs and the locks.
+# The reader has at most 4 read bursts in flight, the DMA at most 16
+# writes: 20 in all.
 add_interface axm axi start
 set_interface_property axm associatedClock clock
 set_interface_property axm associatedReset reset
-set_interface_property axm readIssuingCapability 1
+set_interface_property axm readIssuingCapability 4
 set_interface_property axm writeIssuingCapability 16
-set_interface_property axm combinedIssuingCapability 16
+set_interface_property axm combinedIssuingCapability 20
 set_interface_property axm ENABLED true
 foreach {port role dir width} {
     axm_awid_o awid Output 1     axm_awaddr_o awaddr Output 32   axm_awlen_o awlen Output 4
@@ -109,3 +113,36 @@ foreach {port role dir width} {
 } {
     add_interface_port axm $port $role $dir $width
 }
+
+# ---- Conduits to the board's pins (exported as vga and board) ---------------
+# Platform Designer names an exported conduit's ports <export>_<role>:
+# vga_clk ... vga_b, board_key_n ... board_hex5_n (de1_soc_top.sv). The
+# outputs are registers on the clock above (50 MHz): VGA_CLK is a 25 MHz
+# toggle, R/G/B/BLANK_N/SYNC_N change at the edge where it falls
+# (de1_soc.sdc); KEY and SW are synchronised inside.
+add_interface vga conduit end
+set_interface_property vga associatedClock clock
+set_interface_property vga associatedReset reset
+set_interface_property vga ENABLED true
+add_interface_port vga vga_clk_o clk Output 1
+add_interface_port vga vga_hs_o hs Output 1
+add_interface_port vga vga_vs_o vs Output 1
+add_interface_port vga vga_blank_n_o blank_n Output 1
+add_interface_port vga vga_sync_n_o sync_n Output 1
+add_interface_port vga vga_r_o r Output 8
+add_interface_port vga vga_g_o g Output 8
+add_interface_port vga vga_b_o b Output 8
+
+add_interface board conduit end
+set_interface_property board associatedClock clock
+set_interface_property board associatedReset reset
+set_interface_property board ENABLED true
+add_interface_port board key_n_i key_n Input 4
+add_interface_port board sw_i sw Input 10
+add_interface_port board ledr_o ledr Output 10
+add_interface_port board hex0_n_o hex0_n Output 7
+add_interface_port board hex1_n_o hex1_n Output 7
+add_interface_port board hex2_n_o hex2_n Output 7
+add_interface_port board hex3_n_o hex3_n Output 7
+add_interface_port board hex4_n_o hex4_n Output 7
+add_interface_port board hex5_n_o hex5_n Output 7
