@@ -1,11 +1,32 @@
 // DE1-SoC top level: the Platform Designer system soc_system (HPS + the
 // ray-tracer accelerator on the lightweight HPS-to-FPGA bridge) with its
 // HPS DDR3 and HPS peripheral pins (Ethernet EMAC1 RGMII, SD card, UART0)
-// and the 50 MHz fabric clock. LEDR[0] lights while the HPS holds the
-// fabric out of reset (a cheap sign of life on the board).
+// and the 50 MHz fabric clock, and the accelerator's board pins: the VGA
+// DAC and connector, KEY, SW, LEDR and HEX0-5 (port names as in Terasic's
+// DE1-SoC golden top, DE1_SOC_golden_top.v; pins in de1_soc.qsf). KEY and
+// the HEX segments are active low on the board and go through as they are.
 module de1_soc_top (
   input  logic        CLOCK_50,
-  output logic [0:0]  LEDR,
+  // VGA (ADV7123 DAC and the VGA connector)
+  output logic        VGA_CLK,
+  output logic        VGA_HS,
+  output logic        VGA_VS,
+  output logic        VGA_BLANK_N,
+  output logic        VGA_SYNC_N,
+  output logic [7:0]  VGA_R,
+  output logic [7:0]  VGA_G,
+  output logic [7:0]  VGA_B,
+  // push buttons (low when pressed), slide switches, red LEDs, 7-segment
+  // displays (a segment lights when its pin is low)
+  input  logic [3:0]  KEY,
+  input  logic [9:0]  SW,
+  output logic [9:0]  LEDR,
+  output logic [6:0]  HEX0,
+  output logic [6:0]  HEX1,
+  output logic [6:0]  HEX2,
+  output logic [6:0]  HEX3,
+  output logic [6:0]  HEX4,
+  output logic [6:0]  HEX5,
   // HPS DDR3 (1 GiB, 32-bit)
   output logic [14:0] HPS_DDR3_ADDR,
   output logic [2:0]  HPS_DDR3_BA,
@@ -40,12 +61,26 @@ module de1_soc_top (
   input  logic        HPS_UART_RX,
   output logic        HPS_UART_TX
 );
-  logic h2f_rst_n;
-
   soc_system u_soc (
     .clk_clk                         (CLOCK_50),
     .reset_reset_n                   (1'b1),
-    .hps_0_h2f_reset_reset_n         (h2f_rst_n),
+    .vga_clk                         (VGA_CLK),
+    .vga_hs                          (VGA_HS),
+    .vga_vs                          (VGA_VS),
+    .vga_blank_n                     (VGA_BLANK_N),
+    .vga_sync_n                      (VGA_SYNC_N),
+    .vga_r                           (VGA_R),
+    .vga_g                           (VGA_G),
+    .vga_b                           (VGA_B),
+    .board_key_n                     (KEY),
+    .board_sw                        (SW),
+    .board_ledr                      (LEDR),
+    .board_hex0_n                    (HEX0),
+    .board_hex1_n                    (HEX1),
+    .board_hex2_n                    (HEX2),
+    .board_hex3_n                    (HEX3),
+    .board_hex4_n                    (HEX4),
+    .board_hex5_n                    (HEX5),
     .memory_mem_a                    (HPS_DDR3_ADDR),
     .memory_mem_ba                   (HPS_DDR3_BA),
     .memory_mem_ck                   (HPS_DDR3_CK_P),
@@ -85,6 +120,4 @@ module de1_soc_top (
     .hps_io_hps_io_uart0_inst_RX     (HPS_UART_RX),
     .hps_io_hps_io_uart0_inst_TX     (HPS_UART_TX)
   );
-
-  assign LEDR[0] = h2f_rst_n;
 endmodule

@@ -145,7 +145,14 @@ add_interface memory conduit end
 set_interface_property memory EXPORT_OF hps_0.memory
 add_interface hps_io conduit end
 set_interface_property hps_io EXPORT_OF hps_0.hps_io
-add_interface hps_0_h2f_reset reset source
-set_interface_property hps_0_h2f_reset EXPORT_OF hps_0.h2f_reset
+# The accelerator's board pins. An exported conduit's ports are named
+# <export>_<role> in the generated system (the Intel FPGA University
+# Program's DE1-SoC Computer exports its VGA conduit as vga: vga_CLK,
+# vga_HS, ..., vga_B in Computer_System.cmp), so these give vga_clk ...
+# vga_b and board_key_n ... board_hex5_n (de1_soc_top.sv).
+add_interface vga conduit end
+set_interface_property vga EXPORT_OF rt_accel_0.vga
+add_interface board conduit end
+set_interface_property board EXPORT_OF rt_accel_0.board
 
 save_system soc_system.qsys
