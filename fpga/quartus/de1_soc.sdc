@@ -42,9 +42,11 @@ set_output_delay -clock VGA_CLK -min -1.485 [get_ports {VGA_SYNC_N}]
 # Multicycle Setup = 2 and End Multicycle Hold = 1" shows; -start moves
 # the launch edge, in launch-clock periods.)
 set_multicycle_path -hold -start 1 -from [get_clocks CLOCK_50] -to [get_clocks VGA_CLK]
-# HS and VS go from the FPGA to the connector, not through the DAC, and a
-# monitor locks to them with a PLL: a few ns against a 40 ns pixel moves
-# nothing on screen. No timing relation to check.
+# HS and VS go from the FPGA to the connector, not through the DAC (as
+# Terasic's DE-series manuals describe their ADV7123 VGA circuits, e.g. the
+# DE2's: "The VGA synchronization signals are provided directly from the
+# ... FPGA"), and a monitor locks to them with a PLL: a few ns against a
+# 40 ns pixel moves nothing on screen. No timing relation to check.
 set_false_path -to [get_ports {VGA_HS VGA_VS}]
 
 # ---- Board I/O -----------------------------------------------------------------
