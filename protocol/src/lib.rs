@@ -28,8 +28,8 @@ pub mod time;
 pub mod wire;
 
 pub use frames::{
-    EngineError, FallbackEngine, FrameEngine, FrameMemory, FrameRing, FrameSource, RowEngine, RowFrames, SliceMemory,
-    Watchdog, WatchdogError,
+    Completed, EngineError, FallbackEngine, FrameEngine, FrameMemory, FrameRing, FrameSource, RowEngine, RowFrames,
+    SliceMemory, Watchdog, WatchdogError,
 };
 pub use server::{Action, Closed, Mode, RowSource, Session, SoftwareRenderer};
 pub use time::Instant;
