@@ -11,6 +11,7 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use dwmac::phy::LinkMonitor;
 use dwmac::regs::Regs;
 use dwmac::{DmaArea, Dwmac};
+use hal_avalon::RegisterPort;
 use rt_protocol::service::{FrameService, SocketBuffers};
 use rt_protocol::{FRAME_PORT, PERSISTENT_PORT};
 use smoltcp::iface::{Config, Interface, SocketSet, SocketStorage};
@@ -19,7 +20,7 @@ use smoltcp::wire::{EthernetAddress, HardwareAddress, IpCidr, Ipv4Cidr};
 use soc::global_timer::{GlobalTimer, TimerDelay};
 use static_cell::ConstStaticCell;
 
-use crate::boards::Board;
+use crate::board::Board;
 use crate::cpu::Caches;
 use crate::log::{self, Log};
 use crate::render::Frames;
@@ -111,10 +112,10 @@ const TAKEN_TWICE: NetError = NetError::AlreadyRunning;
 /// Bring the network up and serve forever. Returns only if the MAC or the
 /// PHY cannot be brought up (the caller reports and halts). A missing cable
 /// is not an error: the link monitor brings the MAC up when it arrives.
-pub fn run<B: Board>(
+pub fn run<B: Board, P: RegisterPort>(
     timer: &'static GlobalTimer,
     caches: Caches,
-    frames: &mut Frames<B::Port>,
+    frames: &mut Frames<P>,
 ) -> Result<core::convert::Infallible, NetError> {
     static SOCKET_BUFFERS: ConstStaticCell<[SocketBuffers; SOCKETS]> =
         ConstStaticCell::new([const { SocketBuffers::new() }; SOCKETS]);

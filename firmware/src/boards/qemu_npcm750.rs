@@ -10,7 +10,7 @@ use hal_avalon::sim::SimAccelerator;
 use soc::global_timer::GlobalTimer;
 use soc::mmu::PagedSection;
 
-use super::Board;
+use super::{Board, Renderer};
 use crate::cpu::Caches;
 use crate::render::{Frames, RingMemory};
 
@@ -51,7 +51,9 @@ impl Board for QemuNpcm750 {
 
     /// Nothing to set up: QEMU's MAC comes out of reset ready.
     fn init(_log: &mut impl Write) {}
+}
 
+impl Renderer for QemuNpcm750 {
     /// No FPGA; the `sim-accelerator` build puts hal-avalon's simulated
     /// accelerator behind the real driver (its frame DMA writing the same
     /// ring), so the emulated board runs the FPGA's code paths.
