@@ -20,6 +20,7 @@ mod bench;
 mod board;
 mod boards;
 mod cpu;
+mod display;
 mod log;
 mod mem;
 mod net;
