@@ -18,7 +18,7 @@ use soc::l2c310::L2c310;
 use soc::mmu::{sections_of, MemType, MemoryMap, PageTable, PAGES, SECTIONS};
 use static_cell::ConstStaticCell;
 
-use crate::boards::Board;
+use crate::board::Board;
 
 /// Cortex-A9 L1 data cache geometry (both boards: 32 KiB, 4-way, 32-byte
 /// lines, 256 sets; ARM DDI 0388 Cortex-A9 TRM 7.1): log2 ways, line, sets

@@ -11,7 +11,8 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use soc::log::LogRing;
 use soc::uart16550::Uart16550;
 
-use crate::boards::{Active, Board};
+use crate::board::Board;
+use crate::boards::Active;
 
 /// Bytes the ring holds (about a hundred log lines).
 const RING_BYTES: usize = 8192;

@@ -17,8 +17,10 @@
 #![no_main]
 
 mod bench;
+mod board;
 mod boards;
 mod cpu;
+mod display;
 mod log;
 mod mem;
 mod net;
@@ -34,7 +36,8 @@ use soc::global_timer::{GlobalTimer, PERIPHBASE_OFFSET};
 use soc::l2c310::L2c310;
 use static_cell::StaticCell;
 
-use crate::boards::{Active, Board};
+use crate::board::Board;
+use crate::boards::{Active, Renderer};
 
 /// The MPCore global timer: the firmware's clock (smoltcp's `Instant`).
 pub static TIMER: GlobalTimer =
@@ -74,7 +77,7 @@ fn main() -> ! {
     let caches = cpu::Caches { l2 };
     let mut frames = Active::renderer(&mut log, &TIMER, caches);
     log::flush();
-    match net::run::<Active>(&TIMER, caches, &mut frames) {
+    match net::run::<Active, _>(&TIMER, caches, &mut frames) {
         Ok(never) => match never {},
         Err(why) => {
             let _ = writeln!(log, "network not started: {why}");

@@ -11,23 +11,26 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use dwmac::phy::LinkMonitor;
 use dwmac::regs::Regs;
 use dwmac::{DmaArea, Dwmac};
+use hal_avalon::RegisterPort;
 use rt_protocol::service::{FrameService, SocketBuffers};
-use rt_protocol::{FRAME_PORT, PERSISTENT_PORT};
+use rt_protocol::{FrameSource, FRAME_PORT, PERSISTENT_PORT};
 use smoltcp::iface::{Config, Interface, SocketSet, SocketStorage};
 use smoltcp::time::Instant;
 use smoltcp::wire::{EthernetAddress, HardwareAddress, IpCidr, Ipv4Cidr};
 use soc::global_timer::{GlobalTimer, TimerDelay};
 use static_cell::ConstStaticCell;
 
-use crate::boards::Board;
+use crate::board::Board;
 use crate::cpu::Caches;
+use crate::display::Display;
 use crate::log::{self, Log};
 use crate::render::Frames;
 
 /// TCP sockets of the frame service: [`FRAME_PORT_SOCKETS`] on the seed
 /// port, the rest on the persistent port. A socket holds one client; the
-/// frame ring renders four frames at a time, so up to 14 seed-port clients
-/// wait their turn beyond those four (docs/reliability.md#overload), and one
+/// frame ring renders four frames at a time for sessions (six without a
+/// VGA display, which keeps two slots), so up to 14 seed-port clients wait
+/// their turn beyond those four (docs/reliability.md#overload), and one
 /// more arriving while all are taken is refused.
 pub const SOCKETS: usize = 24;
 /// Sockets on the seed port.
@@ -111,10 +114,10 @@ const TAKEN_TWICE: NetError = NetError::AlreadyRunning;
 /// Bring the network up and serve forever. Returns only if the MAC or the
 /// PHY cannot be brought up (the caller reports and halts). A missing cable
 /// is not an error: the link monitor brings the MAC up when it arrives.
-pub fn run<B: Board>(
+pub fn run<B: Board, P: RegisterPort>(
     timer: &'static GlobalTimer,
     caches: Caches,
-    frames: &mut Frames<B::Port>,
+    frames: &mut Frames<P>,
 ) -> Result<core::convert::Infallible, NetError> {
     static SOCKET_BUFFERS: ConstStaticCell<[SocketBuffers; SOCKETS]> =
         ConstStaticCell::new([const { SocketBuffers::new() }; SOCKETS]);
@@ -171,6 +174,12 @@ pub fn run<B: Board>(
     );
     log::flush();
 
+    let mut display = Display::probe(frames, &mut log);
+    let mut requests = 0u32;
+    let mut link_up = false;
+    let address = cidr.address().octets();
+    log::flush();
+
     let mac_moved = |m: &Dwmac<'_, _, _>| m.stats().tx_frames.wrapping_add(m.stats().rx_frames);
     // Idle since (µs), after having served someone.
     let mut idle_since: Option<u64> = None;
@@ -179,6 +188,7 @@ pub fn run<B: Board>(
         let now_us = timer.now_us();
         if let Some(change) = link.poll(now_us, &mut mac) {
             mac.set_link(change);
+            link_up = change.is_some();
             match change {
                 Some(l) => {
                     let _ = writeln!(log, "link up: {l}");
@@ -190,8 +200,17 @@ pub fn run<B: Board>(
         }
         let now = Instant::from_micros(i64::try_from(now_us).unwrap_or(i64::MAX));
         iface.poll(now, &mut mac, &mut sockets);
-        service.poll(now, &mut sockets, frames, &mut log);
+        service.poll(now, &mut sockets, &mut Counting { frames: &mut *frames, begun: &mut requests }, &mut log);
         frames.report(&mut log);
+        if let Some(d) = &mut display {
+            let status = rt_protocol::monitor::Status {
+                link_up,
+                clients: service.active_sessions(),
+                address,
+                ..Default::default()
+            };
+            d.poll(rt_protocol::Instant::from_millis(now_us / 1000), frames, requests, &status, &mut log);
+        }
         // A second after the last client: say what is free, so a long run
         // can show nothing leaked (cargo xtask soak reads this line).
         if service.active_sessions() > 0 {
@@ -219,5 +238,37 @@ pub fn run<B: Board>(
         iteration.end(moved.frames);
         counts.report(frames.bus_accesses(), moved, &mut log);
         log::drain();
+    }
+}
+
+/// The frames as the service sees them, counting the frames its clients
+/// begin (the display's attract mode waits while they come).
+struct Counting<'a, F> {
+    frames: &'a mut F,
+    begun: &'a mut u32,
+}
+
+impl<F: FrameSource> FrameSource for Counting<'_, F> {
+    type Frame = F::Frame;
+    type Error = F::Error;
+
+    fn begin(&mut self, light: &model::Light) -> Result<Option<F::Frame>, F::Error> {
+        let frame = self.frames.begin(light)?;
+        if frame.is_some() {
+            *self.begun = self.begun.wrapping_add(1);
+        }
+        Ok(frame)
+    }
+
+    fn rows_ready(&mut self, frame: F::Frame) -> Result<u16, F::Error> {
+        self.frames.rows_ready(frame)
+    }
+
+    fn copy_row(&mut self, frame: F::Frame, y: u16, offset: usize, out: &mut [u8]) -> usize {
+        self.frames.copy_row(frame, y, offset, out)
+    }
+
+    fn end(&mut self, frame: F::Frame) {
+        self.frames.end(frame)
     }
 }

@@ -1,6 +1,6 @@
 //! Where the frame server's frames come from on the board.
 //!
-//! * Frame mode ([`Frames::Ring`]): four frame slots in the cacheable
+//! * Frame mode ([`Frames::Ring`]): six frame slots in the cacheable
 //!   `.frames` region ([`RingMemory`]); the FPGA's frame DMA renders into them
 //!   (the software renderer where there is none, or where it failed), and
 //!   rows go out as its rows-done counter covers them.
@@ -31,9 +31,12 @@ use crate::bench;
 use crate::cpu::Caches;
 use crate::net::SOCKETS;
 
-/// Frame slots of the ring: one being sent and three to render ahead, for
-/// up to four sessions at once.
-pub const RING_SLOTS: usize = 4;
+/// Frame slots of the ring: four for sessions (one being sent and three to
+/// render ahead, for up to four sessions at once) and two the VGA display
+/// keeps out of reuse (the frame on screen and the one waiting for vertical
+/// blanking, `rt_protocol::monitor`). Six frames, 3,110,400 bytes, fill the
+/// 3 MiB `.frames` region (memory.x).
+pub const RING_SLOTS: usize = 6;
 
 /// How long a frame of the accelerator may go without a new row before it
 /// counts as failed (a frame takes about 3.5 ms at 50 MHz).
@@ -156,13 +159,16 @@ type Software = bench::TimedRows<SoftwareRenderer>;
 type RingEngine<P> = FallbackEngine<bench::TimedEngine<Watchdog<Accel<P>, Clock>>, RowEngine<Software>>;
 type RowSources<P> = Fallback<bench::TimedRows<PipelinedRows<Counted<P>, TimerDelay<'static>>>, Software>;
 
+/// Frame mode's ring.
+pub type Ring<P> = FrameRing<RingMemory, RingEngine<P>, RING_SLOTS>;
+
 /// The frame server's frames.
 // One value for the whole run, on `main`'s stack; the row variant's row
 // buffers are the bigger one and there is no allocator to box it.
 #[allow(clippy::large_enum_variant)]
 pub enum Frames<P: RegisterPort> {
     /// Frame mode: whole frames in the ring.
-    Ring(FrameRing<RingMemory, RingEngine<P>, RING_SLOTS>),
+    Ring(Ring<P>),
     /// Row mode: a row per start.
     Rows(RowFrames<RowSources<P>, SOCKETS>),
 }

@@ -34,7 +34,8 @@ use aarch32_cpu::register::{Dfar, Dfsr, Ifar, Ifsr};
 use aarch32_rt::exception;
 use soc::l2c310::{RegisterBlock, WAY_OP_POLLS};
 
-use crate::boards::{Active, Board};
+use crate::board::Board;
+use crate::boards::Active;
 use crate::{cpu, log};
 
 core::arch::global_asm!(

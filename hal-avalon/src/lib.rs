@@ -9,6 +9,8 @@
 //!   the accelerator.
 //! * [`mmio`]: [`MmioPort`], the memory-mapped port on the board (the crate's
 //!   only raw-pointer code).
+//! * [`board`]: [`BoardIo`], the VGA scan-out, keys, switches, LEDs and
+//!   7-segment displays (map version 3), and the 7-segment font.
 //! * [`driver`]: [`Accelerator`], the row driver generic over the port, with
 //!   bounded polling ([`PollTimeout`], an `embedded-hal` [`DelayNs`]) and
 //!   [`Error`]s instead of hangs or panics.
@@ -43,6 +45,7 @@
 #![warn(missing_docs)]
 #![deny(unsafe_op_in_unsafe_fn)]
 
+pub mod board;
 #[cfg(feature = "conformance")]
 pub mod conformance;
 pub mod driver;
@@ -56,6 +59,7 @@ pub mod sim;
 #[cfg(feature = "protocol")]
 pub mod sources;
 
+pub use board::BoardIo;
 pub use driver::{Accelerator, Capabilities, Error, FrameProgress, PollTimeout};
 pub use map::Csr;
 pub use mmio::MmioPort;

@@ -197,12 +197,86 @@ where
     /// Begin order of the queued slots (a slot number per entry).
     queue: heapless::Deque<usize, SLOTS>,
     rendering: Option<usize>,
+    /// The light of the frame in progress.
+    rendering_light: Option<Light>,
+    /// Slots `begin` skips (bit `i`: slot `i`): their frame is on a
+    /// display, or about to be.
+    pinned: u32,
+    /// The newest complete frame, while its slot still holds it.
+    newest: Option<Completed>,
+    /// Frames completed so far (wrapping).
+    completed: u32,
+}
+
+/// A complete frame in a [`FrameRing`] slot: the newest one, as
+/// [`FrameRing::newest_complete`] reports it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Completed {
+    /// The slot holding it.
+    pub slot: usize,
+    /// Its number among the ring's completed frames (wrapping): a new
+    /// number is a new frame, even in the same slot.
+    pub seq: u32,
+    /// The light it was rendered for.
+    pub light: Light,
 }
 
 impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOTS> {
     /// A ring over `mem` rendered by `engine`, every slot free.
     pub fn new(mem: M, engine: E) -> FrameRing<M, E, SLOTS> {
-        FrameRing { mem, engine, slots: [SlotState::Free; SLOTS], queue: heapless::Deque::new(), rendering: None }
+        const { assert!(SLOTS <= 32, "the pin set is a 32-bit mask") };
+        FrameRing {
+            mem,
+            engine,
+            slots: [SlotState::Free; SLOTS],
+            queue: heapless::Deque::new(),
+            rendering: None,
+            rendering_light: None,
+            pinned: 0,
+            newest: None,
+            completed: 0,
+        }
+    }
+
+    /// The newest frame all of whose rows landed, whichever request it
+    /// was rendered for, as long as its slot still holds it (its session
+    /// may have ended: a slot is reused only by a later `begin`, which
+    /// skips pinned slots).
+    pub fn newest_complete(&self) -> Option<Completed> {
+        self.newest
+    }
+
+    /// Keep `slot` out of reuse (`begin` skips it) until [`unpin`]ned: its
+    /// frame is on a display or about to be. Its session may still read
+    /// and end it as usual. Out-of-range slots are ignored.
+    ///
+    /// [`unpin`]: Self::unpin
+    pub fn pin(&mut self, slot: usize) {
+        if slot < SLOTS {
+            self.pinned |= 1 << slot;
+        }
+    }
+
+    /// Let `slot` be reused again once no session holds it.
+    pub fn unpin(&mut self, slot: usize) {
+        if slot < SLOTS {
+            self.pinned &= !(1 << slot);
+        }
+    }
+
+    /// Whether `slot` is pinned.
+    pub fn is_pinned(&self, slot: usize) -> bool {
+        slot < SLOTS && self.pinned & (1 << slot) != 0
+    }
+
+    /// Bus address of `slot` in the ring's memory.
+    pub fn slot_address(&self, slot: usize) -> u32 {
+        self.mem.slot_address(slot)
+    }
+
+    /// A free slot `begin` may take: not held by a frame, not pinned.
+    fn takeable(&self, slot: usize) -> bool {
+        matches!(self.slots[slot], SlotState::Free) && !self.is_pinned(slot)
     }
 
     /// The engine.
@@ -210,9 +284,9 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
         &mut self.engine
     }
 
-    /// Slots not held by a frame (free for `begin`).
+    /// Slots neither held by a frame nor pinned (free for `begin`).
     pub fn free_slots(&self) -> usize {
-        self.slots.iter().filter(|s| matches!(s, SlotState::Free)).count()
+        (0..SLOTS).filter(|&i| self.takeable(i)).count()
     }
 
     /// Slots out of use because a failed frame's engine could not confirm
@@ -239,6 +313,13 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
                 }
                 Err(_) => self.engine.abort(&mut self.mem).is_ok(),
             };
+            let light = self.rendering_light.take();
+            if let (Ok(_), SlotState::Rendering(_) | SlotState::Abandoned, true, Some(light)) =
+                (result, self.slots[slot], stopped, light)
+            {
+                self.completed = self.completed.wrapping_add(1);
+                self.newest = Some(Completed { slot, seq: self.completed, light });
+            }
             self.slots[slot] = match (result, self.slots[slot], stopped) {
                 (Ok(_), SlotState::Rendering(_), _) => SlotState::Ready,
                 (_, SlotState::Abandoned, true) => SlotState::Free,
@@ -258,6 +339,7 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
                 Ok(()) => {
                     self.slots[slot] = SlotState::Rendering(0);
                     self.rendering = Some(slot);
+                    self.rendering_light = Some(light);
                     return;
                 }
                 Err(e) => self.slots[slot] = SlotState::Failed(e),
@@ -289,12 +371,16 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameSource for Fram
     type Error = E::Error;
 
     fn begin(&mut self, light: &Light) -> Result<Option<usize>, E::Error> {
-        if !self.slots.iter().any(|s| matches!(s, SlotState::Free)) {
+        if !(0..SLOTS).any(|i| self.takeable(i)) {
             self.reclaim();
         }
-        let Some(slot) = self.slots.iter().position(|s| matches!(s, SlotState::Free)) else {
+        let Some(slot) = (0..SLOTS).find(|&i| self.takeable(i)) else {
             return Ok(None);
         };
+        if self.newest.is_some_and(|n| n.slot == slot) {
+            // Its frame is about to be overwritten.
+            self.newest = None;
+        }
         self.slots[slot] = SlotState::Queued(*light);
         // A free slot is in no queue entry, so there is room.
         let _ = self.queue.push_back(slot);
@@ -472,6 +558,12 @@ impl<P, F> FallbackEngine<P, F> {
     /// The primary engine, while it is in use.
     pub fn primary(&mut self) -> Option<&mut P> {
         self.primary.as_mut().filter(|_| self.active)
+    }
+
+    /// The primary engine, switched off or not (its device may have more
+    /// than the frames to offer: a display, board I/O).
+    pub fn primary_kept(&mut self) -> Option<&mut P> {
+        self.primary.as_mut()
     }
 
     /// `true` once, right after the primary was switched off.
@@ -866,5 +958,61 @@ mod tests {
         assert!(!ring.engine().primary_active(), "a device that cannot stop is wedged");
         assert!(ring.engine().take_switched_off());
         ring.end(f);
+    }
+
+    #[test]
+    fn the_newest_complete_frame_is_reported_and_pinned_slots_are_not_reused() {
+        let mut mem = vec![0u8; 3 * FRAME_BYTES];
+        let dma = Dma { started: vec![], rows: 0, step: 360, fail_light: None, current: None };
+        let mut ring = FrameRing::<_, _, 3>::new(SliceMemory::new(0x1000, &mut mem), dma);
+        assert_eq!(ring.newest_complete(), None);
+        let a = ring.begin(&light(1.0)).unwrap().unwrap();
+        assert_eq!(ring.newest_complete(), None, "rendering, not complete");
+        assert_eq!(ring.rows_ready(a).unwrap(), ROWS);
+        let first = ring.newest_complete().unwrap();
+        assert_eq!((first.slot, first.light), (a, light(1.0)));
+        ring.pin(a);
+        ring.end(a);
+        assert_eq!(ring.free_slots(), 2, "a's session ended, but a is pinned");
+        assert_eq!(ring.newest_complete(), Some(first), "its bytes are still there");
+        let b = ring.begin(&light(2.0)).unwrap().unwrap();
+        let c = ring.begin(&light(3.0)).unwrap().unwrap();
+        assert!(a != b && a != c);
+        assert_eq!(ring.begin(&light(4.0)).unwrap(), None, "the pinned slot is skipped");
+        assert_eq!(ring.rows_ready(b).unwrap(), ROWS);
+        let second = ring.newest_complete().unwrap();
+        assert_eq!((second.slot, second.light), (b, light(2.0)));
+        assert_ne!(second.seq, first.seq);
+        ring.end(b);
+        assert_eq!(ring.rows_ready(c).unwrap(), ROWS);
+        assert_eq!(ring.newest_complete().unwrap().slot, c);
+        ring.unpin(a);
+        assert_eq!(ring.free_slots(), 2, "a and b");
+        assert_eq!(ring.slot_address(2), 0x1000 + 2 * FRAME_BYTES as u32);
+    }
+
+    #[test]
+    fn reusing_the_newest_frames_slot_forgets_it() {
+        let mut mem = vec![0u8; FRAME_BYTES];
+        let mut ring = FrameRing::<_, _, 1>::new(SliceMemory::new(0, &mut mem), RowEngine::new(SoftwareRenderer));
+        let f = ring.begin(&light(1.0)).unwrap().unwrap();
+        while ring.rows_ready(f).unwrap() < ROWS {}
+        ring.end(f);
+        assert!(ring.newest_complete().is_some());
+        let g = ring.begin(&light(2.0)).unwrap().unwrap();
+        assert_eq!(ring.newest_complete(), None, "slot reused: the frame is being overwritten");
+        ring.end(g);
+    }
+
+    #[test]
+    fn a_frame_abandoned_mid_render_still_completes_as_the_newest() {
+        let mut mem = vec![0u8; 2 * FRAME_BYTES];
+        let dma = Dma { started: vec![], rows: 0, step: 200, fail_light: None, current: None };
+        let mut ring = FrameRing::<_, _, 2>::new(SliceMemory::new(0, &mut mem), dma);
+        let a = ring.begin(&light(1.0)).unwrap().unwrap();
+        ring.end(a);
+        let b = ring.begin(&light(2.0)).unwrap().unwrap();
+        while ring.rows_ready(b).unwrap() < ROWS {}
+        assert_eq!(ring.newest_complete().map(|c| c.slot), Some(b));
     }
 }

@@ -9,6 +9,8 @@
 //! * [`frames`]: where frames come from: rendered a row at a time (row
 //!   mode), or whole frames in a ring of slots filled by an engine (frame
 //!   mode), the same streaming code for both.
+//! * [`monitor`]: the board on its own: the VGA display following the
+//!   newest frame, attract mode, keys, switches, LEDs and 7-segment text.
 //! * [`fallback`]: a row source that falls back to another where it fails,
 //!   and switches a wedged one off.
 //! * `service` (feature `smoltcp`): the server bound to smoltcp TCP sockets,
@@ -21,6 +23,7 @@
 
 pub mod fallback;
 pub mod frames;
+pub mod monitor;
 pub mod server;
 #[cfg(feature = "smoltcp")]
 pub mod service;
@@ -28,8 +31,8 @@ pub mod time;
 pub mod wire;
 
 pub use frames::{
-    EngineError, FallbackEngine, FrameEngine, FrameMemory, FrameRing, FrameSource, RowEngine, RowFrames, SliceMemory,
-    Watchdog, WatchdogError,
+    Completed, EngineError, FallbackEngine, FrameEngine, FrameMemory, FrameRing, FrameSource, RowEngine, RowFrames,
+    SliceMemory, Watchdog, WatchdogError,
 };
 pub use server::{Action, Closed, Mode, RowSource, Session, SoftwareRenderer};
 pub use time::Instant;

@@ -104,14 +104,17 @@ pub fn qemu_tests() -> Result<()> {
     // software serves the frames.
     use crate::emulated::qemu_e2e::{selftest_fault_lines, SELFTEST_PASS, SELFTEST_SKIPPED};
     let (skipped, pass) = (vec![SELFTEST_SKIPPED.to_string()], vec![SELFTEST_PASS.to_string()]);
-    for (features, renderer, uart) in [
-        (&["row-mode"][..], "row mode, software renderer", skipped),
-        (&["sim-accelerator"][..], "frame mode, FPGA frame DMA into the ring (software fallback)", pass.clone()),
-        (&["sim-accelerator", "row-mode"][..], "row mode, FPGA rows (software fallback)", pass),
-        (&["selftest-fault"][..], "frame mode, software renderer into the ring", selftest_fault_lines()?),
+    // The frame-mode build over the simulated accelerator (map version 3)
+    // also drives the VGA display: attract mode, the display's counter, a
+    // client's frame on screen.
+    for (features, renderer, uart, display) in [
+        (&["row-mode"][..], "row mode, software renderer", skipped, false),
+        (&["sim-accelerator"][..], "frame mode, FPGA frame DMA into the ring (software fallback)", pass.clone(), true),
+        (&["sim-accelerator", "row-mode"][..], "row mode, FPGA rows (software fallback)", pass, false),
+        (&["selftest-fault"][..], "frame mode, software renderer into the ring", selftest_fault_lines()?, false),
     ] {
         let elf = crate::images::firmware::build("qemu-npcm750", features)?;
-        crate::emulated::qemu_e2e::variant(&elf, renderer, &uart)?;
+        crate::emulated::qemu_e2e::variant(&elf, renderer, &uart, display)?;
     }
     Ok(())
 }

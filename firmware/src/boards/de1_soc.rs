@@ -17,7 +17,7 @@ use soc::cyclone_v::{periph_clock_hz, FpgaMode, Managers, DE1_SOC_OSC1_HZ};
 use soc::global_timer::{GlobalTimer, TimerDelay};
 use soc::mmu::{sections_of, MemType, PagedSection};
 
-use super::Board;
+use super::{Board, Renderer};
 use crate::cpu::Caches;
 use crate::render::{Accel, Frames};
 
@@ -93,7 +93,9 @@ impl Board for De1Soc {
             }
         }
     }
+}
 
+impl Renderer for De1Soc {
     type Port = MmioPort;
 
     fn renderer(log: &mut impl Write, timer: &'static GlobalTimer, caches: Caches) -> Frames<MmioPort> {

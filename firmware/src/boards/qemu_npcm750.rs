@@ -6,11 +6,13 @@ use core::fmt::Write;
 use core::ops::Range;
 
 use dwmac::phy::PhyConfig;
+use hal_avalon::map::{Csr, FABRIC_HZ, LINE_WORDS};
 use hal_avalon::sim::SimAccelerator;
+use hal_avalon::RegisterPort;
 use soc::global_timer::GlobalTimer;
 use soc::mmu::PagedSection;
 
-use super::Board;
+use super::{Board, Renderer};
 use crate::cpu::Caches;
 use crate::render::{Frames, RingMemory};
 
@@ -51,11 +53,13 @@ impl Board for QemuNpcm750 {
 
     /// Nothing to set up: QEMU's MAC comes out of reset ready.
     fn init(_log: &mut impl Write) {}
+}
 
+impl Renderer for QemuNpcm750 {
     /// No FPGA; the `sim-accelerator` build puts hal-avalon's simulated
     /// accelerator behind the real driver (its frame DMA writing the same
     /// ring), so the emulated board runs the FPGA's code paths.
-    type Port = SimAccelerator<RingMemory>;
+    type Port = ClockedSim;
 
     /// Frame mode, or row mode with the `row-mode` feature.
     fn renderer(log: &mut impl Write, timer: &'static GlobalTimer, caches: Caches) -> Frames<Self::Port> {
@@ -67,11 +71,65 @@ impl Board for QemuNpcm750 {
             if cfg!(feature = "selftest-fault") {
                 sim.set_wrong_pixel(Some(crate::selftest::FAULT_PIXEL));
             }
-            crate::render::accelerator(sim, timer)
+            crate::render::accelerator(ClockedSim::new(sim, timer), timer)
         });
         let fpga = crate::selftest::gate(log, fpga, caches);
         let mut frames = if cfg!(feature = "row-mode") { Frames::rows(fpga) } else { Frames::ring(fpga, caches) };
         let _ = writeln!(log, "renderer: {}", frames.describe());
         frames
+    }
+}
+
+/// The simulated accelerator with the board's time: before each register
+/// access it lets the fabric clocks (50 MHz) pass that the global timer
+/// counted since the last one, so the VGA counter moves at 59.5 frames per
+/// second of guest time and keys debounce as in the fabric (nothing else
+/// advances the simulated device's time; its frames still land a row per
+/// status read).
+pub struct ClockedSim {
+    sim: SimAccelerator<RingMemory>,
+    timer: &'static GlobalTimer,
+    /// The timer's count at the last access.
+    last: u64,
+    /// Fabric clocks times the timer rate not yet passed (the remainder).
+    rest: u128,
+}
+
+impl ClockedSim {
+    /// `sim`, its time from now on taken from `timer`.
+    pub fn new(sim: SimAccelerator<RingMemory>, timer: &'static GlobalTimer) -> ClockedSim {
+        ClockedSim { sim, timer, last: timer.ticks(), rest: 0 }
+    }
+
+    fn catch_up(&mut self) {
+        let now = self.timer.ticks();
+        let ticks = now.wrapping_sub(self.last);
+        self.last = now;
+        let hz = u128::from(self.timer.hz().max(1));
+        let scaled = u128::from(ticks) * u128::from(FABRIC_HZ) + self.rest;
+        self.rest = scaled % hz;
+        let mut clocks = scaled / hz;
+        while clocks > 0 {
+            let step = u32::try_from(clocks).unwrap_or(u32::MAX);
+            self.sim.pass_clocks(step);
+            clocks -= u128::from(step);
+        }
+    }
+}
+
+impl RegisterPort for ClockedSim {
+    fn read(&mut self, csr: Csr) -> u32 {
+        self.catch_up();
+        self.sim.read(csr)
+    }
+
+    fn write(&mut self, csr: Csr, value: u32) {
+        self.catch_up();
+        self.sim.write(csr, value)
+    }
+
+    fn read_line(&mut self, out: &mut [u32; LINE_WORDS]) {
+        self.catch_up();
+        self.sim.read_line(out)
     }
 }

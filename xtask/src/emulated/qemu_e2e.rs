@@ -271,10 +271,111 @@ pub fn selftest_fault_lines() -> Result<Vec<String>> {
     ])
 }
 
+/// The display's once-a-second line (firmware/src/display.rs,
+/// rt-protocol `monitor::Report`): frames shown, refreshes, layout,
+/// attract mode, and what is on screen.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DisplayLine {
+    /// Frames that took effect since the scan-out was enabled.
+    pub shown: u64,
+    /// Display refreshes since enabled.
+    pub refreshes: u64,
+    /// `full` or `letterbox`.
+    pub layout: String,
+    /// Attract mode on.
+    pub attract: bool,
+    /// `light (x, y, z) from a client` / `from attract mode`.
+    pub on_screen: Option<String>,
+}
+
+/// Parse `display: N frames shown, M refreshes, layout L, F fps, attract
+/// on|off[, on screen: ...]`; `None` for any other line.
+pub fn parse_display_line(line: &str) -> Option<DisplayLine> {
+    let rest = line.trim().strip_prefix("display: ")?;
+    let (shown, rest) = rest.split_once(" frames shown, ")?;
+    let (refreshes, rest) = rest.split_once(" refreshes, layout ")?;
+    let (layout, rest) = rest.split_once(", ")?;
+    let (_fps, rest) = rest.split_once(" fps, attract ")?;
+    let (attract, on_screen) = match rest.split_once(", on screen: ") {
+        Some((a, s)) => (a, Some(s.split(", underrun").next().unwrap_or(s).to_string())),
+        None => (rest.split(',').next().unwrap_or(rest), None),
+    };
+    Some(DisplayLine {
+        shown: shown.parse().ok()?,
+        refreshes: refreshes.parse().ok()?,
+        layout: layout.to_string(),
+        attract: match attract {
+            "on" => true,
+            "off" => false,
+            _ => return None,
+        },
+        on_screen,
+    })
+}
+
+fn display_lines(g: &Guest) -> Vec<DisplayLine> {
+    g.uart().lines().filter_map(parse_display_line).collect()
+}
+
+/// Wait up to `secs` for a display line `ok` accepts (after the first
+/// `skip` lines).
+fn wait_for_display(g: &Guest, skip: usize, secs: u64, ok: impl Fn(&DisplayLine) -> bool) -> Result<DisplayLine> {
+    let until = std::time::Instant::now() + Duration::from_secs(secs);
+    loop {
+        if let Some(l) = display_lines(g).into_iter().skip(skip).find(&ok) {
+            return Ok(l);
+        }
+        if std::time::Instant::now() > until {
+            return Err(format!("no such display line within {secs} s"));
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+/// The board on its own (map version 3 on the simulated accelerator):
+/// attract mode on at boot, frames taking effect on the display while its
+/// counter runs at the VGA rate, and a client's frame becoming the one on
+/// screen.
+fn t_display(g: &mut Guest) -> Result<()> {
+    let announce = "display: VGA scan-out and board I/O (register map version 3): attract mode on";
+    if !g.uart().contains(announce) {
+        return Err(format!("UART log lacks {announce:?}"));
+    }
+    // Attract mode at boot: frames of its own shown, the counter moving.
+    let first = wait_for_display(g, 0, 60, |l| l.attract && l.shown >= 1)?;
+    let skip = display_lines(g).len();
+    let later = wait_for_display(g, skip, 60, |l| l.shown > first.shown && l.refreshes > first.refreshes)?;
+    if !later.on_screen.as_deref().is_some_and(|s| s.ends_with("from attract mode")) || first.layout != "full" {
+        return Err(format!("attract mode's frames not on screen at boot: {first:?}, then {later:?}"));
+    }
+    let lines = display_lines(g);
+    let (a, b) = (&lines[0], &lines[lines.len() - 1]);
+    let per_line = (b.refreshes - a.refreshes) as f64 / (lines.len() - 1).max(1) as f64;
+    if !(50.0..=70.0).contains(&per_line) {
+        return Err(format!("{per_line:.1} refreshes per display line (a second), expected about 59.5"));
+    }
+    // A client's frame becomes the newest, so the one on screen.
+    let light = [1234, 4096, -2000];
+    let skip = display_lines(g).len();
+    single_frame(g.port_single, light)?;
+    let want = format!("light ({}, {}, {}) from a client", light[0], light[1], light[2]);
+    let shown = wait_for_display(g, skip, 10, |l| l.on_screen.as_deref() == Some(want.as_str()))
+        .map_err(|e| format!("the client's frame did not go on screen: {e}"))?;
+    if shown.attract {
+        return Err(format!("attract mode still on right after a client's request: {shown:?}"));
+    }
+    println!(
+        "qemu e2e: display: attract mode at boot, {} frames shown in {} refreshes ({per_line:.1} a second), a client's frame on screen ... ok",
+        later.shown, later.refreshes
+    );
+    Ok(())
+}
+
 /// Another build of the firmware (`renderer` is what its UART log must say
 /// renders; `uart` more text it must contain, the self-test's lines):
-/// frames on both ports byte-exact, and two clients at once.
-pub fn variant(elf: &std::path::Path, renderer: &str, uart: &[String]) -> Result<()> {
+/// frames on both ports byte-exact, and two clients at once; with
+/// `display`, the VGA display's lines too ([`t_display`]).
+pub fn variant(elf: &std::path::Path, renderer: &str, uart: &[String], display: bool) -> Result<()> {
     let mut g = Guest::boot(elf, &[])?;
     let start = std::time::Instant::now();
     let result = (|| {
@@ -283,6 +384,9 @@ pub fn variant(elf: &std::path::Path, renderer: &str, uart: &[String]) -> Result
             if !g.uart().contains(needle.as_str()) {
                 return Err(format!("UART log lacks {needle:?}"));
             }
+        }
+        if display {
+            t_display(&mut g)?;
         }
         t_seed_port_frames(&mut g)?;
         t_persistent_port_pipelined(&mut g)?;
@@ -335,5 +439,33 @@ pub fn reentry(elf: &std::path::Path) -> Result<()> {
             println!("qemu e2e: entry with MMU and caches on ... FAILED: {e}\n--- UART log ---\n{}", g.uart());
             Err("the re-entry test failed".into())
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn display_lines_parse() {
+        let l = parse_display_line(
+            "display: 24 frames shown, 1259 refreshes, layout full, 1 fps, attract off, on screen: light (1234, 4096, -2000) from a client",
+        )
+        .unwrap();
+        assert_eq!(
+            l,
+            DisplayLine {
+                shown: 24,
+                refreshes: 1259,
+                layout: "full".into(),
+                attract: false,
+                on_screen: Some("light (1234, 4096, -2000) from a client".into()),
+            }
+        );
+        let l =
+            parse_display_line("display: 0 frames shown, 3 refreshes, layout letterbox, 0 fps, attract on, underrun")
+                .unwrap();
+        assert_eq!((l.layout.as_str(), l.attract, l.on_screen), ("letterbox", true, None));
+        assert_eq!(parse_display_line("display: VGA scan-out and board I/O (register map version 3)"), None);
     }
 }

@@ -1,0 +1,159 @@
+//! The board on its own (map version 3): the VGA monitor showing the newest
+//! frame, attract mode, keys, switches, LEDs and 7-segment displays. The
+//! policy is `rt_protocol::monitor` (host-tested); this module only puts
+//! the frame ring and the accelerator's board I/O block together as the
+//! device the policy works on, and logs its report once a second:
+//!
+//! `display: 59 frames shown, 120 refreshes, layout full, 30 fps, attract on, on screen: light (3072, 4096, 0) from attract mode`
+
+use core::fmt::Write;
+
+use hal_avalon::board::{has_board_io, BoardIo};
+use hal_avalon::map::Csr;
+use hal_avalon::RegisterPort;
+use model::display::Layout;
+use model::Light;
+use rt_protocol::frames::Completed;
+use rt_protocol::monitor::{Inputs, Monitor, Panel, Refreshes, Screen, Status};
+use rt_protocol::{FrameSource, Instant};
+
+use crate::render::{Frames, Ring};
+
+/// The display policy, on a board whose accelerator has the VGA block.
+pub struct Display {
+    monitor: Monitor,
+}
+
+impl Display {
+    /// The display, if the frames come from a frame ring whose accelerator
+    /// reports map version 3 or later (the version is read once, here);
+    /// never in the `bench` build.
+    pub fn probe<P: RegisterPort>(frames: &mut Frames<P>, log: &mut impl Write) -> Option<Display> {
+        let Frames::Ring(ring) = frames else { return None };
+        let port = port(ring)?;
+        let id = port.read(Csr::Id);
+        if !has_board_io(id) {
+            return None;
+        }
+        if cfg!(feature = "bench") {
+            // Attract frames would be counted as the client's cost.
+            let _ = writeln!(log, "display: off in the bench build (its figures are the clients' frames alone)");
+            return None;
+        }
+        let _ = writeln!(
+            log,
+            "display: VGA scan-out and board I/O (register map version {}): attract mode on until a client asks for a frame",
+            id & 0xffff
+        );
+        Some(Display { monitor: Monitor::new() })
+    }
+
+    /// One step of the main loop: `requests` counts the clients' frame
+    /// requests so far, `status` what the LEDs show. Logs the report when
+    /// one is due.
+    pub fn poll<P: RegisterPort>(
+        &mut self,
+        now: Instant,
+        frames: &mut Frames<P>,
+        requests: u32,
+        status: &Status,
+        log: &mut impl Write,
+    ) {
+        let Frames::Ring(ring) = frames else { return };
+        let status = Status { fpga: ring.engine().primary_active(), self_test_passed: true, ..*status };
+        if let Some(report) = self.monitor.poll(now, &mut Device { ring }, requests, &status) {
+            let _ = writeln!(log, "{report}");
+        }
+    }
+}
+
+/// The accelerator's port behind the ring, switched off or not, without
+/// the bus-access counting (the bench's figures are the frames').
+fn port<P: RegisterPort>(ring: &mut Ring<P>) -> Option<&mut P> {
+    let engine = ring.engine().primary_kept()?;
+    Some(engine.inner().engine().port_mut().inner_mut())
+}
+
+/// The ring and its accelerator's board I/O as one device.
+struct Device<'a, P: RegisterPort> {
+    ring: &'a mut Ring<P>,
+}
+
+impl<P: RegisterPort> Device<'_, P> {
+    fn io(&mut self) -> Option<BoardIo<&mut P>> {
+        port(self.ring).map(BoardIo::checked)
+    }
+}
+
+impl<P: RegisterPort> FrameSource for Device<'_, P> {
+    type Frame = usize;
+    type Error = <Ring<P> as FrameSource>::Error;
+
+    fn begin(&mut self, light: &Light) -> Result<Option<usize>, Self::Error> {
+        self.ring.begin(light)
+    }
+
+    fn rows_ready(&mut self, frame: usize) -> Result<u16, Self::Error> {
+        self.ring.rows_ready(frame)
+    }
+
+    fn copy_row(&mut self, frame: usize, y: u16, offset: usize, out: &mut [u8]) -> usize {
+        self.ring.copy_row(frame, y, offset, out)
+    }
+
+    fn end(&mut self, frame: usize) {
+        self.ring.end(frame)
+    }
+}
+
+impl<P: RegisterPort> Screen for Device<'_, P> {
+    fn newest_complete(&self) -> Option<Completed> {
+        self.ring.newest_complete()
+    }
+
+    fn pin(&mut self, slot: usize) {
+        self.ring.pin(slot)
+    }
+
+    fn unpin(&mut self, slot: usize) {
+        self.ring.unpin(slot)
+    }
+
+    fn slot_address(&self, slot: usize) -> u32 {
+        self.ring.slot_address(slot)
+    }
+}
+
+impl<P: RegisterPort> Panel for Device<'_, P> {
+    fn refreshes(&mut self) -> Refreshes {
+        self.io().map(|mut io| Panel::refreshes(&mut io)).unwrap_or_default()
+    }
+
+    fn show(&mut self, base: u32) {
+        if let Some(mut io) = self.io() {
+            io.show(base);
+        }
+    }
+
+    fn scan_out(&mut self, layout: Layout) {
+        if let Some(mut io) = self.io() {
+            io.enable(layout);
+        }
+    }
+
+    fn inputs(&mut self) -> Inputs {
+        self.io().map(|mut io| Panel::inputs(&mut io)).unwrap_or_default()
+    }
+
+    fn set_leds(&mut self, leds: u16) {
+        if let Some(mut io) = self.io() {
+            io.set_leds(leds);
+        }
+    }
+
+    fn set_text(&mut self, text: [u8; 6]) {
+        if let Some(mut io) = self.io() {
+            io.set_text(text);
+        }
+    }
+}
