@@ -176,11 +176,13 @@ enum SlotState<E> {
     Ready,
     /// Released while the engine still writes it: freed when it finishes.
     Abandoned,
-    /// The engine failed it (and stopped writing it).
-    Failed(E),
+    /// The engine failed it (and stopped writing it); rows `0..n` had
+    /// landed and may still be copied.
+    Failed(E, u16),
     /// The engine failed it and could not confirm that it stopped writing:
-    /// out of use until an abort succeeds.
-    Quarantined(E),
+    /// out of use until an abort succeeds. Rows `0..n` had landed (the
+    /// engine writes rows in order) and may still be copied.
+    Quarantined(E, u16),
     /// Released while quarantined: freed once an abort succeeds.
     Lost,
 }
@@ -292,7 +294,7 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
     /// Slots out of use because a failed frame's engine could not confirm
     /// that it stopped writing them.
     pub fn quarantined_slots(&self) -> usize {
-        self.slots.iter().filter(|s| matches!(s, SlotState::Quarantined(_) | SlotState::Lost)).count()
+        self.slots.iter().filter(|s| matches!(s, SlotState::Quarantined(..) | SlotState::Lost)).count()
     }
 
     /// Advance the engine: progress of the frame in progress, the next
@@ -324,8 +326,10 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
                 (Ok(_), SlotState::Rendering(_), _) => SlotState::Ready,
                 (_, SlotState::Abandoned, true) => SlotState::Free,
                 (_, SlotState::Abandoned, false) => SlotState::Lost,
-                (Err(e), _, true) => SlotState::Failed(e),
-                (Err(e), _, false) => SlotState::Quarantined(e),
+                (Err(e), SlotState::Rendering(rows), true) => SlotState::Failed(e, rows),
+                (Err(e), SlotState::Rendering(rows), false) => SlotState::Quarantined(e, rows),
+                (Err(e), _, true) => SlotState::Failed(e, 0),
+                (Err(e), _, false) => SlotState::Quarantined(e, 0),
                 (Ok(_), other, _) => other,
             };
             self.rendering = None;
@@ -342,7 +346,7 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
                     self.rendering_light = Some(light);
                     return;
                 }
-                Err(e) => self.slots[slot] = SlotState::Failed(e),
+                Err(e) => self.slots[slot] = SlotState::Failed(e, 0),
             }
         }
     }
@@ -352,13 +356,13 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
     /// Quarantined slots return once the engine, idle, confirms that
     /// nothing more lands (tried only when no slot is free).
     fn reclaim(&mut self) {
-        let quarantined = self.slots.iter().any(|s| matches!(s, SlotState::Quarantined(_) | SlotState::Lost));
+        let quarantined = self.slots.iter().any(|s| matches!(s, SlotState::Quarantined(..) | SlotState::Lost));
         if !quarantined || self.rendering.is_some() || self.engine.abort(&mut self.mem).is_err() {
             return;
         }
         for state in &mut self.slots {
             *state = match *state {
-                SlotState::Quarantined(e) => SlotState::Failed(e),
+                SlotState::Quarantined(e, rows) => SlotState::Failed(e, rows),
                 SlotState::Lost => SlotState::Free,
                 other => other,
             };
@@ -371,6 +375,11 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameSource for Fram
     type Error = E::Error;
 
     fn begin(&mut self, light: &Light) -> Result<Option<usize>, E::Error> {
+        // No slot free: advance the engine (an abandoned frame frees its
+        // slot when it finishes), then try to reclaim quarantined slots.
+        if !(0..SLOTS).any(|i| self.takeable(i)) {
+            self.pump();
+        }
         if !(0..SLOTS).any(|i| self.takeable(i)) {
             self.reclaim();
         }
@@ -395,14 +404,16 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameSource for Fram
         match self.slots.get(frame) {
             Some(SlotState::Rendering(rows)) => Ok(*rows),
             Some(SlotState::Ready) => Ok(ROWS),
-            Some(SlotState::Failed(e) | SlotState::Quarantined(e)) => Err(*e),
+            Some(SlotState::Failed(e, _) | SlotState::Quarantined(e, _)) => Err(*e),
             _ => Ok(0),
         }
     }
 
     fn copy_row(&mut self, frame: usize, y: u16, offset: usize, out: &mut [u8]) -> usize {
         let landed = match self.slots.get(frame) {
-            Some(SlotState::Rendering(rows)) => y < *rows,
+            Some(SlotState::Rendering(rows) | SlotState::Failed(_, rows) | SlotState::Quarantined(_, rows)) => {
+                y < *rows
+            }
             Some(SlotState::Ready) => y < ROWS,
             _ => false,
         };
@@ -420,7 +431,7 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameSource for Fram
         };
         *state = match state {
             SlotState::Rendering(_) => SlotState::Abandoned,
-            SlotState::Quarantined(_) | SlotState::Lost => SlotState::Lost,
+            SlotState::Quarantined(..) | SlotState::Lost => SlotState::Lost,
             _ => SlotState::Free,
         };
     }
@@ -771,11 +782,18 @@ mod tests {
         assert_eq!(ring.begin(&light(3.0)).unwrap(), None, "both slots taken");
         ring.end(a); // the client left while the DMA writes a
         assert_eq!(ring.free_slots(), 0, "a is still being written");
-        assert_eq!(ring.begin(&light(3.0)).unwrap(), None);
-        while ring.rows_ready(b).unwrap() < ROWS {}
-        assert_eq!(ring.free_slots(), 1, "a freed once finished");
-        let c = ring.begin(&light(3.0)).unwrap().unwrap();
+        // Asking for a slot advances the engine: a is freed once finished.
+        let mut tries = 0;
+        let c = loop {
+            tries += 1;
+            if let Some(c) = ring.begin(&light(3.0)).unwrap() {
+                break c;
+            }
+            assert!(tries < 10, "a never freed");
+        };
         assert_eq!(c, a);
+        assert_eq!(ring.engine().started, [a, b], "a was freed when it finished and b started");
+        assert!(ring.rows_ready(b).unwrap() < ROWS, "b still rendering: a's slot came back first");
     }
 
     #[test]
