@@ -298,11 +298,6 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameSource for Fram
         if !self.slots.iter().any(|s| matches!(s, SlotState::Free)) {
             self.pump();
         }
-        // No slot free: advance the engine (an abandoned frame frees its
-        // slot when it finishes), then try to reclaim quarantined slots.
-        if !self.slots.iter().any(|s| matches!(s, SlotState::Free)) {
-            self.pump();
-        }
         if !self.slots.iter().any(|s| matches!(s, SlotState::Free)) {
             self.reclaim();
         }
