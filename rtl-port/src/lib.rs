@@ -181,13 +181,12 @@ impl<M: DmaTarget> RtlAccelerator<M> {
         }
     }
 
-    /// A 32-bit read at byte `offset` of the bridge window, then the
-    /// access's idle clocks.
     /// Drive the board's inputs: `keys` held down (bit n: KEYn pressed; the
     /// pins are active low), `switches` (bit n: SWn up). They take effect
     /// on the next clock.
     pub fn set_board_inputs(&mut self, keys: u8, switches: u16) {
         #[cfg(rtl_verilated)]
+        // SAFETY: a live model; no callback runs in this call.
         unsafe {
             ffi::rtl_port_set_board_inputs(self.raw.as_ptr(), u32::from(keys), u32::from(switches))
         }
@@ -200,6 +199,8 @@ impl<M: DmaTarget> RtlAccelerator<M> {
     pub fn board_outputs(&mut self) -> (u16, [u8; 6]) {
         let (mut ledr, mut hex_n) = (0u16, [0x7Fu8; 6]);
         #[cfg(rtl_verilated)]
+        // SAFETY: a live model; the pointers are to a u16 and six bytes
+        // that live across the call; no callback runs in it.
         unsafe {
             ffi::rtl_port_board_outputs(self.raw.as_ptr(), &mut ledr, hex_n.as_mut_ptr())
         }
@@ -211,6 +212,8 @@ impl<M: DmaTarget> RtlAccelerator<M> {
         (ledr, hex_n)
     }
 
+    /// A 32-bit read at byte `offset` of the bridge window, then the
+    /// access's idle clocks.
     pub fn bus_read(&mut self, offset: usize) -> u32 {
         self.sync_answering();
         #[cfg(rtl_verilated)]
@@ -242,14 +245,16 @@ impl<M: DmaTarget> RtlAccelerator<M> {
     }
 }
 
-/// The AXI port's beats into the Rust memory.
+/// The AXI port's read beats from the Rust memory.
 ///
 /// # Safety
 ///
-/// `ctx` is the `*mut M` that `with_memory` registered and `bytes..bytes +
-/// len` is readable (the C side's beat buffer).
+/// `ctx` is the `*mut M` that `with_memory` registered and `out..out +
+/// len` is writable (the C side's beat buffer).
 #[cfg(rtl_verilated)]
 unsafe extern "C" fn dma_read<M: DmaTarget>(ctx: *mut core::ffi::c_void, addr: u32, out: *mut u8, len: u32) -> i32 {
+    // SAFETY: see the function's contract; the memory is not otherwise
+    // borrowed while the model runs (calls go through `&mut self`).
     let (mem, out) = unsafe { (&mut *ctx.cast::<M>(), core::slice::from_raw_parts_mut(out, len as usize)) };
     i32::from(mem.read(addr, out))
 }

@@ -132,7 +132,7 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
 }
 
 /// The RTL sources in compile order, from `fpga/rtl/files.f`.
-fn rtl_files(rtl: &Path) -> Result<Vec<String>> {
+pub fn rtl_files(rtl: &Path) -> Result<Vec<String>> {
     let list = rtl.join("files.f");
     let text = fs::read_to_string(&list).map_err(|e| format!("{}: {e}", list.display()))?;
     Ok(text.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with('#')).map(str::to_owned).collect())
@@ -154,7 +154,7 @@ struct Goldens {
 
 /// Golden rows in the `cargo xtask golden` format (a `//` header naming the
 /// rows and the raw light, then one `0x00RRGGBB` word per line).
-fn write_golden(path: &Path, light: &Light, first_row: u16, rows: u16) -> Result<()> {
+pub fn write_golden(path: &Path, light: &Light, first_row: u16, rows: u16) -> Result<()> {
     let io = |e: std::io::Error| format!("{}: {e}", path.display());
     let mut w = BufWriter::new(fs::File::create(path).map_err(io)?);
     let [x, y, z] = light.raw();
@@ -222,7 +222,7 @@ pub fn vga_args(sim: &mut Command, maps: &[PathBuf; 2]) {
 }
 
 /// Verilate rt_top with the C++ testbench into target/rtl/obj-lanesN.
-fn build_cosim(root: &Path, out: &Path, files: &[String], lanes: u32) -> Result<PathBuf> {
+pub fn build_cosim(root: &Path, out: &Path, files: &[String], lanes: u32) -> Result<PathBuf> {
     let lanes_param = format!("-GLANES={lanes}");
     verilator_build(
         root,
