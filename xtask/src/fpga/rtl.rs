@@ -112,8 +112,14 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
     vga_args(&mut sim, &write_display_maps(&out)?);
     step(&format!("co-simulation, LANES={}, {} frames", args.lanes, golden.frames.len()), sim)?;
 
+    if !args.no_estimate {
+        ensure_yowasp()?;
+        estimate(&root, &out, &files, args.lanes)?;
+    }
+
     // The Platform Designer component's top (the full AXI3 signal set) and
-    // the Quartus files against each other.
+    // the Quartus files against each other: last, so the RTL's own checks
+    // report even while fpga/quartus is being brought to a new rt_top.
     let mut accel = Command::new("verilator");
     accel
         .current_dir(&rtl)
@@ -122,11 +128,6 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
         .arg("../quartus/rt_accel.sv");
     step("verilator lint, rt_accel (Platform Designer component top)", accel)?;
     super::quartus_check::run(&root)?;
-
-    if !args.no_estimate {
-        ensure_yowasp()?;
-        estimate(&root, &out, &files, args.lanes)?;
-    }
     println!("xtask rtl: all steps passed");
     Ok(())
 }
