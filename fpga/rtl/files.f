@@ -17,5 +17,7 @@ rt_lane.sv
 rt_line_buffer.sv
 rt_row_scheduler.sv
 rt_frame_dma.sv
+rt_vga.sv
+rt_board_io.sv
 rt_avalon_slave.sv
 rt_top.sv

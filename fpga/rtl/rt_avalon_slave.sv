@@ -1,12 +1,12 @@
 // Avalon-MM slave: the CSR block and the line-buffer window, with the
-// register semantics of hal-avalon (src/map.rs, src/sim.rs), map version 2:
+// register semantics of hal-avalon (src/map.rs, src/sim.rs), map version 3:
 //   0x00 CONTROL W  bit0 start a row (also clears done), bit1 clear_done;
 //                   start wins; a start while busy is ignored. Reads 0.
 //   0x04 STATUS  R  bit0 busy (a row or a frame in progress), bit1 sticky
 //                   row done.
 //   0x08 ROW_Y   RW bits 8:0.
 //   0x0C/0x10/0x14 LIGHT_X/Y/Z RW bits 23:0, read back sign-extended.
-//   0x18 ID      R  0x5254_0002.
+//   0x18 ID      R  0x5254_0003.
 //   0x1C FRAME_BASE    RW bits 31:3 (byte address; bits 2:0 read 0).
 //   0x20 FRAME_CONTROL W bit0 start a frame at FRAME_BASE with LIGHT_*
 //                   (ignored while busy), bit1 clear frame done, bit2 abort
@@ -16,6 +16,16 @@
 //                   frame), bit3 sticky aborted (until the next frame).
 //   0x28 ROWS_DONE     R rows of the current or last frame whose bytes
 //                   have landed (write responses received), 0..360.
+//   0x2C VGA_CONTROL RW bit0 enable, bit1 letterbox.
+//   0x30 VGA_BASE    RW bits 31:3 (bits 2:0 read 0).
+//   0x34 VGA_STATUS  R, W1C bits 15:0 frames since enable (wrapping), bit16
+//                   sticky underrun (write 1 clears); enabling clears both.
+//   0x38 KEYS        R, W1C bits 3:0 keys down (debounced), bits 7:4 sticky
+//                   went down (write 1 clears).
+//   0x3C SWITCHES    R bits 9:0.
+//   0x40 LEDS        RW bits 9:0.
+//   0x44 HEX_LO      RW HEX0..HEX3 at bits 8n+6..8n (1 = lit).
+//   0x48 HEX_HI      RW HEX4 bits 6:0, HEX5 bits 14:8.
 //   0x1000 + 4x  R  line buffer word x (x < 480), 0x00RRGGBB (row mode).
 // Everything else reads 0. address_i is the word address; fixed read
 // latency 1.
@@ -47,6 +57,18 @@ module rt_avalon_slave
   input  logic        frame_error_i,
   input  logic        frame_aborted_i,
   input  row_t        rows_landed_i,
+  // VGA scan-out and board I/O (map version 3)
+  output logic        vga_enable_o,
+  output logic        vga_letterbox_o,
+  output logic [31:3] vga_base_o,
+  input  logic        vga_frame_i,     // a frame was scanned out
+  input  logic        vga_underrun_i,  // a line was cut
+  input  logic [3:0]  keys_down_i,
+  input  logic [3:0]  keys_went_i,
+  input  logic [9:0]  switches_i,
+  output logic [9:0]  leds_o,
+  output logic [31:0] hex_lo_o,
+  output logic [15:0] hex_hi_o,
   // line-buffer read ports (slot 0), one per bank; IdxW bits (below)
   output logic [$clog2(Width/LANES)-1:0] lb_raddr_o,
   input  rgb_t [LANES-1:0] lb_rdata_i
@@ -66,11 +88,28 @@ module rt_avalon_slave
   localparam logic [10:0] AddrFrameCtl    = 11'h008;
   localparam logic [10:0] AddrFrameStatus = 11'h009;
   localparam logic [10:0] AddrRowsDone    = 11'h00a;
+  localparam logic [10:0] AddrVgaControl  = 11'h00b;
+  localparam logic [10:0] AddrVgaBase     = 11'h00c;
+  localparam logic [10:0] AddrVgaStatus   = 11'h00d;
+  localparam logic [10:0] AddrKeys        = 11'h00e;
+  localparam logic [10:0] AddrSwitches    = 11'h00f;
+  localparam logic [10:0] AddrLeds        = 11'h010;
+  localparam logic [10:0] AddrHexLo       = 11'h011;
+  localparam logic [10:0] AddrHexHi       = 11'h012;
 
   coord_t row_q;
   vec3_t light_q;
   logic [31:3] base_q;
   logic done_q;
+  logic [1:0] vga_ctl_q;
+  logic [31:3] vga_base_q;
+  logic [15:0] vga_frames_q;
+  logic vga_underrun_q;
+  logic [3:0] keys_went_q;
+  logic [9:0] leds_q;
+  logic [31:0] hex_lo_q;
+  logic [15:0] hex_hi_q;
+  logic vga_enable_now;
 
   logic ctl_write, fctl_write;
   assign ctl_write = write_i && (address_i == AddrControl);
@@ -79,6 +118,8 @@ module rt_avalon_slave
   assign frame_abort_o = fctl_write && writedata_i[2];
   assign frame_start_o = fctl_write && writedata_i[0] && !writedata_i[2] && !busy_i;
   assign frame_clear_done_o = fctl_write && !writedata_i[0] && writedata_i[1] && !writedata_i[2];
+  // Enabling the scan-out (bit 0 rising) clears VGA_STATUS.
+  assign vga_enable_now = write_i && (address_i == AddrVgaControl) && writedata_i[0] && !vga_ctl_q[0];
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
     if (!rst_ni) begin
@@ -86,6 +127,14 @@ module rt_avalon_slave
       light_q      <= '0;
       base_q       <= '0;
       done_q       <= 1'b0;
+      vga_ctl_q      <= '0;
+      vga_base_q     <= '0;
+      vga_frames_q   <= '0;
+      vga_underrun_q <= 1'b0;
+      keys_went_q    <= '0;
+      leds_q         <= '0;
+      hex_lo_q       <= '0;
+      hex_hi_q       <= '0;
     end else begin
       if (write_i) begin
         unique case (address_i)
@@ -94,9 +143,26 @@ module rt_avalon_slave
           AddrLightY:    light_q.y <= writedata_i[23:0];
           AddrLightZ:    light_q.z <= writedata_i[23:0];
           AddrFrameBase: base_q    <= writedata_i[31:3];
+          AddrVgaControl: vga_ctl_q <= writedata_i[1:0];
+          AddrVgaBase:   vga_base_q <= writedata_i[31:3];
+          AddrLeds:      leds_q    <= writedata_i[9:0];
+          AddrHexLo:     hex_lo_q  <= writedata_i & 32'h7f7f_7f7f;
+          AddrHexHi:     hex_hi_q  <= writedata_i[15:0] & 16'h7f7f;
           default: ;
         endcase
       end
+      // VGA_STATUS: counts and sticky underrun; W1C; enabling clears it.
+      if (vga_enable_now) begin
+        vga_frames_q <= '0;
+        vga_underrun_q <= 1'b0;
+      end else begin
+        if (vga_frame_i) vga_frames_q <= vga_frames_q + 16'd1;
+        if (vga_underrun_i) vga_underrun_q <= 1'b1;
+        else if (write_i && address_i == AddrVgaStatus && writedata_i[16]) vga_underrun_q <= 1'b0;
+      end
+      // KEYS bits 7:4: sticky went-down, W1C (a new press wins).
+      keys_went_q <= keys_went_i
+                   | (keys_went_q & ~((write_i && address_i == AddrKeys) ? writedata_i[7:4] : 4'd0));
       // A finishing row sets done after a same-cycle clear_done.
       if (row_finish_i) done_q <= 1'b1;
       else if (row_start_o) done_q <= 1'b0;
@@ -106,6 +172,12 @@ module rt_avalon_slave
   assign row_o = row_q;
   assign light_o = light_q;
   assign frame_base_o = base_q;
+  assign vga_enable_o = vga_ctl_q[0];
+  assign vga_letterbox_o = vga_ctl_q[1];
+  assign vga_base_o = vga_base_q;
+  assign leds_o = leds_q;
+  assign hex_lo_o = hex_lo_q;
+  assign hex_hi_o = hex_hi_q;
 
   // CONTROL bits 31:2 and the bits above each register's width are ignored.
   /* verilator lint_off UNUSEDSIGNAL */
@@ -141,6 +213,14 @@ module rt_avalon_slave
         AddrFrameBase:   csr_rdata_q <= {base_q, 3'b000};
         AddrFrameStatus: csr_rdata_q <= {28'd0, frame_aborted_i, frame_error_i, frame_done_i, frame_busy_i};
         AddrRowsDone:    csr_rdata_q <= {23'd0, rows_landed_i};
+        AddrVgaControl:  csr_rdata_q <= {30'd0, vga_ctl_q};
+        AddrVgaBase:     csr_rdata_q <= {vga_base_q, 3'b000};
+        AddrVgaStatus:   csr_rdata_q <= {15'd0, vga_underrun_q, vga_frames_q};
+        AddrKeys:        csr_rdata_q <= {24'd0, keys_went_q, keys_down_i};
+        AddrSwitches:    csr_rdata_q <= {22'd0, switches_i};
+        AddrLeds:        csr_rdata_q <= {22'd0, leds_q};
+        AddrHexLo:       csr_rdata_q <= hex_lo_q;
+        AddrHexHi:       csr_rdata_q <= {16'd0, hex_hi_q};
         default:         csr_rdata_q <= '0;
       endcase
     end

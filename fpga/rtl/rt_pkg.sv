@@ -110,8 +110,9 @@ package rt_pkg;
   } px_out_t;
 
   // ---- Register map (hal-avalon src/map.rs) --------------------------------
-  // Version 2: the row registers of version 1 plus the frame DMA registers.
-  localparam logic [31:0] IdValue = 32'h5254_0002;
+  // Version 3: version 2's row and frame DMA registers plus the VGA
+  // scan-out and the board I/O block.
+  localparam logic [31:0] IdValue = 32'h5254_0003;
 
   // ---- Frame DMA (hal-avalon src/map.rs, docs/frame-dma.md) -----------------
   localparam int unsigned RowBytes   = Width * 3;     // 1440: RGB888 wire row

@@ -3,7 +3,9 @@
 // row slots per bank), and the frame DMA with its AXI3 write master.
 // Default LANES = 1: in frame mode one lane renders about 289 frames/s at
 // 50 MHz, more than Gigabit Ethernet carries, at about half the DSP blocks
-// and logic of two (fpga/README.md, docs/frame-dma.md).
+// and logic of two (fpga/README.md, docs/frame-dma.md). The VGA scan-out
+// (rt_vga) owns the AXI read channels of the same port; the board I/O block
+// (rt_board_io) the keys, switches, LEDs and 7-segment displays.
 module rt_top
   import rt_pkg::*;
 #(
@@ -35,7 +37,40 @@ module rt_top
   input  logic        axm_wready_i,
   input  logic [1:0]  axm_bresp_i,
   input  logic        axm_bvalid_i,
-  output logic        axm_bready_o
+  output logic        axm_bready_o,
+  // AXI3 read master: the VGA scan-out reads frames from HPS SDRAM
+  output logic [31:0] axm_araddr_o,
+  output logic [3:0]  axm_arlen_o,
+  output logic [2:0]  axm_arsize_o,
+  output logic [1:0]  axm_arburst_o,
+  output logic [3:0]  axm_arcache_o,
+  output logic [2:0]  axm_arprot_o,
+  output logic        axm_arvalid_o,
+  input  logic        axm_arready_i,
+  input  logic [63:0] axm_rdata_i,
+  input  logic [1:0]  axm_rresp_i,
+  input  logic        axm_rlast_i,
+  input  logic        axm_rvalid_i,
+  output logic        axm_rready_o,
+  // VGA DAC (ADV7123), 640x480@60
+  output logic        vga_clk_o,
+  output logic        vga_hs_o,
+  output logic        vga_vs_o,
+  output logic        vga_blank_n_o,
+  output logic        vga_sync_n_o,
+  output logic [7:0]  vga_r_o,
+  output logic [7:0]  vga_g_o,
+  output logic [7:0]  vga_b_o,
+  // Board I/O
+  input  logic [3:0]  key_n_i,
+  input  logic [9:0]  sw_i,
+  output logic [9:0]  ledr_o,
+  output logic [6:0]  hex0_n_o,
+  output logic [6:0]  hex1_n_o,
+  output logic [6:0]  hex2_n_o,
+  output logic [6:0]  hex3_n_o,
+  output logic [6:0]  hex4_n_o,
+  output logic [6:0]  hex5_n_o
 );
   localparam int unsigned PerLane = Width / LANES;
   localparam int unsigned IdxW = $clog2(PerLane);
@@ -54,6 +89,12 @@ module rt_top
   rgb_t [LANES-1:0] lb_wdata, lb_rdata;
   logic [IdxW-1:0] slave_raddr;
   logic [BankAw-1:0] dma_raddr, lb_raddr;
+  logic vga_enable, vga_letterbox, vga_frame, vga_underrun;
+  logic [31:3] vga_base;
+  logic [3:0] keys_down, keys_went;
+  logic [9:0] switches, leds;
+  logic [31:0] hex_lo;
+  logic [15:0] hex_hi;
 
   rt_avalon_slave #(.LANES(LANES)) u_slave (
     .clk_i, .rst_ni,
@@ -65,7 +106,30 @@ module rt_top
     .frame_base_o(frame_base), .busy_i(sched_busy || dma_busy), .row_finish_i(row_finish),
     .frame_busy_i(dma_busy), .frame_done_i(dma_done), .frame_error_i(frame_error),
     .frame_aborted_i(frame_aborted), .rows_landed_i(rows_landed),
+    .vga_enable_o(vga_enable), .vga_letterbox_o(vga_letterbox), .vga_base_o(vga_base),
+    .vga_frame_i(vga_frame), .vga_underrun_i(vga_underrun),
+    .keys_down_i(keys_down), .keys_went_i(keys_went), .switches_i(switches),
+    .leds_o(leds), .hex_lo_o(hex_lo), .hex_hi_o(hex_hi),
     .lb_raddr_o(slave_raddr), .lb_rdata_i(lb_rdata)
+  );
+
+  rt_vga u_vga (
+    .clk_i, .rst_ni,
+    .enable_i(vga_enable), .letterbox_i(vga_letterbox), .base_i(vga_base),
+    .frame_o(vga_frame), .underrun_o(vga_underrun),
+    .araddr_o(axm_araddr_o), .arlen_o(axm_arlen_o), .arsize_o(axm_arsize_o), .arburst_o(axm_arburst_o),
+    .arcache_o(axm_arcache_o), .arprot_o(axm_arprot_o), .arvalid_o(axm_arvalid_o), .arready_i(axm_arready_i),
+    .rdata_i(axm_rdata_i), .rresp_i(axm_rresp_i), .rlast_i(axm_rlast_i), .rvalid_i(axm_rvalid_i),
+    .rready_o(axm_rready_o),
+    .vga_clk_o, .vga_hs_o, .vga_vs_o, .vga_blank_n_o, .vga_sync_n_o, .vga_r_o, .vga_g_o, .vga_b_o
+  );
+
+  rt_board_io u_io (
+    .clk_i, .rst_ni,
+    .key_n_i, .sw_i,
+    .keys_down_o(keys_down), .keys_went_o(keys_went), .switches_o(switches),
+    .leds_i(leds), .hex_lo_i(hex_lo), .hex_hi_i(hex_hi),
+    .ledr_o, .hex0_n_o, .hex1_n_o, .hex2_n_o, .hex3_n_o, .hex4_n_o, .hex5_n_o
   );
 
   rt_row_scheduler #(.LANES(LANES), .SQRT_BPS(SQRT_BPS), .DIV_BPS(DIV_BPS)) u_sched (

@@ -51,7 +51,11 @@ constexpr uint32_t kLine = 0x1000;
 constexpr uint32_t kStart = 1, kClearDone = 2, kAbort = 4;
 constexpr uint32_t kBusy = 1, kDone = 2;
 constexpr uint32_t kFrameBusy = 1, kFrameDone = 2, kFrameError = 4, kFrameAborted = 8;
-constexpr uint32_t kIdValue = 0x52540002u;
+constexpr uint32_t kVgaControl = 0x2C, kVgaBase = 0x30, kVgaStatus = 0x34, kKeys = 0x38, kSwitches = 0x3C;
+constexpr uint32_t kLeds = 0x40, kHexLo = 0x44, kHexHi = 0x48;
+constexpr uint32_t kVgaEnable = 1, kVgaLetterbox = 2, kVgaUnderrun = 1u << 16;
+constexpr uint32_t kIdValue = 0x52540003u;
+constexpr uint32_t kKeyDebounce = 1u << 20;  // hal-avalon KEY_DEBOUNCE_CLOCKS
 constexpr int kWidth = 480, kHeight = 360;
 constexpr uint32_t kRowBytes = kWidth * 3, kFrameBytes = kRowBytes * kHeight;
 
@@ -142,6 +146,17 @@ struct WPayload {
   bool last;
   bool operator==(const WPayload &o) const { return data == o.data && strb == o.strb && last == o.last; }
 };
+struct ArPayload {
+  uint32_t addr;
+  uint8_t len, size, burst, cache, prot;
+  bool operator==(const ArPayload &o) const {
+    return addr == o.addr && len == o.len && size == o.size && burst == o.burst && cache == o.cache && prot == o.prot;
+  }
+};
+template <class T> ArPayload ar_payload(T *top) {
+  return ArPayload{top->axm_araddr_o,  uint8_t(top->axm_arlen_o),   uint8_t(top->axm_arsize_o),
+                   uint8_t(top->axm_arburst_o), uint8_t(top->axm_arcache_o), uint8_t(top->axm_arprot_o)};
+}
 template <class T> AwPayload aw_payload(T *top) {
   return AwPayload{top->axm_awaddr_o,  uint8_t(top->axm_awlen_o),   uint8_t(top->axm_awsize_o),
                    uint8_t(top->axm_awburst_o), uint8_t(top->axm_awcache_o), uint8_t(top->axm_awprot_o)};
@@ -164,13 +179,32 @@ class AxiChecker {
   void allow_withdraw(bool on) { allow_withdraw_ = on; }
   uint64_t violations() const { return violations_; }
 
-  template <class T> void sample(T *top, bool awready, bool wready, bool bvalid) {
+  template <class T> void sample(T *top, bool awready, bool wready, bool bvalid, bool arready, bool rvalid) {
     if (!top->rst_ni) {
-      if (seen_reset_ && (top->axm_awvalid_o || top->axm_wvalid_o)) report("AWVALID/WVALID high in reset");
+      if (seen_reset_ && (top->axm_awvalid_o || top->axm_wvalid_o || top->axm_arvalid_o))
+        report("AWVALID/WVALID/ARVALID high in reset");
       seen_reset_ = true;
-      aw_wait_ = w_wait_ = false;
+      aw_wait_ = w_wait_ = ar_wait_ = false;
       return;
     }
+    // Read channels (the VGA reader): ARVALID held with a stable payload
+    // until ARREADY (never withdrawn), 8-byte INCR beats, no burst across
+    // 4 KiB, RREADY high whenever RVALID is (the reader promises it).
+    ArPayload ar = ar_payload(top);
+    if (ar_wait_) {
+      if (!top->axm_arvalid_o) report("ARVALID fell before ARREADY");
+      else if (!(ar == ar_)) report("AR payload changed while waiting for ARREADY");
+    }
+    if (top->axm_arvalid_o) {
+      if (ar.size != 3) report("ARSIZE %u, promised 3 (8 bytes)", ar.size);
+      if (ar.burst != 1) report("ARBURST %u, promised INCR", ar.burst);
+      uint32_t end = ar.addr + 8u * (uint32_t(ar.len) + 1);
+      if ((ar.addr >> 12) != ((end - 1) >> 12)) report("read burst 0x%08x+%u crosses 4 KiB", ar.addr, ar.len + 1u);
+      if (ar.addr % 8) report("ARADDR 0x%08x not 8-byte aligned", ar.addr);
+    }
+    if (rvalid && !top->axm_rready_o) report("RREADY low while RVALID");
+    ar_wait_ = top->axm_arvalid_o && !arready;
+    ar_ = ar;
     AwPayload aw = aw_payload(top);
     WPayload w = w_payload(top);
     if (aw_wait_ && !allow_withdraw_) {
@@ -179,7 +213,9 @@ class AxiChecker {
     }
     if (w_wait_ && !allow_withdraw_) {
       if (!top->axm_wvalid_o) report("WVALID fell before WREADY");
-      else if (!(w == w_)) report("W payload changed while waiting for WREADY");
+      else if (!(w == w_))
+        report("W payload changed while waiting for WREADY: data %016llx strb %02x last %d -> %016llx %02x %d",
+               (unsigned long long)w_.data, w_.strb, w_.last, (unsigned long long)w.data, w.strb, w.last);
     }
     if (top->axm_awvalid_o) {
       if (aw.size != 3) report("AWSIZE %u, promised 3 (8 bytes)", aw.size);
@@ -209,7 +245,8 @@ class AxiChecker {
   }
 
   bool seen_reset_ = false, allow_withdraw_ = false;
-  bool aw_wait_ = false, w_wait_ = false;
+  bool aw_wait_ = false, w_wait_ = false, ar_wait_ = false;
+  ArPayload ar_{};
   AwPayload aw_{};
   WPayload w_{};
   uint64_t b_wait_ = 0, violations_ = 0;
@@ -250,6 +287,20 @@ class AxiMemory {
       b_.clear();
     }
   }
+
+  // Read channels: percent of cycles ARREADY is low, percent of cycles a
+  // due R beat is held back (RVALID gaps), the largest AR-to-first-beat
+  // latency.
+  void set_read_pressure(int ar_stall_pct, int r_gap_pct, int max_latency) {
+    ar_stall_ = ar_stall_pct;
+    r_gap_ = r_gap_pct;
+    max_r_latency_ = max_latency;
+  }
+  // The read channels answer nothing (a stall long enough to starve a
+  // reader); bursts already accepted wait.
+  void set_read_stall(bool on) { read_stall_ = on; }
+  uint64_t read_bursts() const { return read_bursts_; }
+  uint64_t read_beats() const { return read_beats_; }
 
   // A new frame at `base`: forget which rows landed.
   void begin_frame(uint32_t base) {
@@ -298,7 +349,26 @@ class AxiMemory {
     top->axm_wready_i = wready_;
     top->axm_bvalid_i = bvalid_;
     top->axm_bresp_i = bvalid_ ? b_.front().resp : 0;
+    // Reads: bursts answered in order, beat by beat, from the memory.
+    arready_ = !read_stall_ && rroll(ar_stall_) && rq_.size() < 8;
+    rvalid_ = !read_stall_ && !rq_.empty() && rq_.front().due <= now && rroll(r_gap_);
+    uint64_t data = 0;
+    bool last = false;
+    if (rvalid_) {
+      const ReadBurst &r = rq_.front();
+      uint32_t at = r.addr + 8u * uint32_t(r.done);
+      if (at >= kMemBase && at + 8 <= kMemBase + kMemSize)
+        for (int i = 0; i < 8; ++i) data |= uint64_t(mem_[at - kMemBase + i]) << (8 * i);
+      last = r.done + 1 == r.beats;
+    }
+    top->axm_arready_i = arready_;
+    top->axm_rvalid_i = rvalid_;
+    top->axm_rdata_i = rvalid_ ? data : 0x0123456789abcdefull;
+    top->axm_rlast_i = rvalid_ && last;
+    top->axm_rresp_i = 0;
   }
+  bool arready() const { return arready_; }
+  bool rvalid() const { return rvalid_; }
 
   // The handshakes of the clock edge, with the outputs as they were.
   template <class T> void edge(T *top, uint64_t now) {
@@ -317,6 +387,19 @@ class AxiMemory {
       last_transfer_ = now;
     }
     pair(now);
+    if (top->axm_arvalid_o && arready_) {
+      ReadBurst r{top->axm_araddr_o, int(top->axm_arlen_o) + 1, 0, 0};
+      uint64_t lat = max_r_latency_ ? rrng_() % (max_r_latency_ + 1) : 0;
+      r.due = now + 1 + lat;
+      if (r.addr < kMemBase || r.addr + 8u * r.beats > kMemBase + kMemSize) fail("read burst 0x%08x outside memory", r.addr);
+      rq_.push_back(r);
+      ++read_bursts_;
+    }
+    if (rvalid_ && top->axm_rready_o) {
+      ReadBurst &r = rq_.front();
+      ++read_beats_;
+      if (++r.done == r.beats) rq_.pop_front();
+    }
     if (bvalid_ && top->axm_bready_o) {
       const Resp &r = b_.front();
       for (int i = 0; i < r.beats; ++i)
@@ -334,6 +417,11 @@ class AxiMemory {
     bool error;
     uint64_t accepted;
   };
+  struct ReadBurst {
+    uint32_t addr;
+    int beats, done;
+    uint64_t due;
+  };
   struct Resp {
     uint64_t due;
     uint32_t addr;
@@ -343,6 +431,9 @@ class AxiMemory {
   };
 
   bool roll(int stall_pct) { return int(rng_() % 100) >= stall_pct; }
+  // The read channels draw from their own generator, so the write
+  // channels' random sequences do not depend on the reads.
+  bool rroll(int stall_pct) { return int(rrng_() % 100) >= stall_pct; }
 
   // W beats meet their bursts in order, whichever came first.
   void pair(uint64_t now) {
@@ -392,6 +483,182 @@ class AxiMemory {
   bool lose_ = false, dead_ = false;
   bool awready_ = true, wready_ = true, bvalid_ = false;
   uint64_t last_transfer_ = 0;
+  std::deque<ReadBurst> rq_;
+  std::mt19937 rrng_{777};
+  int ar_stall_ = 0, r_gap_ = 0, max_r_latency_ = 0;
+  bool read_stall_ = false, arready_ = false, rvalid_ = false;
+  uint64_t read_bursts_ = 0, read_beats_ = 0;
+};
+
+
+// ---- VGA monitor -------------------------------------------------------------
+
+// 640x480@60 timing, one axis each (model::display H_TIMING and V_TIMING,
+// given by xtask with --vga-timing): visible, front porch, sync, back porch.
+struct Axis {
+  int visible, front, sync, back;
+  int total() const { return visible + front + sync + back; }
+};
+Axis g_h = {640, 16, 96, 48}, g_v = {480, 10, 2, 33};
+// model::display::display_picture of an index frame (frame pixel i holds
+// i + 1 as R<<16 | G<<8 | B), one per layout: 0 = black, else the frame
+// pixel shown is the value less one. Written by xtask (--vga-map).
+std::vector<uint8_t> g_map[2];
+constexpr int kDispW = 640, kDispH = 480;
+
+struct VgaPins {
+  bool clk, hs, vs, blank_n, sync_n;
+  uint8_t r, g, b;
+  bool operator==(const VgaPins &o) const {
+    return hs == o.hs && vs == o.vs && blank_n == o.blank_n && sync_n == o.sync_n && r == o.r && g == o.g && b == o.b;
+  }
+};
+template <class T> VgaPins vga_pins(T *top) {
+  return VgaPins{bool(top->vga_clk_o), bool(top->vga_hs_o), bool(top->vga_vs_o), bool(top->vga_blank_n_o),
+                 bool(top->vga_sync_n_o), uint8_t(top->vga_r_o), uint8_t(top->vga_g_o), uint8_t(top->vga_b_o)};
+}
+
+// Samples the VGA outputs at every rising edge of vga_clk_o, as the DAC
+// does: every output must be stable across that edge; after the first
+// vertical sync every sample is checked against the timing exactly (sync
+// widths, porches, totals, polarity, blank_n, black outside the visible
+// area); each 640x480 picture is rebuilt and compared byte for byte with
+// the model's mapping of the frame in memory at the base and layout the
+// registers held at the start of the frame's vertical blanking.
+class VgaMonitor {
+ public:
+  // What the registers hold now (the testbench's writes); enabling latches
+  // them at once, as the RTL does.
+  void set_regs(bool enable, bool letterbox, uint32_t base) {
+    if (enable && !enable_) {
+      latched_letterbox_ = letterbox;
+      latched_base_ = base;
+      locked_ = false;
+      capturing_ = false;
+    }
+    if (!enable) {
+      locked_ = false;
+      capturing_ = false;
+      since_disable_ = 0;
+    }
+    enable_ = enable;
+    letterbox_ = letterbox;
+    base_ = base;
+  }
+  // Lines cut short (black to their end) are accepted, and counted, in the
+  // frames compared while this is on.
+  void allow_cut(bool on) { allow_cut_ = on; }
+  int frames_compared() const { return frames_; }
+  int frames_with_cut_lines() const { return cut_frames_; }
+  int cut_lines() const { return cut_lines_total_; }
+  int last_cut_lines() const { return last_cut_; }
+  const std::vector<uint8_t> &picture() const { return picture_; }
+  bool has_picture() const { return have_picture_; }
+  int frames_letterbox() const { return frames_lb_; }
+
+  // After a clk_i edge: `before` are the outputs before it.
+  template <class T> void after_edge(T *top, const VgaPins &before, AxiMemory &mem) {
+    VgaPins now = vga_pins(top);
+    if (!top->rst_ni) return;
+    if (now.sync_n) fail("VGA: sync_n high");
+    if (!enable_) {
+      if (++since_disable_ > 4 && (now.blank_n || now.r || now.g || now.b || !now.hs || !now.vs))
+        fail("VGA: disabled, yet outputs not blank/black with syncs inactive");
+      return;
+    }
+    if (!(now.clk && !before.clk)) return;
+    // The DAC latches at this edge: the outputs did not change with it.
+    if (!(now == before)) fail("VGA: outputs changed on the rising edge of vga_clk");
+    sample(now, mem);
+  }
+
+ private:
+  void sample(const VgaPins &p, AxiMemory &mem) {
+    if (!locked_) {
+      if (prev_vs_ && !p.vs) {
+        locked_ = true;
+        k_ = 0;
+      }
+      prev_vs_ = p.vs;
+      if (!locked_) return;
+    }
+    prev_vs_ = p.vs;
+    int htot = g_h.total(), vtot = g_v.total();
+    int h = int(k_ % htot);
+    int v = int((g_v.visible + g_v.front + k_ / htot) % vtot);
+    ++k_;
+    int hs_start = g_h.visible + g_h.front, vs_start = g_v.visible + g_v.front;
+    bool want_hs = !(h >= hs_start && h < hs_start + g_h.sync);
+    bool want_vs = !(v >= vs_start && v < vs_start + g_v.sync);
+    bool visible = h < g_h.visible && v < g_v.visible;
+    if (p.hs != want_hs || p.vs != want_vs || p.blank_n != visible) {
+      if (++timing_errors_ <= 5)
+        fail("VGA timing at line %d pixel %d: hs %d vs %d blank_n %d, want %d %d %d", v, h, p.hs, p.vs, p.blank_n,
+             want_hs, want_vs, visible);
+    }
+    if (!visible && (p.r || p.g || p.b)) fail("VGA: RGB not black in blanking at line %d pixel %d", v, h);
+    if (v == g_v.visible && h == 0) {
+      // Start of vertical blanking: the registers are latched.
+      latched_letterbox_ = letterbox_;
+      latched_base_ = base_;
+    }
+    if (v == 0 && h == 0) {
+      capturing_ = true;
+      frame_letterbox_ = latched_letterbox_;
+      frame_base_ = latched_base_;
+      grab_.assign(size_t(kDispW) * kDispH * 3, 0);
+    }
+    if (capturing_ && visible) {
+      uint8_t *px = &grab_[(size_t(v) * kDispW + h) * 3];
+      px[0] = p.r, px[1] = p.g, px[2] = p.b;
+      if (v == g_v.visible - 1 && h == g_h.visible - 1) {
+        compare(mem);
+        capturing_ = false;
+      }
+    }
+  }
+
+  void compare(AxiMemory &mem) {
+    const std::vector<uint8_t> &map = g_map[frame_letterbox_ ? 1 : 0];
+    std::vector<uint8_t> want(grab_.size(), 0);
+    for (size_t i = 0; i < size_t(kDispW) * kDispH; ++i) {
+      uint32_t idx = uint32_t(map[3 * i]) << 16 | uint32_t(map[3 * i + 1]) << 8 | map[3 * i + 2];
+      if (idx) memcpy(&want[3 * i], mem.bytes(frame_base_ + (idx - 1) * 3), 3);
+    }
+    int bad = 0, cut = 0;
+    for (int y = 0; y < kDispH; ++y) {
+      const uint8_t *g = &grab_[size_t(y) * kDispW * 3], *w = &want[size_t(y) * kDispW * 3];
+      int x = 0;
+      while (x < kDispW && !memcmp(g + 3 * x, w + 3 * x, 3)) ++x;
+      if (x == kDispW) continue;
+      bool black_rest = true;
+      for (int i = 3 * x; i < kDispW * 3; ++i) black_rest = black_rest && g[i] == 0;
+      if (allow_cut_ && black_rest) {
+        ++cut;
+        continue;
+      }
+      if (++bad <= 3)
+        fail("VGA picture (%s, base 0x%08x) line %d pixel %d: got %02x%02x%02x want %02x%02x%02x",
+             frame_letterbox_ ? "letterbox" : "full screen", frame_base_, y, x, g[3 * x], g[3 * x + 1], g[3 * x + 2],
+             w[3 * x], w[3 * x + 1], w[3 * x + 2]);
+    }
+    ++frames_;
+    if (frame_letterbox_) ++frames_lb_;
+    last_cut_ = cut;
+    if (cut) ++cut_frames_, cut_lines_total_ += cut;
+    picture_ = grab_;
+    have_picture_ = true;
+    printf("VGA frame %d (%s, base 0x%08x): %s%s\n", frames_, frame_letterbox_ ? "letterbox" : "full screen",
+           frame_base_, bad ? "DIFFERS" : "byte-exact", cut ? (", " + std::to_string(cut) + " lines cut").c_str() : "");
+  }
+
+  bool enable_ = false, letterbox_ = false, latched_letterbox_ = false, frame_letterbox_ = false;
+  uint32_t base_ = 0, latched_base_ = 0, frame_base_ = 0;
+  bool locked_ = false, prev_vs_ = true, capturing_ = false, allow_cut_ = false, have_picture_ = false;
+  uint64_t k_ = 0;
+  int since_disable_ = 0, timing_errors_ = 0;
+  int frames_ = 0, frames_lb_ = 0, cut_frames_ = 0, cut_lines_total_ = 0, last_cut_ = 0;
+  std::vector<uint8_t> grab_, picture_;
 };
 
 class Bench {
@@ -407,6 +674,13 @@ class Bench {
     top_->axm_wready_i = 0;
     top_->axm_bvalid_i = 0;
     top_->axm_bresp_i = 0;
+    top_->axm_arready_i = 0;
+    top_->axm_rvalid_i = 0;
+    top_->axm_rdata_i = 0;
+    top_->axm_rresp_i = 0;
+    top_->axm_rlast_i = 0;
+    top_->key_n_i = 0xf;  // no key pressed (active low)
+    top_->sw_i = 0;
     top_->eval();
     tick();
     tick();
@@ -421,15 +695,24 @@ class Bench {
     mem_.drive(top_.get(), cycles_);
     top_->clk_i = 0;
     top_->eval();
-    axi_.sample(top_.get(), mem_.awready(), mem_.wready(), mem_.bvalid());
+    axi_.sample(top_.get(), mem_.awready(), mem_.wready(), mem_.bvalid(), mem_.arready(), mem_.rvalid());
     mem_.edge(top_.get(), cycles_);
+    VgaPins before = vga_pins(top_.get());
     top_->clk_i = 1;
     top_->eval();
+    vga_.after_edge(top_.get(), before, mem_);
     ++cycles_;
+  }
+  void ticks(uint64_t n) {
+    for (uint64_t i = 0; i < n; ++i) tick();
   }
 
   // One Avalon write transfer (no waitrequest).
   void write(uint32_t byte_off, uint32_t value) {
+    if (byte_off == kVgaControl) vga_ctl_ = value & 3;
+    if (byte_off == kVgaBase) vga_base_ = value & ~7u;
+    if (byte_off == kVgaControl || byte_off == kVgaBase)
+      vga_.set_regs(vga_ctl_ & kVgaEnable, vga_ctl_ & kVgaLetterbox, vga_base_);
     top_->avs_address_i = byte_off >> 2;
     top_->avs_writedata_i = value;
     top_->avs_write_i = 1;
@@ -449,11 +732,15 @@ class Bench {
   uint64_t cycles() const { return cycles_; }
   AxiMemory &memory() { return mem_; }
   AxiChecker &checker() { return axi_; }
+  VgaMonitor &vga() { return vga_; }
+  Vrt_top *top() { return top_.get(); }
 
  private:
   std::unique_ptr<Vrt_top> top_;
   AxiMemory mem_;
   AxiChecker axi_;
+  VgaMonitor vga_;
+  uint32_t vga_ctl_ = 0, vga_base_ = 0;
   uint64_t cycles_ = 0;
 };
 
@@ -554,7 +841,7 @@ void check_registers(Bench &b, const Golden &extra, const Golden *frame) {
   expect_eq("ROWS_DONE after reset", b.read(kRowsDone), 0);
   expect_eq("FRAME_CONTROL reads 0", b.read(kFrameControl), 0);
   expect_eq("CONTROL reads 0", b.read(kControl), 0);
-  expect_eq("unmapped 0x2c", b.read(0x2c), 0);
+  expect_eq("unmapped 0x4c", b.read(0x4c), 0);
   expect_eq("unmapped 0xffc", b.read(0xffc), 0);
   expect_eq("line window past 480", b.read(kLine + 4 * 480), 0);
   expect_eq("line window end", b.read(0x1ffc), 0);
@@ -868,6 +1155,212 @@ void check_frame_stall(Bench &b, const Golden &g, bool dead) {
   check_frame_dma(b, g, base, Slave::kPlatformDesigner, 10, 10, 10);
 }
 
+
+// ---- VGA scan-out and board I/O ----------------------------------------------
+
+constexpr uint64_t kVgaFrameClocks = 800ull * 525 * 2;  // hal-avalon VGA_FRAME_CLOCKS
+// From the end of one compared picture to the middle of the next.
+constexpr uint64_t kToMidFrame = 2ull * 800 * (525 - 480 + 240);
+
+// Clocks until the monitor has compared `n` more pictures.
+void run_vga_frames(Bench &b, int n) {
+  int target = b.vga().frames_compared() + n;
+  uint64_t limit = b.cycles() + uint64_t(n + 2) * kVgaFrameClocks;
+  while (b.vga().frames_compared() < target && b.cycles() < limit) b.tick();
+  if (b.vga().frames_compared() < target) fail("VGA: fewer than %d pictures in %d frame times", n, n + 2);
+}
+
+bool load_map(const std::string &path, std::vector<uint8_t> &out) {
+  std::ifstream in(path, std::ios::binary);
+  out.assign(size_t(kDispW) * kDispH * 3, 0);
+  if (!in.read(reinterpret_cast<char *>(out.data()), std::streamsize(out.size()))) {
+    fprintf(stderr, "%s: cannot read a %dx%d RGB888 picture\n", path.c_str(), kDispW, kDispH);
+    return false;
+  }
+  return true;
+}
+
+bool write_ppm(const std::string &path, const std::vector<uint8_t> &rgb) {
+  FILE *f = fopen(path.c_str(), "wb");
+  if (!f) return false;
+  fprintf(f, "P6\n%d %d\n255\n", kDispW, kDispH);
+  bool ok = fwrite(rgb.data(), 1, rgb.size(), f) == rgb.size();
+  return fclose(f) == 0 && ok;
+}
+
+void put_frame(AxiMemory &m, uint32_t base, const Golden &g) {
+  std::vector<uint8_t> bytes = wire_bytes(g);
+  memcpy(m.bytes(base), bytes.data(), bytes.size());
+}
+
+constexpr uint32_t kVgaA = kMemBase + 0x200008, kVgaB = kMemBase + 0x280010;
+
+// The frames counter equals the pictures the monitor saw since enable
+// (read a little after the picture, once blanking has started).
+void expect_vga_count(Bench &b, int since_enable, const char *what) {
+  b.ticks(400);
+  expect_eq(what, b.read(kVgaStatus) & 0xffff, uint32_t(since_enable) & 0xffff);
+}
+
+void check_vga(Bench &b, const std::vector<Golden> &goldens) {
+  AxiMemory &m = b.memory();
+  VgaMonitor &mon = b.vga();
+  const Golden &ga = goldens[0], &gb = goldens[goldens.size() > 1 ? 1 : 0];
+  // Registers: reset values, widths, nothing enabled by readback tests.
+  expect_eq("VGA_CONTROL after reset", b.read(kVgaControl), 0);
+  expect_eq("VGA_BASE after reset", b.read(kVgaBase), 0);
+  expect_eq("VGA_STATUS after reset", b.read(kVgaStatus), 0);
+  b.write(kVgaControl, 0xfffffffeu);
+  expect_eq("VGA_CONTROL keeps bits 1:0", b.read(kVgaControl), kVgaLetterbox);
+  b.write(kVgaControl, 0);
+  b.write(kVgaBase, 0x12345677u);
+  expect_eq("VGA_BASE keeps bits 31:3", b.read(kVgaBase), 0x12345670u);
+  b.write(kVgaStatus, 0xffffffffu);
+  expect_eq("VGA_STATUS W1C when clear", b.read(kVgaStatus), 0);
+
+  m.set_behaviour(Slave::kPlatformDesigner);
+  m.set_pressure(20, 20, 20);
+  m.set_read_pressure(30, 30, 40);
+  put_frame(m, kVgaA, ga);
+  put_frame(m, kVgaB, gb);
+  uint64_t t0 = b.cycles();
+  int at_enable = mon.frames_compared();
+  b.write(kVgaBase, kVgaA);
+  b.write(kVgaControl, kVgaEnable);
+  expect_eq("VGA_STATUS right after enable", b.read(kVgaStatus), 0);
+  // Full screen, two pictures.
+  run_vga_frames(b, 2);
+  expect_vga_count(b, mon.frames_compared() - at_enable, "VGA_STATUS frames, full screen");
+  // Letterbox chosen in the middle of a frame: that frame stays full
+  // screen, the next two are letterboxed.
+  b.ticks(kToMidFrame);
+  int lb0 = mon.frames_letterbox();
+  b.write(kVgaControl, kVgaEnable | kVgaLetterbox);
+  run_vga_frames(b, 3);
+  if (mon.frames_letterbox() - lb0 != 2) fail("VGA: %d letterboxed pictures, want 2", mon.frames_letterbox() - lb0);
+  // VGA_BASE changed in the middle of a frame: the old frame whole, then
+  // the new one whole (the monitor compares each picture with the frame at
+  // the base latched at its vertical blanking).
+  b.write(kVgaControl, kVgaEnable);
+  run_vga_frames(b, 1);
+  b.ticks(kToMidFrame);
+  b.write(kVgaBase, kVgaB);
+  run_vga_frames(b, 2);
+  expect_vga_count(b, mon.frames_compared() - at_enable, "VGA_STATUS frames after the base change");
+  expect_eq("VGA_STATUS no underrun so far", b.read(kVgaStatus) & kVgaUnderrun, 0);
+  uint64_t clean_clocks = b.cycles() - t0;
+
+  // A memory stall that starves the reader: lines cut, underrun set; W1C
+  // clears it; the next picture is right again.
+  b.ticks(kToMidFrame);
+  m.set_read_stall(true);
+  b.ticks(20000);
+  m.set_read_stall(false);
+  mon.allow_cut(true);
+  run_vga_frames(b, 1);
+  mon.allow_cut(false);
+  int cut = mon.last_cut_lines();
+  if (cut == 0) fail("VGA: a 20,000-clock read stall cut no line");
+  expect_eq("VGA_STATUS underrun after a stall", b.read(kVgaStatus) & kVgaUnderrun, kVgaUnderrun);
+  b.write(kVgaStatus, kVgaUnderrun);
+  expect_eq("VGA_STATUS underrun W1C", b.read(kVgaStatus) & kVgaUnderrun, 0);
+  run_vga_frames(b, 1);
+  expect_eq("VGA_STATUS no underrun in the next frame", b.read(kVgaStatus) & kVgaUnderrun, 0);
+  printf("VGA underrun test: a 20,000-clock read stall cut %d lines of one picture, underrun set, W1C cleared; next picture byte-exact\n",
+         cut);
+
+  // Frame DMA and scan-out at once: two frames rendered into memory
+  // while the VGA shows frame B; both byte-exact.
+  int before = mon.frames_compared();
+  const uint32_t dma_base = kMemBase + 0x1000;
+  for (int i = 0; i < 2; ++i) {
+    const Golden &g = goldens[size_t(i) % goldens.size()];
+    FrameRun r = run_frame(b, dma_base, g.light);
+    expect_eq("FRAME_STATUS, frame DMA during scan-out", r.status, kFrameDone);
+    std::vector<uint8_t> want = wire_bytes(g);
+    if (memcmp(m.bytes(dma_base), want.data(), want.size()))
+      fail("frame DMA during scan-out: bytes differ from the model's frame");
+    printf("frame DMA during scan-out: light raw (%d, %d, %d), %llu cycles, byte-exact\n", g.light[0], g.light[1],
+           g.light[2], (unsigned long long)r.cycles);
+  }
+  run_vga_frames(b, 1);
+  expect_eq("VGA_STATUS no underrun with the frame DMA", b.read(kVgaStatus) & kVgaUnderrun, 0);
+  printf("VGA pictures during or right after the frame DMA: %d\n", mon.frames_compared() - before);
+
+  // Disabled: blank and black (the monitor checks every clock); enabling
+  // again clears VGA_STATUS and shows the frame at once.
+  b.write(kVgaControl, 0);
+  b.ticks(5000);
+  b.write(kVgaStatus, kVgaUnderrun);
+  b.write(kVgaControl, kVgaEnable | kVgaLetterbox);
+  expect_eq("VGA_STATUS cleared by enable", b.read(kVgaStatus), 0);
+  run_vga_frames(b, 1);
+  b.write(kVgaControl, 0);
+  b.ticks(100);
+  m.set_read_pressure(0, 0, 0);
+  printf("VGA monitor: %d pictures compared (%d letterboxed), %d with cut lines (%d lines) under a stall; %llu read bursts, %llu beats; timing checked at every pixel; %.1f Mclocks of clean scan-out\n",
+         mon.frames_compared(), mon.frames_letterbox(), mon.frames_with_cut_lines(), mon.cut_lines(),
+         (unsigned long long)m.read_bursts(), (unsigned long long)m.read_beats(), double(clean_clocks) / 1e6);
+}
+
+void check_board_io(Bench &b) {
+  Vrt_top *t = b.top();
+  // Dark after reset.
+  expect_eq("LEDR pins after reset", t->ledr_o, 0);
+  for (uint32_t hx : {t->hex0_n_o, t->hex1_n_o, t->hex2_n_o, t->hex3_n_o, t->hex4_n_o, t->hex5_n_o})
+    expect_eq("HEX pins after reset (active low, dark)", hx, 0x7f);
+  expect_eq("KEYS with no key", b.read(kKeys), 0);
+  // Switches, synchronised.
+  t->sw_i = 0x2a5;
+  b.ticks(3);
+  expect_eq("SWITCHES", b.read(kSwitches), 0x2a5);
+  t->sw_i = 0x15a;
+  b.ticks(3);
+  expect_eq("SWITCHES after a change", b.read(kSwitches), 0x15a);
+  b.write(kSwitches, 0);
+  expect_eq("SWITCHES ignores writes", b.read(kSwitches), 0x15a);
+  // LEDs and HEX follow the registers; HEX inverted on the pins.
+  b.write(kLeds, 0xffffffffu);
+  expect_eq("LEDS keeps 10 bits", b.read(kLeds), 0x3ff);
+  expect_eq("LEDR pins", t->ledr_o, 0x3ff);
+  b.write(kLeds, 0x155);
+  expect_eq("LEDR pins follow", t->ledr_o, 0x155);
+  b.write(kHexLo, 0xffffffffu);
+  expect_eq("HEX_LO keeps 4 x 7 bits", b.read(kHexLo), 0x7f7f7f7fu);
+  b.write(kHexLo, 0x01020408u);
+  b.write(kHexHi, 0x12345678u);
+  expect_eq("HEX_HI keeps 2 x 7 bits", b.read(kHexHi), 0x5678u);
+  const uint32_t want_pins[6] = {0x77, 0x7b, 0x7d, 0x7e, 0x07, 0x29};
+  const uint32_t got_pins[6] = {t->hex0_n_o, t->hex1_n_o, t->hex2_n_o, t->hex3_n_o, t->hex4_n_o, t->hex5_n_o};
+  for (int i = 0; i < 6; ++i) expect_eq("HEX pin segments (0 = lit)", got_pins[i], want_pins[i]);
+  // Keys: KEY1 bounces, then is held; it shows only after the debounce
+  // time of a stable level, with its sticky went-down bit.
+  for (int i = 0; i < 10; ++i) {
+    t->key_n_i = (i & 1) ? 0xf : 0xd;
+    b.ticks(500 + 300 * i);
+  }
+  t->key_n_i = 0xd;  // held down from here
+  b.ticks(kKeyDebounce - 20);
+  expect_eq("KEYS before the debounce time", b.read(kKeys), 0);
+  b.ticks(40);
+  expect_eq("KEYS after the debounce time", b.read(kKeys), 0x22);
+  b.write(kKeys, 0x0f);  // down bits are not W1C
+  expect_eq("KEYS down bits ignore writes", b.read(kKeys), 0x22);
+  // A short release (bounce) does not show; a long one does.
+  t->key_n_i = 0xf;
+  b.ticks(kKeyDebounce / 2);
+  t->key_n_i = 0xd;
+  b.ticks(kKeyDebounce / 2 + 100);
+  expect_eq("KEYS after a short release", b.read(kKeys), 0x22);
+  t->key_n_i = 0xf;
+  b.ticks(kKeyDebounce + 40);
+  expect_eq("KEYS after release: sticky stays", b.read(kKeys), 0x20);
+  b.write(kKeys, 0x20);
+  expect_eq("KEYS went-down W1C", b.read(kKeys), 0);
+  printf("board I/O: switches, LEDs, HEX (inverted pins), keys debounced over %u clocks with a bouncing KEY1: checked\n",
+         kKeyDebounce);
+}
+
 }  // namespace
 
 int main(int argc, char **argv) {
@@ -876,14 +1369,28 @@ int main(int argc, char **argv) {
   setvbuf(stdout, nullptr, _IOLBF, 0);
   std::vector<std::string> frames;
   std::string extra;
-  bool dma_only = false;
+  bool dma_only = false, vga_only = false, letterbox = false;
+  std::string map_full, map_letterbox, vga_out;
   for (int i = 1; i < argc; ++i) {
     if (!strcmp(argv[i], "--frame") && i + 1 < argc) frames.push_back(argv[++i]);
     else if (!strcmp(argv[i], "--extra") && i + 1 < argc) extra = argv[++i];
     else if (!strcmp(argv[i], "--max-errors") && i + 1 < argc) g_max_errors = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--dma-only")) dma_only = true;
+    else if (!strcmp(argv[i], "--vga-map") && i + 2 < argc) map_full = argv[++i], map_letterbox = argv[++i];
+    else if (!strcmp(argv[i], "--vga-timing") && i + 1 < argc) {
+      if (sscanf(argv[++i], "%d,%d,%d,%d,%d,%d,%d,%d", &g_h.visible, &g_h.front, &g_h.sync, &g_h.back, &g_v.visible,
+                 &g_v.front, &g_v.sync, &g_v.back) != 8) {
+        fprintf(stderr, "--vga-timing: eight numbers\n");
+        return 2;
+      }
+    } else if (!strcmp(argv[i], "--vga-only")) vga_only = true;
+    else if (!strcmp(argv[i], "--letterbox")) letterbox = true;
+    else if (!strcmp(argv[i], "--vga-out") && i + 1 < argc) vga_out = argv[++i];
     else if (argv[i][0] != '+') {
-      fprintf(stderr, "usage: %s [--frame FILE]... [--extra FILE] [--max-errors N]\n", argv[0]);
+      fprintf(stderr,
+              "usage: %s [--frame FILE]... [--extra FILE] [--max-errors N] [--dma-only] [--vga-map FULL LETTERBOX]\n"
+              "       [--vga-timing H,HFP,HS,HBP,V,VFP,VS,VBP] [--vga-only [--letterbox] --vga-out PPM]\n",
+              argv[0]);
       return 2;
     }
   }
@@ -898,6 +1405,26 @@ int main(int argc, char **argv) {
       fprintf(stderr, "%s: not a whole frame\n", frames[i].c_str());
       return 2;
     }
+  }
+  if (!map_full.empty() && !(load_map(map_full, g_map[0]) && load_map(map_letterbox, g_map[1]))) return 2;
+  if (vga_only) {
+    // The simulated monitor's picture of the first frame (cargo xtask vga).
+    if (goldens.empty() || map_full.empty()) {
+      fprintf(stderr, "--vga-only needs --frame and --vga-map\n");
+      return 2;
+    }
+    Bench bench;
+    bench.memory().set_read_pressure(20, 20, 30);
+    put_frame(bench.memory(), kVgaA, goldens[0]);
+    bench.write(kVgaBase, kVgaA);
+    bench.write(kVgaControl, kVgaEnable | (letterbox ? kVgaLetterbox : 0));
+    run_vga_frames(bench, 2);
+    if (!vga_out.empty() && !write_ppm(vga_out, bench.vga().picture())) {
+      fprintf(stderr, "cannot write %s\n", vga_out.c_str());
+      return 2;
+    }
+    printf("VGA monitor: %d pictures compared, %d mismatches\n", bench.vga().frames_compared(), g_errors);
+    return g_errors ? 1 : 0;
   }
   Bench bench;
   if (!extra.empty()) {
@@ -933,6 +1460,10 @@ int main(int argc, char **argv) {
     uint32_t row[kWidth];
     run_row(bench, 180, goldens[0].light, row);
     compare_row(goldens[0], 180, row, "row mode after frames");
+    if (!map_full.empty()) {
+      check_vga(bench, goldens);
+      check_board_io(bench);
+    }
     printf("frame-mode runs: %d under %zu slave behaviours, AXI protocol violations: %llu\n", runs + 1,
            sizeof slaves / sizeof slaves[0], (unsigned long long)bench.checker().violations());
   }

@@ -97,6 +97,17 @@ impl DmaTarget for TestMemory {
         true
     }
 
+    fn read(&mut self, addr: u32, out: &mut [u8]) -> bool {
+        let Some(off) = addr.checked_sub(MEMORY_BASE).map(|o| o as usize) else { return false };
+        match self.bytes.get(off..off + out.len()) {
+            Some(src) if !self.silent => {
+                out.copy_from_slice(src);
+                true
+            }
+            _ => false,
+        }
+    }
+
     fn answers(&self) -> bool {
         !self.silent
     }
@@ -539,6 +550,111 @@ pub fn a_frame_whose_memory_never_answers_ends_with_an_error(d: &mut impl Device
     assert!(d.memory().bytes[..FRAME_BYTES] == model_frame(&l)[..]);
 }
 
+// ---- VGA scan-out and board I/O (map version 3) ---------------------------
+
+fn csr(c: Csr) -> usize {
+    CSR_OFFSET + c.offset()
+}
+
+/// The VGA and board I/O registers after reset, their widths and readback,
+/// and the pins dark.
+pub fn vga_and_board_registers_store_their_bits(d: &mut impl Device) {
+    for c in
+        [Csr::VgaControl, Csr::VgaBase, Csr::VgaStatus, Csr::Keys, Csr::Switches, Csr::Leds, Csr::HexLo, Csr::HexHi]
+    {
+        assert_eq!(d.bus_read(csr(c)), 0, "{c:?} after reset");
+    }
+    assert_eq!(d.board_outputs(), BoardPins::from_registers(0, 0, 0), "pins dark after reset");
+    // Letterbox without enable: stored, nothing scanned.
+    d.bus_write(csr(Csr::VgaControl), !VGA_CONTROL_ENABLE);
+    assert_eq!(d.bus_read(csr(Csr::VgaControl)), VGA_CONTROL_LETTERBOX);
+    d.bus_write(csr(Csr::VgaControl), 0);
+    d.bus_write(csr(Csr::VgaBase), 0x1234_5677);
+    assert_eq!(d.bus_read(csr(Csr::VgaBase)), 0x1234_5670);
+    d.bus_write(csr(Csr::VgaStatus), 0xFFFF_FFFF);
+    assert_eq!(d.bus_read(csr(Csr::VgaStatus)), 0, "nothing to clear, counter read-only");
+    d.bus_write(csr(Csr::Keys), 0xFFFF_FFFF);
+    assert_eq!(d.bus_read(csr(Csr::Keys)), 0);
+    d.bus_write(csr(Csr::Switches), 0xFFFF_FFFF);
+    assert_eq!(d.bus_read(csr(Csr::Switches)), 0, "SWITCHES ignores writes");
+    d.bus_write(csr(Csr::Leds), 0xFFFF_FFFF);
+    d.bus_write(csr(Csr::HexLo), 0xFFFF_FFFF);
+    d.bus_write(csr(Csr::HexHi), 0xFFFF_FFFF);
+    assert_eq!(d.bus_read(csr(Csr::Leds)), LEDS_MASK);
+    assert_eq!(d.bus_read(csr(Csr::HexLo)), HEX_LO_MASK);
+    assert_eq!(d.bus_read(csr(Csr::HexHi)), HEX_HI_MASK);
+}
+
+/// LEDs and 7-segment pins follow the registers (HEX inverted on the
+/// pins); switches show in SWITCHES.
+pub fn board_pins_follow_the_registers(d: &mut impl Device) {
+    for (leds, lo, hi) in [(0x155, 0x0102_0408, 0x1234), (0x2AA, 0x7F00_3F06, 0x5B4F), (0, 0, 0)] {
+        d.bus_write(csr(Csr::Leds), leds);
+        d.bus_write(csr(Csr::HexLo), lo);
+        d.bus_write(csr(Csr::HexHi), hi);
+        assert_eq!(d.board_outputs(), BoardPins::from_registers(leds, lo, hi), "LEDS {leds:#x} HEX {lo:#x} {hi:#x}");
+    }
+    for sw in [0x2A5u16, 0x15A, 0x3FF, 0] {
+        d.set_board_inputs(0, sw);
+        d.pass_clocks(4);
+        assert_eq!(d.bus_read(csr(Csr::Switches)), u32::from(sw));
+    }
+}
+
+/// A key shows only once it has held its new level for the debounce time:
+/// a shorter press never shows; a longer one shows with its sticky bit,
+/// which only a write of 1 clears; the release is debounced too.
+pub fn keys_are_debounced(d: &mut impl Device) {
+    d.set_board_inputs(0b0100, 0);
+    d.pass_clocks(KEY_DEBOUNCE_CLOCKS / 2);
+    assert_eq!(d.bus_read(csr(Csr::Keys)), 0, "half the debounce time");
+    d.set_board_inputs(0, 0);
+    d.pass_clocks(KEY_DEBOUNCE_CLOCKS + 64);
+    assert_eq!(d.bus_read(csr(Csr::Keys)), 0, "a short press never shows");
+    d.set_board_inputs(0b0100, 0);
+    d.pass_clocks(KEY_DEBOUNCE_CLOCKS + 64);
+    assert_eq!(d.bus_read(csr(Csr::Keys)), 0x44, "held: down and went down");
+    d.bus_write(csr(Csr::Keys), 0x0F);
+    assert_eq!(d.bus_read(csr(Csr::Keys)), 0x44, "down bits are not cleared by writes");
+    d.bus_write(csr(Csr::Keys), 0x40);
+    assert_eq!(d.bus_read(csr(Csr::Keys)), 0x04, "W1C clears the sticky bit");
+    d.set_board_inputs(0, 0);
+    d.pass_clocks(KEY_DEBOUNCE_CLOCKS / 2);
+    assert_eq!(d.bus_read(csr(Csr::Keys)), 0x04, "release not yet debounced");
+    d.pass_clocks(KEY_DEBOUNCE_CLOCKS / 2 + 64);
+    assert_eq!(d.bus_read(csr(Csr::Keys)), 0, "released");
+}
+
+/// Enabled, the frame counter counts one frame per [`VGA_FRAME_CLOCKS`]
+/// (read in the middle of a frame time, so a device may count at any
+/// phase within one frame of enable); writes of 1 to the counter's bits
+/// do nothing; enabling again clears it. Scanning the test memory never
+/// underruns.
+pub fn the_vga_counts_frames_once_enabled(d: &mut impl Device) {
+    let status = csr(Csr::VgaStatus);
+    d.bus_write(csr(Csr::VgaBase), MEMORY_BASE);
+    d.pass_clocks(VGA_FRAME_CLOCKS);
+    assert_eq!(d.bus_read(status), 0, "disabled: no count");
+    d.bus_write(csr(Csr::VgaControl), VGA_CONTROL_ENABLE);
+    d.pass_clocks(VGA_FRAME_CLOCKS / 2);
+    assert_eq!(d.bus_read(status), 0, "half a frame after enable");
+    d.pass_clocks(VGA_FRAME_CLOCKS);
+    assert_eq!(d.bus_read(status), 1, "one frame and a half");
+    d.bus_write(status, VGA_STATUS_FRAMES);
+    assert_eq!(d.bus_read(status), 1, "the counter is not W1C");
+    d.pass_clocks(2 * VGA_FRAME_CLOCKS);
+    assert_eq!(d.bus_read(status), 3, "three frames and a half");
+    d.bus_write(csr(Csr::VgaControl), VGA_CONTROL_ENABLE | VGA_CONTROL_LETTERBOX);
+    assert_eq!(d.bus_read(status) & VGA_STATUS_FRAMES, 3, "a layout change keeps counting");
+    d.bus_write(csr(Csr::VgaControl), 0);
+    d.pass_clocks(VGA_FRAME_CLOCKS);
+    d.bus_write(csr(Csr::VgaControl), VGA_CONTROL_ENABLE);
+    assert_eq!(d.bus_read(status), 0, "enable clears VGA_STATUS");
+    d.pass_clocks(VGA_FRAME_CLOCKS / 2);
+    assert_eq!(d.bus_read(status), 0);
+    d.bus_write(csr(Csr::VgaControl), 0);
+}
+
 /// One `#[test]` per check of [`crate::conformance`] for the device that
 /// `$make` (an expression) builds afresh each time.
 #[macro_export]
@@ -553,7 +669,9 @@ macro_rules! conformance_tests {
             clear_done_while_busy_leaves_busy, rows_past_the_frame_follow_the_model, line_buffer_ignores_writes,
             a_frame_lands_in_memory_as_the_model_renders_it, starts_while_a_frame_runs_are_ignored,
             a_bus_error_is_reported_and_the_frame_still_ends, an_abort_stops_a_frame_and_nothing_lands_after_it,
-            an_abort_while_idle_does_nothing, a_frame_whose_memory_never_answers_ends_with_an_error);
+            an_abort_while_idle_does_nothing, a_frame_whose_memory_never_answers_ends_with_an_error,
+            vga_and_board_registers_store_their_bits, board_pins_follow_the_registers, keys_are_debounced,
+            the_vga_counts_frames_once_enabled);
     };
     (@each $make:expr; $($check:ident),* $(,)?) => {
         $(

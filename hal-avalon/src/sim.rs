@@ -61,6 +61,13 @@ pub trait DmaTarget {
     /// there (the RTL's bus error).
     fn write(&mut self, addr: u32, bytes: &[u8]) -> bool;
 
+    /// Read `out.len()` bytes at bus address `addr` (the VGA scan-out's
+    /// reads); `false` if no memory answers there. By default nothing does.
+    fn read(&mut self, addr: u32, out: &mut [u8]) -> bool {
+        let _ = (addr, out);
+        false
+    }
+
     /// Whether the memory takes writes at all. `false`: every write waits
     /// for ever (an FPGA-to-SDRAM port held in reset, a lost write
     /// response), so a frame stalls until it is aborted or hits the stall
@@ -83,6 +90,10 @@ impl DmaTarget for NoMemory {
 impl<T: DmaTarget + ?Sized> DmaTarget for &mut T {
     fn write(&mut self, addr: u32, bytes: &[u8]) -> bool {
         (**self).write(addr, bytes)
+    }
+
+    fn read(&mut self, addr: u32, out: &mut [u8]) -> bool {
+        (**self).read(addr, out)
     }
 
     fn answers(&self) -> bool {

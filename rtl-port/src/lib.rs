@@ -60,6 +60,7 @@ mod ffi {
     }
 
     pub type DmaWrite = unsafe extern "C" fn(ctx: *mut c_void, addr: u32, bytes: *const u8, len: u32) -> i32;
+    pub type DmaRead = unsafe extern "C" fn(ctx: *mut c_void, addr: u32, out: *mut u8, len: u32) -> i32;
 
     unsafe extern "C" {
         pub fn rtl_port_new() -> *mut RtlPort;
@@ -67,6 +68,9 @@ mod ffi {
         pub fn rtl_port_reset(p: *mut RtlPort);
         pub fn rtl_port_set_answering(p: *mut RtlPort, on: i32);
         pub fn rtl_port_set_dma(p: *mut RtlPort, f: Option<DmaWrite>, ctx: *mut c_void);
+        pub fn rtl_port_set_dma_read(p: *mut RtlPort, f: Option<DmaRead>);
+        pub fn rtl_port_set_board_inputs(p: *mut RtlPort, keys: u32, switches: u32);
+        pub fn rtl_port_board_outputs(p: *mut RtlPort, ledr: *mut u16, hex_n: *mut u8);
         pub fn rtl_port_write(p: *mut RtlPort, byte_offset: u32, value: u32);
         pub fn rtl_port_read(p: *mut RtlPort, byte_offset: u32) -> u32;
         pub fn rtl_port_step(p: *mut RtlPort, n: u64);
@@ -109,7 +113,10 @@ impl<M: DmaTarget> RtlAccelerator<M> {
             // which lives (and does not move) as long as the model; it is
             // called only inside the FFI calls below, made through `&mut
             // self`, so no other reference to the memory is live then.
-            unsafe { ffi::rtl_port_set_dma(a.raw.as_ptr(), Some(dma_write::<M>), ctx.cast()) };
+            unsafe {
+                ffi::rtl_port_set_dma(a.raw.as_ptr(), Some(dma_write::<M>), ctx.cast());
+                ffi::rtl_port_set_dma_read(a.raw.as_ptr(), Some(dma_read::<M>));
+            }
             Ok(a)
         }
         #[cfg(not(rtl_verilated))]
@@ -174,6 +181,37 @@ impl<M: DmaTarget> RtlAccelerator<M> {
         }
     }
 
+    /// Drive the board's inputs: `keys` held down (bit n: KEYn pressed; the
+    /// pins are active low), `switches` (bit n: SWn up). They take effect
+    /// on the next clock.
+    pub fn set_board_inputs(&mut self, keys: u8, switches: u16) {
+        #[cfg(rtl_verilated)]
+        // SAFETY: a live model; no callback runs in this call.
+        unsafe {
+            ffi::rtl_port_set_board_inputs(self.raw.as_ptr(), u32::from(keys), u32::from(switches))
+        }
+        #[cfg(not(rtl_verilated))]
+        let _ = (keys, switches);
+    }
+
+    /// The board's output pins: LEDR9..0 (1 = lit) and HEX0..HEX5's
+    /// segment pins (bit s = segment s, active low).
+    pub fn board_outputs(&mut self) -> (u16, [u8; 6]) {
+        let (mut ledr, mut hex_n) = (0u16, [0x7Fu8; 6]);
+        #[cfg(rtl_verilated)]
+        // SAFETY: a live model; the pointers are to a u16 and six bytes
+        // that live across the call; no callback runs in it.
+        unsafe {
+            ffi::rtl_port_board_outputs(self.raw.as_ptr(), &mut ledr, hex_n.as_mut_ptr())
+        }
+        #[cfg(not(rtl_verilated))]
+        {
+            ledr = 0;
+            hex_n = [0x7F; 6];
+        }
+        (ledr, hex_n)
+    }
+
     /// A 32-bit read at byte `offset` of the bridge window, then the
     /// access's idle clocks.
     pub fn bus_read(&mut self, offset: usize) -> u32 {
@@ -207,12 +245,20 @@ impl<M: DmaTarget> RtlAccelerator<M> {
     }
 }
 
-/// The AXI port's beats into the Rust memory.
+/// The AXI port's read beats from the Rust memory.
 ///
 /// # Safety
 ///
-/// `ctx` is the `*mut M` that `with_memory` registered and `bytes..bytes +
-/// len` is readable (the C side's beat buffer).
+/// `ctx` is the `*mut M` that `with_memory` registered and `out..out +
+/// len` is writable (the C side's beat buffer).
+#[cfg(rtl_verilated)]
+unsafe extern "C" fn dma_read<M: DmaTarget>(ctx: *mut core::ffi::c_void, addr: u32, out: *mut u8, len: u32) -> i32 {
+    // SAFETY: see the function's contract; the memory is not otherwise
+    // borrowed while the model runs (calls go through `&mut self`).
+    let (mem, out) = unsafe { (&mut *ctx.cast::<M>(), core::slice::from_raw_parts_mut(out, len as usize)) };
+    i32::from(mem.read(addr, out))
+}
+
 #[cfg(rtl_verilated)]
 unsafe extern "C" fn dma_write<M: DmaTarget>(
     ctx: *mut core::ffi::c_void,

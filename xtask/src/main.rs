@@ -78,6 +78,9 @@ enum Command {
     /// model, the Quartus files' consistency, Yosys resource estimate and
     /// logic depth.
     Rtl(fpga::rtl::RtlArgs),
+    /// The co-simulated VGA scan-out of the frame for a light: the
+    /// simulated monitor's 640x480 picture as PNG.
+    Vga(fpga::vga::VgaArgs),
 }
 
 fn main() -> ExitCode {
@@ -99,6 +102,7 @@ fn main() -> ExitCode {
         Command::Fuzz(args) => host::fuzz::run(&args),
         Command::LossyClient(args) => emulated::lossy::client(&args),
         Command::Rtl(args) => fpga::rtl::run_cli(&args),
+        Command::Vga(args) => fpga::vga::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

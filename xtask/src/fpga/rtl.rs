@@ -90,16 +90,6 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
     for lanes in [1, 2, 4] {
         step(&format!("verilator lint, LANES={lanes}"), lint(&rtl, &files, lanes))?;
     }
-    // The Platform Designer component's top (the full AXI3 signal set) and
-    // the Quartus files against each other.
-    let mut accel = Command::new("verilator");
-    accel
-        .current_dir(&rtl)
-        .args(["--lint-only", "-Wall", "--top-module", "rt_accel"])
-        .args(&files)
-        .arg("../quartus/rt_accel.sv");
-    step("verilator lint, rt_accel (Platform Designer component top)", accel)?;
-    super::quartus_check::run(&root)?;
 
     // The primitives on their own: random and edge-case operands far beyond
     // what the scene reaches (division by zero, MIN, saturation, 25-bit
@@ -119,18 +109,31 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
     for f in &golden.frames {
         sim.arg("--frame").arg(f);
     }
+    vga_args(&mut sim, &write_display_maps(&out)?);
     step(&format!("co-simulation, LANES={}, {} frames", args.lanes, golden.frames.len()), sim)?;
 
     if !args.no_estimate {
         ensure_yowasp()?;
         estimate(&root, &out, &files, args.lanes)?;
     }
+
+    // The Platform Designer component's top (the full AXI3 signal set) and
+    // the Quartus files against each other: last, so the RTL's own checks
+    // report even while fpga/quartus is being brought to a new rt_top.
+    let mut accel = Command::new("verilator");
+    accel
+        .current_dir(&rtl)
+        .args(["--lint-only", "-Wall", "--top-module", "rt_accel"])
+        .args(&files)
+        .arg("../quartus/rt_accel.sv");
+    step("verilator lint, rt_accel (Platform Designer component top)", accel)?;
+    super::quartus_check::run(&root)?;
     println!("xtask rtl: all steps passed");
     Ok(())
 }
 
 /// The RTL sources in compile order, from `fpga/rtl/files.f`.
-fn rtl_files(rtl: &Path) -> Result<Vec<String>> {
+pub fn rtl_files(rtl: &Path) -> Result<Vec<String>> {
     let list = rtl.join("files.f");
     let text = fs::read_to_string(&list).map_err(|e| format!("{}: {e}", list.display()))?;
     Ok(text.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with('#')).map(str::to_owned).collect())
@@ -152,7 +155,7 @@ struct Goldens {
 
 /// Golden rows in the `cargo xtask golden` format (a `//` header naming the
 /// rows and the raw light, then one `0x00RRGGBB` word per line).
-fn write_golden(path: &Path, light: &Light, first_row: u16, rows: u16) -> Result<()> {
+pub fn write_golden(path: &Path, light: &Light, first_row: u16, rows: u16) -> Result<()> {
     let io = |e: std::io::Error| format!("{}: {e}", path.display());
     let mut w = BufWriter::new(fs::File::create(path).map_err(io)?);
     let [x, y, z] = light.raw();
@@ -185,8 +188,42 @@ fn write_goldens(out: &Path, lights: usize) -> Result<Goldens> {
     Ok(Goldens { frames, extra })
 }
 
+/// The display mapping as the testbench takes it: for each layout,
+/// `model::display::display_picture` of an index frame whose pixel `i`
+/// holds `i + 1` (R << 16 | G << 8 | B; 172,800 pixels fit in 24 bits), so
+/// a display pixel reads 0 where it is black and `i + 1` where it shows
+/// frame pixel `i`. The testbench applies it to whatever frame is in its
+/// memory.
+pub fn write_display_maps(out: &Path) -> Result<[PathBuf; 2]> {
+    use model::display::{display_picture, Layout, DISPLAY_BYTES};
+    let mut index = vec![0u8; model::FRAME_BYTES];
+    for (i, px) in index.chunks_exact_mut(3).enumerate() {
+        let v = i as u32 + 1;
+        px.copy_from_slice(&[(v >> 16) as u8, (v >> 8) as u8, v as u8]);
+    }
+    let mut paths = Vec::new();
+    for (layout, name) in [(Layout::FullScreen, "full"), (Layout::Letterbox, "letterbox")] {
+        let mut picture = vec![0u8; DISPLAY_BYTES];
+        display_picture(&index, layout, &mut picture);
+        let path = out.join(format!("display-map-{name}.rgb"));
+        fs::write(&path, &picture).map_err(|e| format!("{}: {e}", path.display()))?;
+        paths.push(path);
+    }
+    Ok([paths[0].clone(), paths[1].clone()])
+}
+
+/// The testbench's VGA arguments: the display maps and the model's timing.
+pub fn vga_args(sim: &mut Command, maps: &[PathBuf; 2]) {
+    use model::display::{H_TIMING as H, V_TIMING as V};
+    sim.arg("--vga-map").arg(&maps[0]).arg(&maps[1]);
+    sim.arg("--vga-timing").arg(format!(
+        "{},{},{},{},{},{},{},{}",
+        H.visible, H.front_porch, H.sync, H.back_porch, V.visible, V.front_porch, V.sync, V.back_porch
+    ));
+}
+
 /// Verilate rt_top with the C++ testbench into target/rtl/obj-lanesN.
-fn build_cosim(root: &Path, out: &Path, files: &[String], lanes: u32) -> Result<PathBuf> {
+pub fn build_cosim(root: &Path, out: &Path, files: &[String], lanes: u32) -> Result<PathBuf> {
     let lanes_param = format!("-GLANES={lanes}");
     verilator_build(
         root,
