@@ -18,7 +18,7 @@
 // format: a `//` header `// golden rows A..B light raw X Y Z`, then one
 // 8-digit hex word per pixel).
 //
-// Usage: tb_rt_top [--frame FILE]... [--extra FILE] [--max-errors N] [--dma-only]
+// Usage: tb_rt_top [--frame FILE]... [--extra FILE] [--max-errors N] [--dma-only] [--mem-seed N]
 //   --frame: a whole-frame golden file (rows 0..360): rendered and compared,
 //            in row mode and in frame mode.
 //   --extra: golden rows 360..512 of some light: register-semantics checks
@@ -396,7 +396,7 @@ class AxiMemory {
 
 class Bench {
  public:
-  Bench() : top_(new Vrt_top), mem_(12345) {
+  explicit Bench(uint32_t mem_seed) : top_(new Vrt_top), mem_(mem_seed) {
     top_->clk_i = 0;
     top_->rst_ni = 0;
     top_->avs_read_i = 0;
@@ -877,11 +877,13 @@ int main(int argc, char **argv) {
   std::vector<std::string> frames;
   std::string extra;
   bool dma_only = false;
+  uint32_t mem_seed = 12345;  // the memory model's stalls and delays
   for (int i = 1; i < argc; ++i) {
     if (!strcmp(argv[i], "--frame") && i + 1 < argc) frames.push_back(argv[++i]);
     else if (!strcmp(argv[i], "--extra") && i + 1 < argc) extra = argv[++i];
     else if (!strcmp(argv[i], "--max-errors") && i + 1 < argc) g_max_errors = atoi(argv[++i]);
     else if (!strcmp(argv[i], "--dma-only")) dma_only = true;
+    else if (!strcmp(argv[i], "--mem-seed") && i + 1 < argc) mem_seed = uint32_t(strtoul(argv[++i], nullptr, 0));
     else if (argv[i][0] != '+') {
       fprintf(stderr, "usage: %s [--frame FILE]... [--extra FILE] [--max-errors N]\n", argv[0]);
       return 2;
@@ -899,7 +901,7 @@ int main(int argc, char **argv) {
       return 2;
     }
   }
-  Bench bench;
+  Bench bench(mem_seed);
   if (!extra.empty()) {
     Golden ex;
     if (!load_golden(extra, ex)) return 2;
