@@ -172,7 +172,10 @@ module rt_frame_dma
   logic [4:0] w_len_now;
   assign w_len_now = (w_left_q != 0) ? w_left_q : burst_len(w_addr_q[6:3], w_inrow_q);
   assign wvalid_o = active_q && (w_beats_q < announced) && (w_blank_q || fifo_n_q != 0);
-  assign wdata_o = fifo_q[fifo_rd_q];
+  // Blank beats carry zeros: the FIFO slot under the read pointer may be
+  // refilled while a blank beat waits, and a waiting beat's payload must
+  // not change (AXI3 A3.2.1).
+  assign wdata_o = w_blank_q ? 64'd0 : fifo_q[fifo_rd_q];
   assign wstrb_o = w_blank_q ? 8'h00 : 8'hff;
   assign wlast_o = (w_len_now == 5'd1);
   logic w_fire;

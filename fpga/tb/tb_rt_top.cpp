@@ -18,7 +18,7 @@
 // format: a `//` header `// golden rows A..B light raw X Y Z`, then one
 // 8-digit hex word per pixel).
 //
-// Usage: tb_rt_top [--frame FILE]... [--extra FILE] [--max-errors N] [--dma-only]
+// Usage: tb_rt_top [--frame FILE]... [--extra FILE] [--max-errors N] [--dma-only] [--mem-seed N]
 //   --frame: a whole-frame golden file (rows 0..360): rendered and compared,
 //            in row mode and in frame mode.
 //   --extra: golden rows 360..512 of some light: register-semantics checks
@@ -663,7 +663,7 @@ class VgaMonitor {
 
 class Bench {
  public:
-  Bench() : top_(new Vrt_top), mem_(12345) {
+  explicit Bench(uint32_t mem_seed) : top_(new Vrt_top), mem_(mem_seed) {
     top_->clk_i = 0;
     top_->rst_ni = 0;
     top_->avs_read_i = 0;
@@ -1371,6 +1371,7 @@ int main(int argc, char **argv) {
   std::string extra;
   bool dma_only = false, vga_only = false, letterbox = false;
   std::string map_full, map_letterbox, vga_out;
+  uint32_t mem_seed = 12345;  // the memory model's stalls and delays
   for (int i = 1; i < argc; ++i) {
     if (!strcmp(argv[i], "--frame") && i + 1 < argc) frames.push_back(argv[++i]);
     else if (!strcmp(argv[i], "--extra") && i + 1 < argc) extra = argv[++i];
@@ -1386,9 +1387,10 @@ int main(int argc, char **argv) {
     } else if (!strcmp(argv[i], "--vga-only")) vga_only = true;
     else if (!strcmp(argv[i], "--letterbox")) letterbox = true;
     else if (!strcmp(argv[i], "--vga-out") && i + 1 < argc) vga_out = argv[++i];
+    else if (!strcmp(argv[i], "--mem-seed") && i + 1 < argc) mem_seed = uint32_t(strtoul(argv[++i], nullptr, 0));
     else if (argv[i][0] != '+') {
       fprintf(stderr,
-              "usage: %s [--frame FILE]... [--extra FILE] [--max-errors N] [--dma-only] [--vga-map FULL LETTERBOX]\n"
+              "usage: %s [--frame FILE]... [--extra FILE] [--max-errors N] [--dma-only] [--mem-seed N] [--vga-map FULL LETTERBOX]\n"
               "       [--vga-timing H,HFP,HS,HBP,V,VFP,VS,VBP] [--vga-only [--letterbox] --vga-out PPM]\n",
               argv[0]);
       return 2;
@@ -1413,7 +1415,7 @@ int main(int argc, char **argv) {
       fprintf(stderr, "--vga-only needs --frame and --vga-map\n");
       return 2;
     }
-    Bench bench;
+    Bench bench(mem_seed);
     bench.memory().set_read_pressure(20, 20, 30);
     put_frame(bench.memory(), kVgaA, goldens[0]);
     bench.write(kVgaBase, kVgaA);
@@ -1426,7 +1428,7 @@ int main(int argc, char **argv) {
     printf("VGA monitor: %d pictures compared, %d mismatches\n", bench.vga().frames_compared(), g_errors);
     return g_errors ? 1 : 0;
   }
-  Bench bench;
+  Bench bench(mem_seed);
   if (!extra.empty()) {
     Golden ex;
     if (!load_golden(extra, ex)) return 2;
