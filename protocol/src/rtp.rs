@@ -116,7 +116,7 @@ impl core::fmt::Display for BufferTooShort {
     }
 }
 
-/// The out-of-place front of `out`, `n` bytes, or how many were needed.
+/// The first `n` bytes of `out`, or how many were needed.
 fn front(out: &mut [u8], n: usize) -> Result<&mut [u8], BufferTooShort> {
     out.get_mut(..n).ok_or(BufferTooShort { needed: n })
 }
@@ -482,8 +482,10 @@ impl ReportTimer {
 /// i of BLP, lowest first. The 16-bit numbers are resolved against the
 /// sender's newest extended sequence number: to the one at most 32,767
 /// packets back with those low 16 bits; numbers ahead of it (never sent)
-/// are dropped. Duplicates are not removed. The work is bounded by the
-/// datagram: at most 17 numbers per 4 bytes of FCI.
+/// are dropped. Duplicates are not removed. At most
+/// [`MAX_NACKED_PER_DATAGRAM`] numbers come out of one datagram, however
+/// many it lists: a 1,500-byte NACK could otherwise ask for some 6,000
+/// resends of 1,502 bytes each.
 #[derive(Clone, Debug)]
 pub struct NackRequests<'a> {
     /// The packets after the current one.
@@ -496,7 +498,14 @@ pub struct NackRequests<'a> {
     /// Offsets from `pid` still to yield: bit 0 the PID, bit i + 1 BLP's
     /// bit i.
     pending: u32,
+    /// Numbers still allowed out.
+    budget: u16,
 }
+
+/// The most sequence numbers [`NackRequests`] yields for one datagram:
+/// two frames' packets ([`REPAIR_ENTRIES`]), all a [`FrameRepairWindow`]
+/// could resend.
+pub const MAX_NACKED_PER_DATAGRAM: u16 = REPAIR_ENTRIES as u16;
 
 /// Whether `data` is a well-formed run of RTCP packets (RFC 3550 appendix
 /// A.2, less the rule that the first be a report: RFC 5506 allows a
@@ -538,7 +547,15 @@ impl<'a> NackRequests<'a> {
             Some(_) if valid_compound(datagram) => datagram,
             _ => &[],
         };
-        NackRequests { rest, fci: &[], media_ssrc, highest: highest.unwrap_or(0), pid: 0, pending: 0 }
+        NackRequests {
+            rest,
+            fci: &[],
+            media_ssrc,
+            highest: highest.unwrap_or(0),
+            pid: 0,
+            pending: 0,
+            budget: MAX_NACKED_PER_DATAGRAM,
+        }
     }
 
     /// The extended sequence number with low 16 bits `seq16` at most 32,767
@@ -558,7 +575,7 @@ impl<'a> NackRequests<'a> {
             };
             self.rest = &self.rest[len..];
             let pad = if b0 & 0x20 != 0 { usize::from(packet[len - 1]) } else { 0 };
-            let body = packet.get(..len - pad).unwrap_or(&[]);
+            let body = packet.get(..len.saturating_sub(pad)).unwrap_or(&[]);
             if pt != RTCP_RTPFB || b0 & 0x1f != FMT_GENERIC_NACK {
                 continue;
             }
@@ -579,6 +596,7 @@ impl Iterator for NackRequests<'_> {
     type Item = u32;
 
     fn next(&mut self) -> Option<u32> {
+        self.budget = self.budget.checked_sub(1)?;
         loop {
             if self.pending != 0 {
                 let offset = self.pending.trailing_zeros();
@@ -667,7 +685,7 @@ struct Entry {
 /// is what a jitter buffer without RFC 4588 takes), its row read from the
 /// slot once more, zero-copy.
 ///
-/// A slot is *held* while any packet of its in the window: the caller
+/// A slot is *held* while any of its packets is in the window: the caller
 /// keeps it out of reuse meanwhile ([`FrameRing::pin`]). Packets leave the
 /// window when `N` newer ones were recorded, or when they are older than
 /// the hold time ([`expire`](Self::expire)), so an idle stream lets its
@@ -1144,6 +1162,13 @@ mod tests {
     }
 
     #[test]
+    fn one_datagram_asks_for_a_bounded_number_of_resends() {
+        let d = nack(9, 0x1234_5678, &[(100, 0xffff); 300]);
+        assert_eq!(nacked(&d, 200).len(), usize::from(MAX_NACKED_PER_DATAGRAM), "not 300 x 17");
+        assert_eq!(nacked(&nack(9, 0x1234_5678, &[(100, 0xffff); 2]), 200).len(), 34);
+    }
+
+    #[test]
     fn malformed_datagrams_yield_nothing() {
         let good = nack(9, 0x1234_5678, &[(7, 0)]);
         assert_eq!(nacked(&good, 100), [7]);
@@ -1209,6 +1234,20 @@ mod tests {
             let mut with_tail = d.clone();
             with_tail.extend(&tail);
             let _ = nacked(&with_tail, 3_000);
+        }
+
+        #[test]
+        fn mutated_compounds_never_panic(flips in proptest::collection::vec((0usize..64, proptest::num::u8::ANY), 1..6),
+                                         highest: u32) {
+            let mut d = rr(9);
+            d.extend(nack(9, 0x1234_5678, &[(7, 0xffff), (40_000, 1)]));
+            d.extend(nack(9, 0x1234_5678, &[(8, 3)]));
+            for (at, byte) in flips {
+                let i = at % d.len();
+                d[i] = byte;
+            }
+            let n = NackRequests::new(&d, 0x1234_5678, Some(highest)).count();
+            proptest::prop_assert!(n <= 3 * 17);
         }
     }
 
