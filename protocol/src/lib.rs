@@ -9,6 +9,9 @@
 //! * [`frames`]: where frames come from: rendered a row at a time (row
 //!   mode), or whole frames in a ring of slots filled by an engine (frame
 //!   mode), the same streaming code for both.
+//! * [`rtp`]: frames as an RTP stream (RFC 3550, RFC 4175: one row a
+//!   packet) with RTCP sender reports, NACK parsing (RFC 4585) and the
+//!   bookkeeping to resend lost rows from the frame ring.
 //! * [`monitor`]: the board on its own: the VGA display following the
 //!   newest frame, attract mode, keys, switches, LEDs and 7-segment text.
 //! * [`fallback`]: a row source that falls back to another where it fails,
@@ -24,6 +27,7 @@
 pub mod fallback;
 pub mod frames;
 pub mod monitor;
+pub mod rtp;
 pub mod server;
 #[cfg(feature = "smoltcp")]
 pub mod service;
