@@ -11,6 +11,8 @@
 //!   mode), the same streaming code for both.
 //! * [`monitor`]: the board on its own: the VGA display following the
 //!   newest frame, attract mode, keys, switches, LEDs and 7-segment text.
+//! * [`orbit`]: the light orbiting the sphere, the path `rt-client orbit`
+//!   takes, by frame or by time.
 //! * [`fallback`]: a row source that falls back to another where it fails,
 //!   and switches a wedged one off.
 //! * `service` (feature `smoltcp`): the server bound to smoltcp TCP sockets,
@@ -24,6 +26,7 @@
 pub mod fallback;
 pub mod frames;
 pub mod monitor;
+pub mod orbit;
 pub mod server;
 #[cfg(feature = "smoltcp")]
 pub mod service;
