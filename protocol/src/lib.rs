@@ -13,6 +13,9 @@
 //!   newest frame, attract mode, keys, switches, LEDs and 7-segment text.
 //! * [`orbit`]: the light orbiting the sphere, the path `rt-client orbit`
 //!   takes, by frame or by time.
+//! * [`rtsp`]: the board as a network camera: the sans-IO RTSP/1.0 server
+//!   (port [`rtsp::RTSP_PORT`]): stream URLs, sessions, SDP, actions for the
+//!   RTP sender.
 //! * [`fallback`]: a row source that falls back to another where it fails,
 //!   and switches a wedged one off.
 //! * `service` (feature `smoltcp`): the server bound to smoltcp TCP sockets,
@@ -27,6 +30,7 @@ pub mod fallback;
 pub mod frames;
 pub mod monitor;
 pub mod orbit;
+pub mod rtsp;
 pub mod server;
 #[cfg(feature = "smoltcp")]
 pub mod service;
