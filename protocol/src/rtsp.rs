@@ -448,6 +448,9 @@ pub enum Action {
         session: SessionId,
     },
     /// A live stream's light moved: render the next frames with `light`.
+    /// It may come while the session is Ready (not sending): a sender
+    /// without the stream can drop it, the next [`Action::Play`] carries
+    /// the light as `live`.
     SetLight {
         /// The session.
         session: SessionId,
