@@ -14,6 +14,11 @@
 //!   bookkeeping to resend lost rows from the frame ring.
 //! * [`monitor`]: the board on its own: the VGA display following the
 //!   newest frame, attract mode, keys, switches, LEDs and 7-segment text.
+//! * [`orbit`]: the light orbiting the sphere, the path `rt-client orbit`
+//!   takes, by frame or by time.
+//! * [`rtsp`]: the board as a network camera: the sans-IO RTSP/1.0 server
+//!   (port [`rtsp::RTSP_PORT`]): stream URLs, sessions, SDP, actions for the
+//!   RTP sender.
 //! * [`fallback`]: a row source that falls back to another where it fails,
 //!   and switches a wedged one off.
 //! * `service` (feature `smoltcp`): the server bound to smoltcp TCP sockets,
@@ -27,7 +32,9 @@
 pub mod fallback;
 pub mod frames;
 pub mod monitor;
+pub mod orbit;
 pub mod rtp;
+pub mod rtsp;
 pub mod server;
 #[cfg(feature = "smoltcp")]
 pub mod service;

@@ -1,0 +1,460 @@
+//! Hostile input for the sans-IO RTSP server: well-formed requests of every
+//! method (naming real, foreign, stale and made-up sessions), the same
+//! requests mutated byte by byte, and junk, over three connections from two
+//! addresses, cut at random points, with random pauses (past the session
+//! timeout too) and RTCP packets. Checked: no panic; every response is
+//! well-formed and fits; a well-formed request on an idle connection gets
+//! exactly one response, echoing its CSeq; the sessions stay within the cap
+//! and within their owners; every action names a session in the state it
+//! says; every session ends exactly once (TEARDOWN or timeout).
+//!
+//! `cargo test -p rt-protocol --test fuzz_rtsp` runs proptest's default 256
+//! cases (the suite's short run); `cargo xtask fuzz` runs a million
+//! (release build).
+
+use std::collections::HashSet;
+use std::net::{IpAddr, Ipv4Addr};
+
+use model::Light;
+use proptest::prelude::*;
+use rt_protocol::rtsp::{
+    Action, Config, Connection, Random, Server, SessionId, State, Status, Stream, MAX_REQUEST_BYTES,
+    MAX_RESPONSE_BYTES, MAX_SESSIONS, SERVER_RTP_PORT, SESSION_TIMEOUT,
+};
+use rt_protocol::Instant;
+
+const PEERS: [IpAddr; 3] = [
+    IpAddr::V4(Ipv4Addr::new(10, 0, 0, 1)),
+    IpAddr::V4(Ipv4Addr::new(10, 0, 0, 1)),
+    IpAddr::V4(Ipv4Addr::new(10, 0, 0, 2)),
+];
+
+/// xorshift64*: the server's random source, seeded per case.
+struct Xorshift(u64);
+
+impl Random for Xorshift {
+    fn next_u32(&mut self) -> u32 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 32) as u32
+    }
+}
+
+/// Which session a request names.
+#[derive(Clone, Debug)]
+enum SessionRef {
+    None,
+    /// The k-th newest session id the server handed out (mod their number).
+    Seen(usize),
+    /// A made-up id.
+    Made(u64),
+    /// Arbitrary text.
+    Text(String),
+}
+
+/// A request before its session id is known.
+#[derive(Clone, Debug)]
+struct Req {
+    method: String,
+    url: String,
+    version: &'static str,
+    cseq: Option<String>,
+    session: SessionRef,
+    transport: Option<String>,
+    body: Option<String>,
+    lf_only: bool,
+}
+
+#[derive(Clone, Debug)]
+enum Mutation {
+    Flip(usize, u8),
+    Insert(usize, u8),
+    Delete(usize),
+    Truncate(usize),
+}
+
+#[derive(Clone, Debug)]
+enum Piece {
+    /// A request as written, on a connection.
+    Clean(usize, Req),
+    /// A request damaged, on a connection.
+    Mutated(usize, Req, Vec<Mutation>),
+    /// Arbitrary bytes on a connection.
+    Junk(usize, Vec<u8>),
+    /// An RTCP packet from peer `.0`, port `.1`.
+    Rtcp(usize, u16),
+    /// Time passes.
+    Wait(u64),
+}
+
+const METHODS: &[&str] = &[
+    "OPTIONS",
+    "DESCRIBE",
+    "SETUP",
+    "SETUP",
+    "SETUP",
+    "SETUP",
+    "SETUP",
+    "PLAY",
+    "PLAY",
+    "PLAY",
+    "PAUSE",
+    "PAUSE",
+    "TEARDOWN",
+    "GET_PARAMETER",
+    "SET_PARAMETER",
+    "SET_PARAMETER",
+    "ANNOUNCE",
+    "RECORD",
+    "options",
+];
+
+/// The first [`GOOD_URLS`] name streams.
+const URLS: &[&str] = &[
+    "rtsp://10.0.0.9:8554/light/3,4,-2",
+    "rtsp://10.0.0.9:8554/light/3,4,-2?fps=60",
+    "rtsp://10.0.0.9:8554/light/3%2C4%2C-2/trackID=0",
+    "rtsp://10.0.0.9:8554/orbit",
+    "rtsp://10.0.0.9:8554/orbit?radius=5&height=2&period=8&fps=max",
+    "rtsp://10.0.0.9:8554/live",
+    "rtsp://10.0.0.9:8554/live?fps=5",
+    "rtsp://10.0.0.9:8554/live/trackID=0",
+    "rtsp://10.0.0.9:8554/nothing",
+    "rtsp://10.0.0.9:8554/light/9000,0,0",
+    "rtsp://10.0.0.9:8554/orbit?period=0",
+    "rtsp://10.0.0.9:8554/live?fps=0",
+    "*",
+];
+
+const GOOD_URLS: usize = 8;
+
+/// The first [`GOOD_TRANSPORTS`] are accepted.
+const TRANSPORTS: &[&str] = &[
+    "RTP/AVP;unicast;client_port=6000-6001",
+    "RTP/AVP/UDP;unicast;client_port=6002",
+    "RTP/AVP;unicast;client_port=6004-6005;mode=\"PLAY\"",
+    "RTP/AVP/TCP;unicast;interleaved=0-1",
+    "RTP/AVP;multicast;client_port=6000-6001",
+    "RTP/AVP;unicast",
+    "RTP/AVP;unicast;client_port=0-1",
+    "RTP/AVP/TCP;interleaved=0-1,RTP/AVP;unicast;client_port=7000-7001",
+];
+
+const GOOD_TRANSPORTS: usize = 3;
+
+const BODIES: &[&str] = &["", "light: 1,2,3", "light: 1.5, 6, -2.25\r\n", "light: 9000,0,0", "colour: red", "light"];
+
+/// A request: mostly a plausible next step of a client (`sane`: a good
+/// stream URL and transport, the session it would name, a light to set),
+/// otherwise any combination of good and bad fields.
+fn req() -> impl Strategy<Value = Req> {
+    let method = prop_oneof![8 => prop::sample::select(METHODS).prop_map(String::from), 1 => "[A-Z_]{1,12}"];
+    let url = prop_oneof![6 => prop::sample::select(URLS).prop_map(String::from), 1 => "[!-~]{1,60}"];
+    let version = prop::sample::select(&["RTSP/1.0", "RTSP/1.0", "RTSP/1.0", "RTSP/1.0", "RTSP/2.0", "HTTP/1.1"][..]);
+    let cseq = prop_oneof![
+        8 => (0u32..100_000).prop_map(|n| Some(n.to_string())),
+        1 => Just(None),
+        1 => "[ -~]{0,12}".prop_map(Some),
+    ];
+    let session = prop_oneof![
+        3 => Just(SessionRef::None),
+        6 => (0usize..8).prop_map(SessionRef::Seen),
+        1 => any::<u64>().prop_map(SessionRef::Made),
+        1 => "[ -~]{0,20}".prop_map(SessionRef::Text),
+    ];
+    let transport = prop_oneof![
+        1 => Just(None),
+        6 => prop::sample::select(TRANSPORTS).prop_map(|t| Some(t.to_string())),
+        1 => "[ -~]{0,60}".prop_map(Some),
+    ];
+    let body = prop_oneof![
+        2 => Just(None),
+        4 => prop::sample::select(BODIES).prop_map(|b| Some(b.to_string())),
+        1 => "[ -~\r\n]{0,200}".prop_map(Some),
+    ];
+    let sane = (
+        prop::bool::weighted(0.75),
+        0usize..GOOD_URLS,
+        0usize..GOOD_TRANSPORTS,
+        0usize..3,
+        [-40i32..40, -40i32..40, -40i32..40],
+    );
+    (method, url, version, cseq, session, transport, body, prop::bool::weighted(0.1), sane).prop_map(
+        |(method, url, version, cseq, session, transport, body, lf_only, (sane, u, t, k, xyz))| {
+            let mut r = Req { method, url, version, cseq, session, transport, body, lf_only };
+            if sane {
+                r.version = "RTSP/1.0";
+                r.cseq = Some(format!("{}", k + u * 10 + t * 100));
+                r.url = URLS[u].to_string();
+                r.transport = None;
+                r.body = None;
+                r.session = SessionRef::Seen(k);
+                match r.method.as_str() {
+                    "OPTIONS" | "DESCRIBE" => r.session = SessionRef::None,
+                    "SETUP" => {
+                        r.transport = Some(TRANSPORTS[t].to_string());
+                        if k > 0 {
+                            r.session = SessionRef::None;
+                        }
+                    }
+                    "SET_PARAMETER" => {
+                        let [x, y, z] = xyz.map(|v| f64::from(v) / 4.0);
+                        r.body = Some(format!("light: {x},{y},{z}\r\n"));
+                    }
+                    _ => {}
+                }
+            }
+            r
+        },
+    )
+}
+
+fn mutation() -> impl Strategy<Value = Mutation> {
+    prop_oneof![
+        (any::<usize>(), any::<u8>()).prop_map(|(p, b)| Mutation::Flip(p, b)),
+        (any::<usize>(), any::<u8>()).prop_map(|(p, b)| Mutation::Insert(p, b)),
+        any::<usize>().prop_map(Mutation::Delete),
+        any::<usize>().prop_map(Mutation::Truncate),
+    ]
+}
+
+fn piece() -> impl Strategy<Value = Piece> {
+    let conn = 0usize..PEERS.len();
+    prop_oneof![
+        10 => (conn.clone(), req()).prop_map(|(c, r)| Piece::Clean(c, r)),
+        3 => (conn.clone(), req(), prop::collection::vec(mutation(), 1..4)).prop_map(|(c, r, m)| Piece::Mutated(c, r, m)),
+        1 => (conn, prop::collection::vec(any::<u8>(), 0..40)).prop_map(|(c, j)| Piece::Junk(c, j)),
+        1 => (0usize..PEERS.len(), prop_oneof![Just(6001u16), Just(7001u16), any::<u16>()]).prop_map(|(p, port)| Piece::Rtcp(p, port)),
+        2 => prop_oneof![0u64..5_000, Just(SESSION_TIMEOUT.as_millis() as u64 + 1_000)].prop_map(Piece::Wait),
+    ]
+}
+
+#[derive(Clone, Debug)]
+struct Case {
+    seed: u64,
+    pieces: Vec<Piece>,
+    cuts: Vec<usize>,
+}
+
+fn case() -> impl Strategy<Value = Case> {
+    (any::<u64>(), prop::collection::vec(piece(), 0..32), prop::collection::vec(1usize..200, 1..6))
+        .prop_map(|(seed, pieces, cuts)| Case { seed: seed | 1, pieces, cuts })
+}
+
+/// The bytes of `r`, naming one of `seen` where it refers to one.
+fn render(r: &Req, seen: &[SessionId]) -> Vec<u8> {
+    let mut t = format!("{} {} {}\r\n", r.method, r.url, r.version);
+    if let Some(c) = &r.cseq {
+        t += &format!("CSeq: {c}\r\n");
+    }
+    match &r.session {
+        SessionRef::None => {}
+        SessionRef::Seen(k) => match seen.len() {
+            0 => t += "Session: 0000000000000001\r\n",
+            n => t += &format!("Session: {};timeout=60\r\n", seen[n - 1 - k % n]),
+        },
+        SessionRef::Made(id) => t += &format!("Session: {}\r\n", SessionId(*id)),
+        SessionRef::Text(s) => t += &format!("Session: {s}\r\n"),
+    }
+    if let Some(tr) = &r.transport {
+        t += &format!("Transport: {tr}\r\n");
+    }
+    if let Some(b) = &r.body {
+        t += &format!("Content-Type: text/parameters\r\nContent-Length: {}\r\n", b.len());
+    }
+    t += "\r\n";
+    if let Some(b) = &r.body {
+        t += b;
+    }
+    if r.lf_only {
+        t = t.replace("\r\n", "\n");
+        // The body's length changed with its line ends: fix the header.
+        if let Some(b) = &r.body {
+            let nb = b.replace("\r\n", "\n");
+            t = t.replace(&format!("Content-Length: {}\n", b.len()), &format!("Content-Length: {}\n", nb.len()));
+        }
+    }
+    t.into_bytes()
+}
+
+fn mutate(mut bytes: Vec<u8>, ms: &[Mutation]) -> Vec<u8> {
+    for m in ms {
+        let n = bytes.len().max(1);
+        match *m {
+            Mutation::Flip(p, b) => {
+                if let Some(x) = bytes.get_mut(p % n) {
+                    *x = b;
+                }
+            }
+            Mutation::Insert(p, b) => bytes.insert(p % (bytes.len() + 1), b),
+            Mutation::Delete(p) => {
+                if !bytes.is_empty() {
+                    bytes.remove(p % n);
+                }
+            }
+            Mutation::Truncate(p) => bytes.truncate(p % n),
+        }
+    }
+    bytes
+}
+
+/// A response is a status line, headers, a blank line and exactly its
+/// `Content-Length` of body; returns its CSeq.
+fn check_response(bytes: &[u8], status: Status) -> Result<Option<String>, TestCaseError> {
+    let text = std::str::from_utf8(bytes).map_err(|_| TestCaseError::fail("response not UTF-8"))?;
+    let want = format!("RTSP/1.0 {} {}\r\n", status.code(), status.reason());
+    prop_assert!(text.starts_with(&want), "status line of {text:?}");
+    let (head, body) = text.split_once("\r\n\r\n").ok_or_else(|| TestCaseError::fail("no blank line"))?;
+    let mut cseq = None;
+    let mut length = 0;
+    for line in head.split("\r\n").skip(1) {
+        let (name, value) = line.split_once(": ").ok_or_else(|| TestCaseError::fail(format!("header {line:?}")))?;
+        match name {
+            "CSeq" => cseq = Some(value.to_string()),
+            "Content-Length" => length = value.parse().map_err(|_| TestCaseError::fail("length"))?,
+            _ => {}
+        }
+    }
+    prop_assert_eq!(body.len(), length, "body of {:?}", text);
+    Ok(cseq)
+}
+
+fn run(c: &Case) -> Result<(), TestCaseError> {
+    let live = Light::from_world(3.0, 4.0, -2.0).unwrap();
+    let mut server: Server =
+        Server::new(Config { server_ip: Ipv4Addr::new(10, 0, 0, 9), rtp_port: SERVER_RTP_PORT, live_light: live });
+    let mut conns: Vec<Connection> = PEERS.iter().map(|&p| Connection::new(p)).collect();
+    let mut rng = Xorshift(c.seed);
+    let mut out = [0u8; MAX_RESPONSE_BYTES];
+    let mut now = 0u64;
+    let mut seen: Vec<SessionId> = Vec::new();
+    let mut ended: HashSet<SessionId> = HashSet::new();
+    let mut step = 0usize;
+
+    // Carry out an action: check it against the server's sessions.
+    let check_action =
+        |server: &Server, a: Action, peer: Option<IpAddr>, ended: &mut HashSet<SessionId>, seen: &[SessionId]| {
+            match a {
+                Action::Play { session, client_addr, rtp_port, rtcp_port, ssrc, seq, rtptime, spec, live: _ } => {
+                    let s = server.session(session).ok_or_else(|| TestCaseError::fail("PLAY of no session"))?;
+                    prop_assert_eq!(s.state(), State::Playing);
+                    prop_assert_eq!(Some(client_addr), peer, "the stream goes to the requester");
+                    prop_assert_eq!(client_addr, s.client_addr());
+                    prop_assert_eq!(
+                        (rtp_port, rtcp_port, ssrc, seq, rtptime),
+                        (s.rtp_port(), s.rtcp_port(), s.ssrc(), s.seq(), s.rtptime())
+                    );
+                    prop_assert_eq!(spec, *s.spec());
+                }
+                Action::Pause { session } => {
+                    let s = server.session(session).ok_or_else(|| TestCaseError::fail("PAUSE of no session"))?;
+                    prop_assert_eq!(s.state(), State::Ready);
+                }
+                Action::SetLight { session, light } => {
+                    let s = server.session(session).ok_or_else(|| TestCaseError::fail("light of no session"))?;
+                    prop_assert_eq!(s.spec().stream, Stream::Live);
+                    prop_assert_eq!(s.live_light(), light);
+                }
+                Action::Stop { session } | Action::Timeout { session } => {
+                    prop_assert!(server.session(session).is_none(), "ended session still open");
+                    prop_assert!(seen.contains(&session), "end of a session never opened");
+                    prop_assert!(ended.insert(session), "session {} ended twice", session);
+                }
+            }
+            Ok(())
+        };
+
+    for p in &c.pieces {
+        // Sessions that time out meanwhile.
+        while let Some(a) = server.poll(Instant::from_millis(now)) {
+            prop_assert!(matches!(a, Action::Timeout { .. }), "poll ends sessions only");
+            check_action(&server, a, None, &mut ended, &seen)?;
+        }
+        let (conn, bytes, clean) = match p {
+            Piece::Clean(k, r) => (*k, render(r, &seen), Some(r)),
+            Piece::Mutated(k, r, ms) => (*k, mutate(render(r, &seen), ms), None),
+            Piece::Junk(k, j) => (*k, j.clone(), None),
+            Piece::Rtcp(peer, port) => {
+                if let Some(id) = server.rtcp_received(Instant::from_millis(now), PEERS[*peer], *port) {
+                    let s = server.session(id).ok_or_else(|| TestCaseError::fail("RTCP session"))?;
+                    prop_assert_eq!((s.client_addr(), s.rtcp_port()), (PEERS[*peer], *port));
+                }
+                continue;
+            }
+            Piece::Wait(ms) => {
+                now += ms;
+                continue;
+            }
+        };
+        let idle = conns[conn].buffered() == 0 && !conns[conn].is_closed();
+        let mut replies = Vec::new();
+        let mut fed = 0;
+        while fed < bytes.len() {
+            let cut = c.cuts[step % c.cuts.len()];
+            step += 1;
+            let chunk = &bytes[fed..(fed + cut).min(bytes.len())];
+            let mut taken = 0;
+            loop {
+                taken += conns[conn].receive(&chunk[taken..]);
+                let mut answered = false;
+                while let Some(r) = server.handle(&mut conns[conn], Instant::from_millis(now), &mut rng, &mut out) {
+                    answered = true;
+                    prop_assert!(r.status != Status::InternalServerError, "a response did not fit");
+                    let cseq = check_response(&out[..r.len], r.status)?;
+                    for s in server.sessions() {
+                        if !seen.contains(&s.id()) {
+                            seen.push(s.id());
+                        }
+                    }
+                    if let Some(a) = r.action {
+                        check_action(&server, a, Some(PEERS[conn]), &mut ended, &seen)?;
+                    }
+                    prop_assert!(!r.close || conns[conn].is_closed());
+                    replies.push((r.status, cseq));
+                }
+                prop_assert!(conns[conn].buffered() <= MAX_REQUEST_BYTES);
+                if taken == chunk.len() {
+                    break;
+                }
+                prop_assert!(answered, "input stuck: buffer full, nothing answered");
+            }
+            fed += chunk.len();
+        }
+        // Bounded state: the cap, owners, distinct ids.
+        let ids: HashSet<SessionId> = server.sessions().iter().map(|s| s.id()).collect();
+        prop_assert!(server.sessions().len() <= MAX_SESSIONS);
+        prop_assert_eq!(ids.len(), server.sessions().len(), "duplicate session ids");
+        prop_assert!(server.sessions().iter().all(|s| PEERS.contains(&s.client_addr())));
+        // A well-formed request on an idle connection: one response, its CSeq.
+        if let (Some(r), true) = (clean, idle) {
+            prop_assert_eq!(replies.len(), 1, "responses to {:?}", r);
+            let echoed = r
+                .cseq
+                .as_deref()
+                .map(|c| c.trim_matches([' ', '\t']))
+                .filter(|c| !c.is_empty() && c.len() <= 10 && c.bytes().all(|b| b.is_ascii_digit()));
+            prop_assert_eq!(replies[0].1.as_deref(), echoed, "CSeq of {:?}", r);
+            if r.version == "RTSP/1.0" && echoed.is_some() && r.method == "OPTIONS" && r.url.is_ascii() {
+                prop_assert_eq!(replies[0].0, Status::Ok);
+            }
+        }
+    }
+    // Every session ends: by TEARDOWN, or unheard of for the timeout.
+    now += SESSION_TIMEOUT.as_millis() as u64;
+    while let Some(a) = server.poll(Instant::from_millis(now)) {
+        check_action(&server, a, None, &mut ended, &seen)?;
+    }
+    prop_assert!(server.sessions().is_empty(), "sessions left after the timeout");
+    prop_assert_eq!(seen.iter().copied().collect::<HashSet<_>>(), ended, "every session ended once");
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { failure_persistence: None, ..ProptestConfig::default() })]
+
+    #[test]
+    fn the_rtsp_server_survives_hostile_clients(c in case()) {
+        run(&c)?;
+    }
+}
