@@ -828,6 +828,13 @@ fn status_line(out: &mut impl Write, status: Status, cseq: Option<&str>) {
     }
 }
 
+/// An answer of the status line and CSeq alone, as every error answer is.
+fn bare_answer(out: &mut impl Write, status: Status, cseq: Option<&str>) -> (Status, Option<Action>) {
+    status_line(out, status, cseq);
+    let _ = out.write_str("\r\n");
+    (status, None)
+}
+
 fn session_header(out: &mut impl Write, id: SessionId) {
     let _ = write!(out, "Session: {id};timeout={}\r\n", SESSION_TIMEOUT.as_secs());
 }
@@ -904,19 +911,14 @@ impl<const N: usize> Server<N> {
             Framing::Fatal => {
                 conn.closed = true;
                 conn.len = 0;
-                status_line(&mut w, Status::BadRequest, None);
-                let _ = w.write_str("\r\n");
+                bare_answer(&mut w, Status::BadRequest, None);
                 return Some(Reply { len: w.len, status: Status::BadRequest, action: None, close: true });
             }
             Framing::Complete { head, body } => (head, body),
         };
         let peer = conn.peer;
         let (status, action) = match parse_request(&conn.buf[..head]) {
-            Err((status, cseq)) => {
-                status_line(&mut w, status, cseq);
-                let _ = w.write_str("\r\n");
-                (status, None)
-            }
+            Err((status, cseq)) => bare_answer(&mut w, status, cseq),
             Ok(req) => self.answer(&req, &conn.buf[head..head + body], peer, now, rng, &mut w),
         };
         conn.consume(head + body);
@@ -925,8 +927,7 @@ impl<const N: usize> Server<N> {
             // truncated response must not go out.
             w.len = 0;
             w.overflow = false;
-            status_line(&mut w, Status::InternalServerError, None);
-            let _ = w.write_str("\r\n");
+            bare_answer(&mut w, Status::InternalServerError, None);
             return Some(Reply { len: w.len, status: Status::InternalServerError, action, close: false });
         }
         Some(Reply { len: w.len, status, action, close: false })
@@ -997,11 +998,7 @@ impl<const N: usize> Server<N> {
         out: &mut Out<'_>,
     ) -> (Status, Option<Action>) {
         let cseq = Some(req.cseq);
-        let fail = |out: &mut Out<'_>, status: Status| {
-            status_line(out, status, cseq);
-            let _ = out.write_str("\r\n");
-            (status, None)
-        };
+        let fail = |out: &mut Out<'_>, status: Status| bare_answer(out, status, cseq);
         // The session the request names, refreshed: `Ok(None)` without a
         // `Session` header, `Err` if it names none of the peer's.
         let session = match req.session {
@@ -1134,11 +1131,7 @@ impl<const N: usize> Server<N> {
         out: &mut Out<'_>,
     ) -> (Status, Option<Action>) {
         let cseq = Some(req.cseq);
-        let fail = |out: &mut Out<'_>, status: Status| {
-            status_line(out, status, cseq);
-            let _ = out.write_str("\r\n");
-            (status, None)
-        };
+        let fail = |out: &mut Out<'_>, status: Status| bare_answer(out, status, cseq);
         let spec = match StreamSpec::parse(req.url) {
             Ok(s) => s,
             Err(e) => return fail(out, e.status()),
