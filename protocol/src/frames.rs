@@ -204,6 +204,10 @@ where
     /// Slots `begin` skips (bit `i`: slot `i`): their frame is on a
     /// display, or about to be.
     pinned: u32,
+    /// Slots `begin` also skips: held by a second owner (the RTP repair
+    /// windows, [`crate::camera::SlotSource::set_held`]), apart from the
+    /// display's pins.
+    held: u32,
     /// The newest complete frame, while its slot still holds it.
     newest: Option<Completed>,
     /// Frames completed so far (wrapping).
@@ -235,6 +239,7 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
             rendering: None,
             rendering_light: None,
             pinned: 0,
+            held: 0,
             newest: None,
             completed: 0,
         }
@@ -271,6 +276,18 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
         slot < SLOTS && self.pinned & (1 << slot) != 0
     }
 
+    /// Slots held by the RTP repair windows (bit `i`: slot `i`).
+    pub fn held(&self) -> u32 {
+        self.held
+    }
+
+    /// Keep the slots of `mask` out of reuse as well as the pinned ones,
+    /// replacing the previous mask (the RTP sender's repair windows; a
+    /// frame still being sent is held by its session anyway).
+    pub fn set_held(&mut self, mask: u32) {
+        self.held = mask;
+    }
+
     /// Bus address of `slot` in the ring's memory.
     pub fn slot_address(&self, slot: usize) -> u32 {
         self.mem.slot_address(slot)
@@ -278,7 +295,7 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
 
     /// A free slot `begin` may take: not held by a frame, not pinned.
     fn takeable(&self, slot: usize) -> bool {
-        matches!(self.slots[slot], SlotState::Free) && !self.is_pinned(slot)
+        matches!(self.slots[slot], SlotState::Free) && !self.is_pinned(slot) && self.held & (1 << slot) == 0
     }
 
     /// The engine.

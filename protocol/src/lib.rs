@@ -19,6 +19,9 @@
 //! * [`rtsp`]: the board as a network camera: the sans-IO RTSP/1.0 server
 //!   (port [`rtsp::RTSP_PORT`]): stream URLs, sessions, SDP, actions for the
 //!   RTP sender.
+//! * [`camera`]: the RTP sender behind the RTSP server: per playing
+//!   session, frames paced from a frame ring, rows handed to the caller's
+//!   sink, NACKs answered from the repair window, sender reports.
 //! * [`fallback`]: a row source that falls back to another where it fails,
 //!   and switches a wedged one off.
 //! * `service` (feature `smoltcp`): the server bound to smoltcp TCP sockets,
@@ -29,6 +32,7 @@
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 
+pub mod camera;
 pub mod fallback;
 pub mod frames;
 pub mod monitor;

@@ -266,6 +266,16 @@ impl Packetiser {
         FrameStamp { timestamp: self.timestamp_at(ticks) }
     }
 
+    /// The packet [`next_packet`](Self::next_packet) would number for row
+    /// `row` of `frame`, numbering nothing: for a sender that writes the
+    /// packet first and numbers it only once it went out.
+    pub fn peek_packet(&self, frame: FrameStamp, row: u16) -> Result<RowPacket, PacketError> {
+        if row >= ROWS {
+            return Err(PacketError::BadRow(row));
+        }
+        Ok(RowPacket { seq: self.next_seq, timestamp: frame.timestamp, row })
+    }
+
     /// Number the packet of row `row` of `frame`: takes the next extended
     /// sequence number and counts the packet for the sender reports.
     pub fn next_packet(&mut self, frame: FrameStamp, row: u16) -> Result<RowPacket, PacketError> {
@@ -713,6 +723,16 @@ impl<const N: usize> RepairWindow<N> {
     pub const fn new(hold: Duration) -> RepairWindow<N> {
         const { assert!(N.is_power_of_two() && N <= 1 << 16, "N indexes a ring by sequence number") };
         RepairWindow { entries: [None; N], oldest: 0, next: 0, started: false, refs: [0; MAX_SLOTS], held: 0, hold }
+    }
+
+    /// Empty the window (a new stream) and keep packets for `hold` from now
+    /// on; in place, as the window is large.
+    pub fn clear(&mut self, hold: Duration) {
+        self.entries.fill(None);
+        (self.oldest, self.next, self.started) = (0, 0, false);
+        self.refs = [0; MAX_SLOTS];
+        self.held = 0;
+        self.hold = hold;
     }
 
     /// The slots the window holds (bit `i`: slot `i`).

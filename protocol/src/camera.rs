@@ -1,0 +1,809 @@
+//! The network camera's RTP sender: what [`crate::rtsp`]'s actions set
+//! going. One [`Stream`] per playing session draws frames from a
+//! [`SlotSource`] (the frame ring), paces them at the session's rate,
+//! numbers their rows with a [`Packetiser`], hands each row's packet to
+//! the caller's [`RtpSink`], answers NACKs from the repair window, and
+//! sends RTCP sender reports.
+//!
+//! Sans-IO like the rest of the crate: the sink sends (a std socket on the
+//! host, a two-buffer DMA descriptor on the board), the caller supplies the
+//! time and the datagrams. A packet names its row by frame slot and row
+//! number; whether the sink copies the row or points the MAC at it is its
+//! business, so the same sender runs on both.
+//!
+//! # Frames, slots and repair
+//!
+//! A frame is begun ([`FrameSource::begin`]) when it is due (`fps=N`: every
+//! 1/N s; `fps=max`: as soon as the one before is sent), with the light
+//! [`StreamSpec::light_at`] the stream's media time. Its rows go out as
+//! they land; when the last has gone the frame is ended, but every packet
+//! stays in the stream's [`FrameRepairWindow`] for the repair hold
+//! ([`repair_hold`]), and a slot that any window holds must not be
+//! rendered into ([`Camera::held`], [`FrameRing::set_held`]). A NACK's
+//! packets are sent again from there, unchanged.
+//!
+//! [`FrameRing::set_held`]: crate::frames::FrameRing::set_held
+
+use core::net::IpAddr;
+use core::time::Duration;
+
+use model::Light;
+
+use crate::frames::{FrameEngine, FrameMemory, FrameRing, FrameSource, ROWS};
+use crate::rtp::{
+    self, write_sdes_cname, FrameRepairWindow, FrameStamp, NackRequests, Packetiser, ReportTimer, RowPacket,
+    SENDER_REPORT_BYTES,
+};
+use crate::rtsp::{Action, SessionId, StreamSpec, MAX_SESSIONS};
+use crate::time::Instant;
+
+/// Frames in numbered slots that stay readable after [`FrameSource::end`]
+/// while held: what a stream can resend from.
+pub trait SlotSource: FrameSource<Frame = usize> {
+    /// Keep the slots of `mask` (bit `i`: slot `i`) out of reuse, in
+    /// addition to any other pins, replacing the previous mask.
+    fn set_held(&mut self, mask: u32);
+}
+
+/// Where a stream's packets go.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Destination {
+    /// The client's address (the one that set the session up).
+    pub addr: IpAddr,
+    /// Its RTP port.
+    pub rtp_port: u16,
+    /// Its RTCP port.
+    pub rtcp_port: u16,
+}
+
+/// The caller's way out.
+pub trait RtpSink {
+    /// Send the packet of `packet`: its 20 header bytes are
+    /// [`Packetiser::emit`] of it, its payload row `packet.row` of frame
+    /// slot `slot`. `false` if it cannot be sent now (nothing was sent;
+    /// it is offered again later).
+    fn send_row(&mut self, to: &Destination, packetiser: &Packetiser, packet: &RowPacket, slot: usize) -> bool;
+
+    /// Send an RTCP datagram to the client's RTCP port; `false` if it
+    /// cannot be sent now (it is dropped: reports are periodic).
+    fn send_rtcp(&mut self, to: &Destination, datagram: &[u8]) -> bool;
+}
+
+/// How long sent packets stay ready for a NACK: two frame times at the
+/// stream's rate, and never less than [`MIN_REPAIR_HOLD`] (a receiver asks
+/// only once a frame's marker arrived, and a slow link or host adds its
+/// round trip).
+pub fn repair_hold(spec: &StreamSpec) -> Duration {
+    spec.fps.interval().map_or(MIN_REPAIR_HOLD, |i| (i * 2).max(MIN_REPAIR_HOLD))
+}
+
+/// The shortest repair hold.
+pub const MIN_REPAIR_HOLD: Duration = Duration::from_millis(200);
+
+/// The CNAME in the sender reports' SDES (RFC 3550 section 6.5.1).
+pub const CNAME: &[u8] = b"raytracer@board";
+
+/// What a stream has done, for logs and tests.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StreamStats {
+    /// Frames whose every row was sent.
+    pub frames: u32,
+    /// Row packets sent (first sends).
+    pub packets: u32,
+    /// Row packets sent again for a NACK.
+    pub resent: u32,
+    /// NACKed packets no longer (or never) in the repair window.
+    pub unrepairable: u32,
+    /// Frames the source failed (not sent whole).
+    pub failed: u32,
+}
+
+/// The frame being sent.
+#[derive(Clone, Copy, Debug)]
+struct Current {
+    slot: usize,
+    stamp: FrameStamp,
+    next_row: u16,
+}
+
+/// One session's sender state (its repair window lives in the [`Camera`],
+/// so a stream is small enough to make on any stack).
+#[derive(Clone, Debug)]
+pub struct Stream {
+    session: SessionId,
+    spec: StreamSpec,
+    to: Destination,
+    packetiser: Packetiser,
+    live: Light,
+    /// Sending (`PLAY`) or holding (`PAUSE`).
+    playing: bool,
+    /// Media time (90 kHz ticks since the first `PLAY`) at `resumed_at`.
+    media_at_resume: u64,
+    resumed_at: Instant,
+    /// When the next frame is due (`fps=N`).
+    due: Instant,
+    current: Option<Current>,
+    reports: ReportTimer,
+    stats: StreamStats,
+}
+
+impl Stream {
+    /// The session.
+    pub fn session(&self) -> SessionId {
+        self.session
+    }
+
+    /// Where its packets go.
+    pub fn destination(&self) -> Destination {
+        self.to
+    }
+
+    /// What it has done.
+    pub fn stats(&self) -> StreamStats {
+        self.stats
+    }
+
+    /// The packetiser (SSRC, sequence numbers).
+    pub fn packetiser(&self) -> &Packetiser {
+        &self.packetiser
+    }
+
+    /// Whether it is sending.
+    pub fn playing(&self) -> bool {
+        self.playing
+    }
+
+    /// Media time at `now`, in 90 kHz ticks.
+    fn media_ticks(&self, now: Instant) -> u64 {
+        if self.playing {
+            self.media_at_resume + rtp::ticks(now).saturating_sub(rtp::ticks(self.resumed_at))
+        } else {
+            self.media_at_resume
+        }
+    }
+
+    /// When it next wants [`Camera::poll`]: `None` while it waits for
+    /// something other than time (a slot, a row, the sink), or is paused.
+    fn deadline(&self) -> Option<Instant> {
+        match (self.playing, self.current, self.spec.fps.interval()) {
+            (true, None, Some(_)) => Some(self.due),
+            _ => None,
+        }
+    }
+}
+
+/// The RTP senders of up to `N` sessions, with a repair window each.
+pub struct Camera<const N: usize = MAX_SESSIONS> {
+    streams: [Option<Stream>; N],
+    windows: [FrameRepairWindow; N],
+    /// Where RTCP reports are built.
+    rtcp: [u8; RTCP_BYTES],
+}
+
+/// A sender report and an SDES CNAME chunk, the compound packet sent.
+const RTCP_BYTES: usize = SENDER_REPORT_BYTES + rtp::sdes_cname_bytes(CNAME.len());
+
+impl<const N: usize> Default for Camera<N> {
+    fn default() -> Self {
+        Camera::new()
+    }
+}
+
+impl<const N: usize> Camera<N> {
+    /// No streams. `const`, so a board can keep it in a `static` (its
+    /// repair windows are some 32 KiB each).
+    pub const fn new() -> Camera<N> {
+        Camera {
+            streams: [const { None }; N],
+            windows: [const { FrameRepairWindow::new(MIN_REPAIR_HOLD) }; N],
+            rtcp: [0; RTCP_BYTES],
+        }
+    }
+
+    /// The streams.
+    pub fn streams(&self) -> impl Iterator<Item = &Stream> {
+        self.streams.iter().flatten()
+    }
+
+    /// The stream of `session`.
+    pub fn stream(&self, session: SessionId) -> Option<&Stream> {
+        self.streams().find(|s| s.session == session)
+    }
+
+    fn index(&self, session: SessionId) -> Option<usize> {
+        self.streams.iter().position(|s| s.as_ref().is_some_and(|s| s.session == session))
+    }
+
+    /// The frame slots the repair windows hold (bit `i`: slot `i`); give it
+    /// to the source ([`SlotSource::set_held`]) after every call that
+    /// sends or forgets.
+    pub fn held(&self) -> u32 {
+        self.windows.iter().fold(0, |m, w| m | w.held())
+    }
+
+    /// Carry out an action of the RTSP server at `now`. Returns, for a
+    /// [`Action::Pause`], the position to report back with
+    /// [`crate::rtsp::Server::set_position`]: the sequence number and
+    /// timestamp the next packet would have had.
+    pub fn apply<S: SlotSource>(&mut self, action: Action, now: Instant, source: &mut S) -> Option<(u16, u32)> {
+        match action {
+            Action::Play { session, spec, client_addr, rtp_port, rtcp_port, ssrc, seq, rtptime, live } => {
+                match self.index(session) {
+                    Some(i) => {
+                        // Resume: numbering and media time go on.
+                        if let Some(s) = self.streams[i].as_mut() {
+                            s.live = live;
+                            if !s.playing {
+                                s.playing = true;
+                                s.resumed_at = now;
+                                s.due = now;
+                            }
+                        }
+                    }
+                    None => {
+                        let i = self.streams.iter().position(Option::is_none)?;
+                        self.windows[i].clear(repair_hold(&spec));
+                        self.streams[i] = Some(Stream {
+                            session,
+                            spec,
+                            to: Destination { addr: client_addr, rtp_port, rtcp_port },
+                            packetiser: Packetiser::new(ssrc, u32::from(seq), rtptime),
+                            live,
+                            playing: true,
+                            media_at_resume: 0,
+                            resumed_at: now,
+                            due: now,
+                            current: None,
+                            reports: ReportTimer::new(now),
+                            stats: StreamStats::default(),
+                        });
+                    }
+                }
+                None
+            }
+            Action::Pause { session } => {
+                let i = self.index(session)?;
+                let s = self.streams[i].as_mut()?;
+                if let Some(c) = s.current.take() {
+                    // The rest of the frame is not sent; its rows so far
+                    // stay repairable.
+                    source.end(c.slot);
+                    s.stats.failed += 1;
+                }
+                s.media_at_resume = s.media_ticks(now) + 1;
+                s.playing = false;
+                let next = s.packetiser.highest_seq().map_or(0, |h| h.wrapping_add(1));
+                Some((next as u16, s.packetiser.timestamp_at(s.media_at_resume)))
+            }
+            Action::Stop { session } | Action::Timeout { session } => {
+                self.forget(session, source);
+                None
+            }
+            Action::SetLight { session, light } => {
+                if let Some(s) = self.index(session).and_then(|i| self.streams[i].as_mut()) {
+                    s.live = light;
+                }
+                None
+            }
+        }
+    }
+
+    /// Stop `session`'s stream and let its slots go.
+    pub fn forget<S: SlotSource>(&mut self, session: SessionId, source: &mut S) {
+        if let Some(i) = self.index(session) {
+            if let Some(c) = self.streams[i].take().and_then(|s| s.current) {
+                source.end(c.slot);
+            }
+            self.windows[i].clear(MIN_REPAIR_HOLD);
+            source.set_held(self.held());
+        }
+    }
+
+    /// Do what is due at `now`: begin frames, send the rows that landed,
+    /// send reports, expire repair packets. `wall` is the sender reports'
+    /// clock (NTP format, [`rtp::ntp_timestamp`]): the wall clock where
+    /// there is one, else the time since start. Returns whether anything
+    /// was sent or begun (poll again at once if so).
+    pub fn poll<S: SlotSource, K: RtpSink>(&mut self, now: Instant, wall: u64, source: &mut S, sink: &mut K) -> bool {
+        let mut progress = false;
+        for i in 0..N {
+            let Some(s) = self.streams[i].as_mut() else { continue };
+            let window = &mut self.windows[i];
+            if window.expire(now).released != 0 {
+                progress = true;
+            }
+            if s.playing && s.reports.poll(now) {
+                let sr = s.packetiser.sender_report(wall, s.packetiser_ticks(now));
+                let n = sr.write(&mut self.rtcp).unwrap_or(0);
+                if let Ok(m) = write_sdes_cname(s.packetiser.ssrc(), CNAME, &mut self.rtcp[n..]) {
+                    let _ = sink.send_rtcp(&s.to, &self.rtcp[..n + m]);
+                }
+            }
+            if !s.playing {
+                continue;
+            }
+            if s.current.is_none() {
+                let interval = s.spec.fps.interval();
+                if interval.is_some() && now < s.due {
+                    continue;
+                }
+                let media = s.media_ticks(now);
+                let light = s.spec.light_at(Duration::from_micros(media * 100 / 9), s.live);
+                match source.begin(&light) {
+                    Ok(Some(slot)) => {
+                        let stamp = s.packetiser.begin_frame(media);
+                        s.current = Some(Current { slot, stamp, next_row: 0 });
+                        if let Some(iv) = interval {
+                            // Keep the rate; after a stall, start afresh.
+                            s.due = if now.saturating_duration_since(s.due) > iv { now + iv } else { s.due + iv };
+                        }
+                        progress = true;
+                    }
+                    Ok(None) => continue,
+                    Err(_) => {
+                        s.stats.failed += 1;
+                        if let Some(iv) = interval {
+                            s.due = now + iv;
+                        }
+                        continue;
+                    }
+                }
+            }
+            let Some(mut c) = s.current else { continue };
+            let ready = match source.rows_ready(c.slot) {
+                Ok(r) => r.min(ROWS),
+                Err(_) => {
+                    source.end(c.slot);
+                    s.current = None;
+                    s.stats.failed += 1;
+                    progress = true;
+                    continue;
+                }
+            };
+            while c.next_row < ready {
+                let Ok(packet) = s.packetiser.peek_packet(c.stamp, c.next_row) else { break };
+                if !sink.send_row(&s.to, &s.packetiser, &packet, c.slot) {
+                    break;
+                }
+                // The same numbers as peeked: nothing else numbers between.
+                let _ = s.packetiser.next_packet(c.stamp, c.next_row);
+                let _ = window.record(now, c.slot, packet);
+                s.stats.packets += 1;
+                c.next_row += 1;
+                progress = true;
+            }
+            if c.next_row == ROWS {
+                source.end(c.slot);
+                s.current = None;
+                s.stats.frames += 1;
+            } else {
+                s.current = Some(c);
+            }
+        }
+        if progress {
+            source.set_held(self.held());
+        }
+        progress
+    }
+
+    /// An RTCP datagram arrived from `from:port`: resend what its generic
+    /// NACKs ask for, from the repair window of the stream whose client
+    /// that is (the one with that RTCP port, else the address's first).
+    /// Datagrams from any other address are ignored (RTCP is taken only
+    /// from the session's client). Returns the session it was for.
+    pub fn rtcp_received<K: RtpSink>(
+        &mut self,
+        from: IpAddr,
+        port: u16,
+        datagram: &[u8],
+        sink: &mut K,
+    ) -> Option<SessionId> {
+        let is_from = |s: &Option<Stream>, exact: bool| {
+            s.as_ref().is_some_and(|s| s.to.addr == from && (!exact || s.to.rtcp_port == port))
+        };
+        let i = (self.streams.iter().position(|s| is_from(s, true)))
+            .or_else(|| self.streams.iter().position(|s| is_from(s, false)))?;
+        let s = self.streams[i].as_mut()?;
+        let window = &self.windows[i];
+        for seq in NackRequests::new(datagram, s.packetiser.ssrc(), s.packetiser.highest_seq()) {
+            match window.lookup(seq) {
+                Some(r) => {
+                    if !sink.send_row(&s.to, &s.packetiser, &r.packet, r.slot) {
+                        break;
+                    }
+                    s.stats.resent += 1;
+                }
+                None => s.stats.unrepairable += 1,
+            }
+        }
+        Some(s.session)
+    }
+
+    /// When [`poll`](Self::poll) next has something to do by the clock
+    /// alone (a frame due, a report, a repair packet to expire), if no
+    /// stream waits for rows or slots; the caller polls at least this
+    /// often, and whenever the source may have progressed.
+    pub fn next_deadline(&self) -> Option<Instant> {
+        self.streams().flat_map(|s| [s.deadline(), s.playing.then(|| s.reports.deadline())]).flatten().min()
+    }
+
+    /// Whether any stream is sending a frame (waiting for its rows or the
+    /// sink): the caller should poll again soon.
+    pub fn busy(&self) -> bool {
+        self.streams().any(|s| s.current.is_some())
+    }
+}
+
+impl Stream {
+    /// The 90 kHz tick count of `now` on the clock the frames were stamped
+    /// with (media time), for the sender reports.
+    fn packetiser_ticks(&self, now: Instant) -> u64 {
+        self.media_ticks(now)
+    }
+}
+
+impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> SlotSource for FrameRing<M, E, SLOTS> {
+    fn set_held(&mut self, mask: u32) {
+        FrameRing::set_held(self, mask)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rtsp::{Fps, Stream as Kind};
+    use model::{FRAME_BYTES, ROW_BYTES};
+    use std::cell::RefCell;
+    use std::rc::Rc;
+
+    /// Frame slots in host memory that the test's sink can read too.
+    #[derive(Clone)]
+    struct Shared(Rc<RefCell<Vec<u8>>>);
+
+    impl FrameMemory for Shared {
+        fn slot_address(&self, slot: usize) -> u32 {
+            (slot * FRAME_BYTES) as u32
+        }
+        fn read_row(&mut self, slot: usize, y: u16, offset: usize, out: &mut [u8]) {
+            let at = slot * FRAME_BYTES + usize::from(y) * ROW_BYTES + offset;
+            out.copy_from_slice(&self.0.borrow()[at..at + out.len()]);
+        }
+        fn write_row(&mut self, slot: usize, y: u16, row: &[u8; ROW_BYTES]) {
+            let at = slot * FRAME_BYTES + usize::from(y) * ROW_BYTES;
+            self.0.borrow_mut()[at..at + ROW_BYTES].copy_from_slice(row);
+        }
+    }
+
+    /// An engine that lands a recognisable frame for each light ([`pattern_row`]),
+    /// `step` rows per progress call.
+    struct Pattern {
+        step: u16,
+        rows: u16,
+    }
+
+    fn pattern_row(light: &Light, y: u16) -> [u8; ROW_BYTES] {
+        let [x, y0, z] = light.raw();
+        let base = (x ^ y0.rotate_left(8) ^ z.rotate_left(16)) as usize + usize::from(y);
+        core::array::from_fn(|i| (base + i) as u8)
+    }
+
+    impl FrameEngine<Shared> for Pattern {
+        type Error = &'static str;
+        fn start(&mut self, mem: &mut Shared, slot: usize, light: &Light) -> Result<(), &'static str> {
+            for y in 0..ROWS {
+                mem.write_row(slot, y, &pattern_row(light, y));
+            }
+            self.rows = 0;
+            Ok(())
+        }
+        fn progress(&mut self, _: &mut Shared) -> Result<u16, &'static str> {
+            self.rows = (self.rows + self.step).min(ROWS);
+            Ok(self.rows)
+        }
+    }
+
+    type Ring = FrameRing<Shared, Pattern, 4>;
+
+    /// A packet as a receiver sees it.
+    #[derive(Clone, Debug, PartialEq)]
+    struct Received {
+        to: Destination,
+        header: [u8; rtp::HEADER_BYTES],
+        row: Vec<u8>,
+    }
+
+    impl Received {
+        fn seq16(&self) -> u16 {
+            u16::from_be_bytes([self.header[2], self.header[3]])
+        }
+        fn ext_seq(&self) -> u32 {
+            u32::from(u16::from_be_bytes([self.header[12], self.header[13]])) << 16 | u32::from(self.seq16())
+        }
+        fn timestamp(&self) -> u32 {
+            u32::from_be_bytes(self.header[4..8].try_into().unwrap())
+        }
+        fn marker(&self) -> bool {
+            self.header[1] & 0x80 != 0
+        }
+        fn line(&self) -> u16 {
+            u16::from_be_bytes([self.header[16], self.header[17]]) & 0x7fff
+        }
+    }
+
+    /// A sink reading rows out of the ring's memory (as hps-sim does),
+    /// taking at most `room` row packets before it refuses.
+    struct Sink {
+        mem: Shared,
+        room: usize,
+        rows: Vec<Received>,
+        rtcp: Vec<(Destination, Vec<u8>)>,
+    }
+
+    impl RtpSink for Sink {
+        fn send_row(&mut self, to: &Destination, p: &Packetiser, packet: &RowPacket, slot: usize) -> bool {
+            if self.room == 0 {
+                return false;
+            }
+            self.room -= 1;
+            let mut header = [0; rtp::HEADER_BYTES];
+            p.emit(packet, &mut header).unwrap();
+            let mut row = vec![0; ROW_BYTES];
+            self.mem.read_row(slot, packet.row, 0, &mut row);
+            self.rows.push(Received { to: *to, header, row });
+            true
+        }
+        fn send_rtcp(&mut self, to: &Destination, datagram: &[u8]) -> bool {
+            self.rtcp.push((*to, datagram.to_vec()));
+            true
+        }
+    }
+
+    const CLIENT: IpAddr = IpAddr::V4(core::net::Ipv4Addr::new(10, 0, 2, 2));
+    const SSRC: u32 = 0x1234_5678;
+
+    fn light(x: f64) -> Light {
+        Light::from_world(x, 4.0, -2.0).unwrap()
+    }
+
+    fn play(session: u64, stream: Kind, fps: Fps) -> Action {
+        Action::Play {
+            session: SessionId(session),
+            spec: StreamSpec { stream, fps },
+            client_addr: CLIENT,
+            rtp_port: 6000,
+            rtcp_port: 6001,
+            ssrc: SSRC,
+            seq: 65_500,
+            rtptime: 0xffff_ff00,
+            live: light(0.5),
+        }
+    }
+
+    fn t(ms: u64) -> Instant {
+        Instant::from_millis(ms)
+    }
+
+    fn rig(step: u16) -> (Box<Camera<2>>, Ring, Sink) {
+        let mem = Shared(Rc::new(RefCell::new(vec![0; 4 * FRAME_BYTES])));
+        let ring = FrameRing::new(mem.clone(), Pattern { step, rows: 0 });
+        (Box::new(Camera::new()), ring, Sink { mem, room: usize::MAX, rows: vec![], rtcp: vec![] })
+    }
+
+    /// Poll at `now` until nothing progresses.
+    fn settle(camera: &mut Camera<2>, now: Instant, ring: &mut Ring, sink: &mut Sink) {
+        for _ in 0..10_000 {
+            if !camera.poll(now, 0, ring, sink) {
+                return;
+            }
+        }
+        panic!("the camera never settled");
+    }
+
+    /// A generic NACK (RFC 4585 section 6.2.1) for `entries` (PID, BLP).
+    fn nack(media: u32, entries: &[(u16, u16)]) -> Vec<u8> {
+        let words = 2 + entries.len();
+        let mut d = vec![0x81, 205];
+        d.extend_from_slice(&(words as u16).to_be_bytes());
+        d.extend_from_slice(&0xdead_beefu32.to_be_bytes());
+        d.extend_from_slice(&media.to_be_bytes());
+        for (pid, blp) in entries {
+            d.extend_from_slice(&pid.to_be_bytes());
+            d.extend_from_slice(&blp.to_be_bytes());
+        }
+        d
+    }
+
+    #[test]
+    fn a_frame_goes_out_row_by_row_with_one_timestamp_and_a_marker_on_the_last() {
+        let (mut camera, mut ring, mut sink) = rig(100);
+        let fixed = light(2.0);
+        assert_eq!(camera.apply(play(1, Kind::Light(fixed), Fps::Max), t(0), &mut ring), None);
+        // fps=max never settles: the window keeps 1,024 packets, so slots
+        // come free for ever.
+        while sink.rows.len() <= usize::from(ROWS) {
+            assert!(camera.poll(t(0), 0, &mut ring, &mut sink));
+        }
+        let frame: Vec<_> = sink.rows.iter().take(usize::from(ROWS)).collect();
+        assert_eq!(frame.len(), usize::from(ROWS));
+        for (y, p) in frame.iter().enumerate() {
+            assert_eq!(p.line(), y as u16);
+            assert_eq!(p.row, pattern_row(&fixed, y as u16), "row {y}");
+            assert_eq!(p.ext_seq(), 65_500 + y as u32, "extended numbering across the 16-bit wrap");
+            assert_eq!(p.timestamp(), frame[0].timestamp());
+            assert_eq!(p.marker(), y == usize::from(ROWS) - 1);
+            assert_eq!(p.to, Destination { addr: CLIENT, rtp_port: 6000, rtcp_port: 6001 });
+            assert_eq!(u32::from_be_bytes(p.header[8..12].try_into().unwrap()), SSRC);
+        }
+        assert_eq!(frame[0].timestamp(), 0xffff_ff00, "the RTP-Info rtptime");
+        assert_eq!(frame[36].seq16(), 0, "the low 16 bits wrapped after 65,535");
+        let next = &sink.rows[usize::from(ROWS)];
+        assert_ne!(next.timestamp(), frame[0].timestamp(), "fps=max: the next frame at once, a new timestamp");
+    }
+
+    #[test]
+    fn a_paced_stream_begins_a_frame_per_interval_at_its_media_time() {
+        let (mut camera, mut ring, mut sink) = rig(ROWS);
+        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(30)), t(0), &mut ring);
+        settle(&mut camera, t(0), &mut ring, &mut sink);
+        assert_eq!(sink.rows.len(), usize::from(ROWS), "one frame at once");
+        settle(&mut camera, t(20), &mut ring, &mut sink);
+        assert_eq!(sink.rows.len(), usize::from(ROWS), "none before 1/30 s");
+        assert_eq!(camera.next_deadline(), Some(t(33)));
+        settle(&mut camera, t(34), &mut ring, &mut sink);
+        assert_eq!(sink.rows.len(), 2 * usize::from(ROWS));
+        let ts: Vec<u32> = sink.rows.iter().step_by(usize::from(ROWS)).map(Received::timestamp).collect();
+        assert_eq!(ts[1].wrapping_sub(ts[0]), 34 * 90, "90 kHz media time");
+    }
+
+    #[test]
+    fn an_orbit_renders_each_frame_at_its_media_time_and_resumes_after_pause() {
+        let (mut camera, mut ring, mut sink) = rig(ROWS);
+        let spec = StreamSpec::parse("rtsp://h/orbit?period=4&fps=1").unwrap();
+        camera.apply(play(1, spec.stream, spec.fps), t(0), &mut ring);
+        settle(&mut camera, t(0), &mut ring, &mut sink);
+        let pos = camera.apply(Action::Pause { session: SessionId(1) }, t(1_000), &mut ring);
+        let next_seq = sink.rows.last().unwrap().seq16().wrapping_add(1);
+        assert_eq!(pos, Some((next_seq, 0xffff_ff00u32.wrapping_add(90_000 + 1))));
+        let before = sink.rows.len();
+        settle(&mut camera, t(5_000), &mut ring, &mut sink);
+        assert_eq!(sink.rows.len(), before, "paused: nothing sent");
+        camera.apply(play(1, spec.stream, spec.fps), t(5_000), &mut ring);
+        camera.poll(t(5_000), 0, &mut ring, &mut sink);
+        let resumed = &sink.rows[before];
+        assert_eq!(resumed.seq16(), next_seq, "numbering goes on");
+        assert_eq!(resumed.timestamp(), 0xffff_ff00u32.wrapping_add(90_001), "media time skips the pause");
+        let expected = spec.light_at(Duration::from_micros(90_001 * 100 / 9), light(0.0));
+        assert_eq!(resumed.row, pattern_row(&expected, 0), "the light of the media time");
+    }
+
+    #[test]
+    fn a_refusing_sink_delays_rows_without_gaps_in_the_numbering() {
+        let (mut camera, mut ring, mut sink) = rig(ROWS);
+        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(10)), t(0), &mut ring);
+        sink.room = 7;
+        settle(&mut camera, t(0), &mut ring, &mut sink);
+        assert_eq!(sink.rows.len(), 7);
+        assert!(camera.busy());
+        sink.room = usize::MAX;
+        settle(&mut camera, t(1), &mut ring, &mut sink);
+        let seqs: Vec<u32> = sink.rows.iter().map(Received::ext_seq).collect();
+        assert_eq!(seqs, (65_500..65_500 + u32::from(ROWS)).collect::<Vec<_>>());
+        assert!(sink.rows.last().unwrap().marker());
+    }
+
+    #[test]
+    fn a_nack_gets_the_same_packets_again_and_only_from_the_client() {
+        let (mut camera, mut ring, mut sink) = rig(ROWS);
+        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(10)), t(0), &mut ring);
+        settle(&mut camera, t(0), &mut ring, &mut sink);
+        let sent = sink.rows.clone();
+        // Lost: 65,535 and 0 (across the wrap) and 3.
+        let req = nack(SSRC, &[(65_535, 0b1), (3, 0)]);
+        let stranger = IpAddr::V4(core::net::Ipv4Addr::new(10, 0, 2, 9));
+        assert_eq!(camera.rtcp_received(stranger, 6001, &req, &mut sink), None);
+        assert_eq!(sink.rows.len(), sent.len(), "a stranger's NACK is ignored");
+        assert_eq!(camera.rtcp_received(CLIENT, 6001, &nack(0x999, &[(3, 0)]), &mut sink), Some(SessionId(1)));
+        assert_eq!(sink.rows.len(), sent.len(), "another SSRC's NACK asks for nothing");
+        assert_eq!(camera.rtcp_received(CLIENT, 6001, &req, &mut sink), Some(SessionId(1)));
+        let again: Vec<u32> = sink.rows[sent.len()..].iter().map(Received::ext_seq).collect();
+        assert_eq!(again, [65_535, 65_536, 65_539]);
+        for r in &sink.rows[sent.len()..] {
+            let original = sent.iter().find(|o| o.ext_seq() == r.ext_seq()).unwrap();
+            assert_eq!(r, original, "byte for byte the original packet");
+        }
+        assert_eq!(camera.stream(SessionId(1)).unwrap().stats().resent, 3);
+    }
+
+    #[test]
+    fn sent_frames_hold_their_slot_for_the_repair_time_then_let_it_go() {
+        let (mut camera, mut ring, mut sink) = rig(ROWS);
+        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(10)), t(0), &mut ring);
+        settle(&mut camera, t(0), &mut ring, &mut sink);
+        let slot0 = 0;
+        assert_eq!(camera.held(), 1 << slot0);
+        assert_eq!(ring.held(), 1 << slot0, "the ring knows");
+        assert_eq!(ring.free_slots(), 3);
+        // 10 fps: two frame times are 200 ms.
+        settle(&mut camera, t(150), &mut ring, &mut sink);
+        assert_eq!(camera.held() & 1, 1, "still repairable");
+        settle(&mut camera, t(250), &mut ring, &mut sink);
+        assert_eq!(camera.held() & 1, 0, "released after the hold");
+        assert_eq!(ring.held() & 1, 0);
+        let before = sink.rows.len();
+        assert_eq!(camera.rtcp_received(CLIENT, 6001, &nack(SSRC, &[(65_500, 0)]), &mut sink), Some(SessionId(1)));
+        assert_eq!(sink.rows.len(), before, "expired: not resent");
+        assert_eq!(camera.stream(SessionId(1)).unwrap().stats().unrepairable, 1);
+    }
+
+    #[test]
+    fn teardown_and_timeout_let_every_slot_go_and_a_live_light_moves() {
+        let (mut camera, mut ring, mut sink) = rig(ROWS);
+        camera.apply(play(1, Kind::Live, Fps::Rate(10)), t(0), &mut ring);
+        camera.apply(play(2, Kind::Light(light(1.0)), Fps::Rate(10)), t(0), &mut ring);
+        assert_eq!(camera.apply(play(3, Kind::Live, Fps::Rate(10)), t(0), &mut ring), None);
+        assert_eq!(camera.streams().count(), 2, "a camera of two");
+        settle(&mut camera, t(0), &mut ring, &mut sink);
+        let moved = light(-1.5);
+        camera.apply(Action::SetLight { session: SessionId(1), light: moved }, t(1), &mut ring);
+        settle(&mut camera, t(101), &mut ring, &mut sink);
+        let live_rows: Vec<_> = sink.rows.iter().filter(|r| r.to.addr == CLIENT && r.line() == 0).collect();
+        assert!(live_rows.iter().any(|r| r.row == pattern_row(&moved, 0)), "a frame with the new light");
+        camera.apply(Action::Stop { session: SessionId(1) }, t(2), &mut ring);
+        camera.apply(Action::Timeout { session: SessionId(2) }, t(2), &mut ring);
+        assert_eq!(camera.streams().count(), 0);
+        assert_eq!(camera.held(), 0);
+        assert_eq!(ring.held(), 0);
+        assert_eq!(ring.free_slots(), 4, "nothing left in use");
+    }
+
+    #[test]
+    fn sender_reports_go_to_the_rtcp_port_while_playing() {
+        let (mut camera, mut ring, mut sink) = rig(ROWS);
+        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(1)), t(0), &mut ring);
+        settle(&mut camera, t(0), &mut ring, &mut sink);
+        settle(&mut camera, t(1_500), &mut ring, &mut sink);
+        assert!(sink.rtcp.is_empty());
+        settle(&mut camera, t(2_500), &mut ring, &mut sink);
+        assert_eq!(sink.rtcp.len(), 1);
+        let (to, d) = &sink.rtcp[0];
+        assert_eq!(to.rtcp_port, 6001);
+        assert_eq!(d[1], rtp::RTCP_SR);
+        assert_eq!(u32::from_be_bytes(d[4..8].try_into().unwrap()), SSRC);
+        assert_eq!(u32::from_be_bytes(d[20..24].try_into().unwrap()), 2 * u32::from(ROWS), "packets so far");
+        assert_eq!(d[SENDER_REPORT_BYTES + 1], rtp::RTCP_SDES);
+    }
+
+    #[test]
+    fn the_software_renderer_s_frame_arrives_equal_to_the_model_s() {
+        let mut bytes = vec![0; FRAME_BYTES];
+        let mut ring = FrameRing::<_, _, 1>::new(
+            crate::frames::SliceMemory::new(0, &mut bytes),
+            crate::frames::RowEngine::new(crate::server::SoftwareRenderer),
+        );
+        struct Copy(Vec<(RowPacket, usize)>);
+        impl RtpSink for Copy {
+            fn send_row(&mut self, _: &Destination, _: &Packetiser, p: &RowPacket, slot: usize) -> bool {
+                self.0.push((*p, slot));
+                true
+            }
+            fn send_rtcp(&mut self, _: &Destination, _: &[u8]) -> bool {
+                true
+            }
+        }
+        let mut camera = Box::new(Camera::<1>::new());
+        let l = light(3.0);
+        camera.apply(play(1, Kind::Light(l), Fps::Rate(1)), t(0), &mut ring);
+        let mut sink = Copy(vec![]);
+        for _ in 0..5_000 {
+            camera.poll(t(0), 0, &mut ring, &mut sink);
+            if sink.0.len() == usize::from(ROWS) {
+                break;
+            }
+        }
+        assert_eq!(sink.0.len(), usize::from(ROWS));
+        let rows: Vec<u16> = sink.0.iter().map(|(p, _)| p.row).collect();
+        assert_eq!(rows, (0..ROWS).collect::<Vec<_>>());
+        drop(ring);
+        assert_eq!(bytes, model::render_frame(&l), "the slot the packets point at holds the model's frame");
+    }
+}
