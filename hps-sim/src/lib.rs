@@ -13,11 +13,16 @@
 //! way, and with the RTL each connection logs the simulated clocks per frame
 //! and per row.
 //!
+//! Beside them, [`rtsp`]: the board as a network camera (RTSP on TCP, RTP
+//! and RTCP on UDP), from one shared frame ring as on the board.
+//!
 //! Two listeners: the seed protocol on the listen port and the persistent
 //! protocol on the listen port + 1. Every connection is served concurrently
 //! on its own thread with its own simulated accelerator (a board has one
 //! accelerator and interleaves its clients; on the host a device per client
 //! keeps the clients independent and the frames identical).
+
+pub mod rtsp;
 
 use std::cell::RefCell;
 use std::fmt;
@@ -198,6 +203,7 @@ pub struct HpsSim {
     frame_addr: SocketAddr,
     persistent_addr: SocketAddr,
     stop: Arc<AtomicBool>,
+    rtsp: Option<rtsp::RtspServer>,
 }
 
 impl HpsSim {
@@ -231,6 +237,7 @@ impl HpsSim {
             frame_addr: single.local_addr()?,
             persistent_addr: persistent.local_addr()?,
             stop: Arc::new(AtomicBool::new(false)),
+            rtsp: None,
         };
         let ids = Arc::new(AtomicU64::new(1));
         for (listener, mode) in [(single, Mode::Single), (persistent, Mode::Persistent)] {
@@ -250,6 +257,25 @@ impl HpsSim {
     /// Address of the persistent listener (the frame port + 1).
     pub fn persistent_addr(&self) -> SocketAddr {
         self.persistent_addr
+    }
+
+    /// Also serve RTSP/RTP ([`rtsp::RtspServer`]) on `addr` (port 0: any
+    /// free one) with `device`, logging if `verbose`.
+    pub fn start_rtsp(&mut self, addr: SocketAddr, device: Device, verbose: bool) -> io::Result<SocketAddr> {
+        let server = rtsp::RtspServer::start(addr, device, verbose)?;
+        let addr = server.addr();
+        self.rtsp = Some(server);
+        Ok(addr)
+    }
+
+    /// The UDP port the RTSP server's RTP leaves from (RTCP: the next).
+    pub fn rtsp_rtp_port(&self) -> Option<u16> {
+        self.rtsp.as_ref().map(rtsp::RtspServer::rtp_port)
+    }
+
+    /// The RTSP listener's address, once [`start_rtsp`](Self::start_rtsp) ran.
+    pub fn rtsp_addr(&self) -> Option<SocketAddr> {
+        self.rtsp.as_ref().map(rtsp::RtspServer::addr)
     }
 }
 
