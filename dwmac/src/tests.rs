@@ -346,7 +346,9 @@ fn receive_hands_over_good_frames_and_returns_descriptors() {
             rx_dropped: 1,
             tx_frames: 0,
             tx_bytes: 0,
-            tx_ring_full: 0
+            tx_ring_full: 0,
+            tx_split: 0,
+            tx_split_full: 0,
         }
     );
 
