@@ -18,6 +18,8 @@ use crate::regs::{RegisterBlock, Regs};
 use crate::ring::{DmaArea, BUFFER_SIZE, RX_RING, TX_RING, TX_SKEW};
 use crate::sync::DmaSync;
 
+mod split;
+
 const BLOCK_WORDS: usize = size_of::<RegisterBlock>() / 4;
 const BUS_MODE: usize = 0x1000 / 4;
 const TX_POLL: usize = 0x1004 / 4;
