@@ -95,6 +95,35 @@ struct Sent {
     wire: Vec<u8>,
 }
 
+/// TDES0/TDES1 as the DMA reads them, written out bit by bit from the
+/// sources (Linux `stmmac/descs.h` `TDES1_*` / `ETDES0_*` / `ETDES1_*`,
+/// QEMU `npcm_gmac.h` `TX_DESC_TDES1_*`), independent of the driver's
+/// constants so that a wrong bit in `desc.rs` fails here too.
+fn dma_view(format: DescFormat, [t0, t1]: [u32; 2]) -> desc::TxFields {
+    let bit = |w: u32, n: u32| w & (1 << n) != 0;
+    let field = |w: u32, hi: u32, lo: u32| ((w >> lo) & ((1 << (hi - lo + 1)) - 1)) as usize;
+    match format {
+        DescFormat::Normal => desc::TxFields {
+            first: bit(t1, 29),
+            last: bit(t1, 30),
+            end_of_ring: bit(t1, 25),
+            chained: bit(t1, 24),
+            len1: field(t1, 10, 0),
+            len2: field(t1, 21, 11),
+            csum: ChecksumInsertion::from_bits(field(t1, 28, 27) as u32),
+        },
+        DescFormat::Enhanced => desc::TxFields {
+            first: bit(t0, 28),
+            last: bit(t0, 29),
+            end_of_ring: bit(t0, 21),
+            chained: bit(t0, 20),
+            len1: field(t1, 12, 0),
+            len2: field(t1, 28, 16),
+            csum: ChecksumInsertion::from_bits(field(t0, 23, 22) as u32),
+        },
+    }
+}
+
 /// The MAC's transmit DMA: walks the ring from descriptor 0 as the
 /// databook and QEMU's `gmac_try_send_next_packet` do.
 struct FakeDma {
@@ -134,7 +163,8 @@ impl FakeDma {
         let mut out = vec![];
         while out.len() < limit && area.tx_descriptor(self.next).word(0) & OWN != 0 {
             let w = area.tx_descriptor(self.next).words();
-            let f = desc::tx_fields(format, [w[0], w[1]]);
+            let f = dma_view(format, [w[0], w[1]]);
+            assert_eq!(f, desc::tx_fields(format, [w[0], w[1]]), "the driver's decoder agrees");
             assert!(f.first && f.last, "descriptor {}: one descriptor per frame", self.next);
             assert!(!f.chained, "ring mode: TDES3 is buffer 2");
             let mut wire = Self::read(mac, pixels, w[2], f.len1);
