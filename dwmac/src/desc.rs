@@ -16,8 +16,10 @@
 //! | RDES0 | OWN 31, FL 29:16 (incl. 4-byte FCS), ES 15, FS 9, LS 8 | same |
 //! | RDES1 | DIC 31, RER 25, RCH 24, RBS2 21:11, RBS1 10:0 | DIC 31, RBS2 28:16, RER 15, RCH 14, RBS1 12:0 |
 //!
-//! The driver uses ring mode (no chaining), one buffer per descriptor (buffer
-//! 2 size 0), one descriptor per frame, no interrupts, and checksum
+//! The driver uses ring mode (no chaining), one descriptor per frame, one
+//! buffer per descriptor (buffer 2 size 0) for the smoltcp path and two for
+//! [`crate::split`] (header in buffer 1, payload in buffer 2), no
+//! interrupts, and checksum
 //! insertion chosen per frame when the MAC has it ([`crate::csum`]): CIC = 3
 //! (IPv4 header, and TCP/UDP with the pseudo-header) for TCP and UDP, CIC = 1
 //! (IPv4 header only) for ICMP and every other IPv4 payload, CIC = 0 for
@@ -28,6 +30,34 @@
 //! always be 0x0000 in both modes"), and QEMU does not insert ICMP
 //! checksums at all (`gmac_tx_get_csum` / `net_checksum_calculate` in
 //! npcm_gmac.c).
+//!
+//! # Two buffers in ring mode
+//!
+//! With TCH (second address chained) clear, TDES3 is the bus address of
+//! buffer 2 and TBS2 its size; the DMA sends buffer 1 then buffer 2 as one
+//! stretch of the frame. Bit positions: Linux `stmmac/descs.h`
+//! (`TDES1_BUFFER2_SIZE_MASK` = 21:11, `ETDES1_BUFFER2_SIZE_MASK` = 28:16),
+//! `stmmac/descs_com.h` (`norm_set_tx_desc_len_on_ring`,
+//! `enh_set_tx_desc_len_on_ring` fill TBS2 in ring mode) and
+//! `stmmac/ring_mode.c` (`jumbo_frm` puts buffer 2's address in `des3`);
+//! QEMU `include/hw/net/npcm_gmac.h` (`TX_DESC_TDES1_BFFR2_SZ_MASK`:
+//! `extract32(word, 11, 11)`).
+//!
+//! QEMU's model sends buffer 2 (read in QEMU 10.0's and the current
+//! `hw/net/npcm_gmac.c`, `gmac_try_send_next_packet`): after buffer 1
+//! (`tdes2`, `TX_DESC_TDES1_BFFR1_SZ_MASK`), "If not chained we'll have a
+//! second buffer": unless TDES1 bit 24 (TCH) is set it reads
+//! `TX_DESC_TDES1_BFFR2_SZ_MASK(tdes1)` bytes from `tdes3` and appends them;
+//! on LS it runs `net_checksum_calculate` over the assembled frame with the
+//! CIC of the FS descriptor, then `qemu_send_packet`. So buffer 2 works
+//! there, and a one-buffer descriptor must keep TBS2 = 0 (it does: QEMU
+//! reads buffer 2 whenever TCH is clear). Up to QEMU 10.0.2 the same
+//! function sends the *first* frame's bytes again for every further frame
+//! it finds in one call (`prev_buf_size` is not reset after a send; fixed
+//! in 10.0.3 and master by "hw/net/npcm_gmac.c: Send the right data for
+//! second packet in a row"); the driver is not affected because it demands
+//! a poll after every descriptor and QEMU transmits inside that register
+//! write, one frame per call.
 
 use crate::regs::HwFeature;
 
@@ -54,8 +84,8 @@ impl DescFormat {
         }
     }
 
-    /// Largest buffer-1 size a descriptor can describe (11 bits normal,
-    /// 13 bits enhanced).
+    /// Largest buffer size (buffer 1 or 2) a descriptor can describe (11
+    /// bits normal, 13 bits enhanced; TBS1 and TBS2 have the same width).
     pub const fn max_buffer(self) -> usize {
         match self {
             DescFormat::Normal => (1 << 11) - 1,
@@ -69,6 +99,8 @@ mod normal {
     pub const TDES1_LS: u32 = 1 << 30;
     pub const TDES1_FS: u32 = 1 << 29;
     pub const TDES1_TER: u32 = 1 << 25;
+    pub const TDES1_TCH: u32 = 1 << 24;
+    pub const TBS2_SHIFT: u32 = 11; // 21:11
     pub const TBS1_MASK: u32 = 0x7ff; // 10:0
     pub const RDES1_RER: u32 = 1 << 25;
     pub const RBS1_MASK: u32 = 0x7ff; // 10:0
@@ -79,6 +111,8 @@ mod enhanced {
     pub const TDES0_LS: u32 = 1 << 29;
     pub const TDES0_FS: u32 = 1 << 28;
     pub const TDES0_TER: u32 = 1 << 21;
+    pub const TDES0_TCH: u32 = 1 << 20;
+    pub const TBS2_SHIFT: u32 = 16; // 28:16
     pub const TBS1_MASK: u32 = 0x1fff; // 12:0
     pub const RDES1_RER: u32 = 1 << 15;
     pub const RBS1_MASK: u32 = 0x1fff; // 12:0
@@ -137,12 +171,28 @@ impl ChecksumInsertion {
 /// sets OWN in a separate, last write. `len` is truncated to the format's
 /// buffer-size field.
 pub const fn tx_control(format: DescFormat, len: usize, end_of_ring: bool, csum: ChecksumInsertion) -> [u32; 2] {
+    tx_control_split(format, len, 0, end_of_ring, csum)
+}
+
+/// As [`tx_control`], for a whole frame in two buffers, ring mode (TCH
+/// clear, so TDES3 holds buffer 2's address): `len1` bytes of buffer 1
+/// (TDES2) followed by `len2` bytes of buffer 2 (TDES3) on the wire. Each
+/// length is truncated to the format's buffer-size field
+/// ([`DescFormat::max_buffer`]).
+pub const fn tx_control_split(
+    format: DescFormat,
+    len1: usize,
+    len2: usize,
+    end_of_ring: bool,
+    csum: ChecksumInsertion,
+) -> [u32; 2] {
     match format {
         DescFormat::Normal => {
             let mut tdes1 = normal::TDES1_FS
                 | normal::TDES1_LS
                 | (csum as u32) << normal::TDES1_CIC_SHIFT
-                | (len as u32 & normal::TBS1_MASK);
+                | (len2 as u32 & normal::TBS1_MASK) << normal::TBS2_SHIFT
+                | (len1 as u32 & normal::TBS1_MASK);
             if end_of_ring {
                 tdes1 |= normal::TDES1_TER;
             }
@@ -153,8 +203,55 @@ pub const fn tx_control(format: DescFormat, len: usize, end_of_ring: bool, csum:
             if end_of_ring {
                 tdes0 |= enhanced::TDES0_TER;
             }
-            [tdes0, len as u32 & enhanced::TBS1_MASK]
+            let tdes1 =
+                (len2 as u32 & enhanced::TBS1_MASK) << enhanced::TBS2_SHIFT | (len1 as u32 & enhanced::TBS1_MASK);
+            [tdes0, tdes1]
         }
+    }
+}
+
+/// What the DMA reads from a transmit descriptor's TDES0 and TDES1 (the
+/// inverse of [`tx_control_split`], for diagnostics and the tests' model of
+/// the DMA).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TxFields {
+    /// First segment of a frame.
+    pub first: bool,
+    /// Last segment of a frame.
+    pub last: bool,
+    /// End of ring: the next descriptor is the first.
+    pub end_of_ring: bool,
+    /// Second address chained: TDES3 is the next descriptor, not buffer 2.
+    pub chained: bool,
+    /// Buffer 1 size (TBS1).
+    pub len1: usize,
+    /// Buffer 2 size (TBS2).
+    pub len2: usize,
+    /// Checksum insertion control.
+    pub csum: ChecksumInsertion,
+}
+
+/// Decode TDES0 and TDES1.
+pub const fn tx_fields(format: DescFormat, [tdes0, tdes1]: [u32; 2]) -> TxFields {
+    match format {
+        DescFormat::Normal => TxFields {
+            first: tdes1 & normal::TDES1_FS != 0,
+            last: tdes1 & normal::TDES1_LS != 0,
+            end_of_ring: tdes1 & normal::TDES1_TER != 0,
+            chained: tdes1 & normal::TDES1_TCH != 0,
+            len1: (tdes1 & normal::TBS1_MASK) as usize,
+            len2: ((tdes1 >> normal::TBS2_SHIFT) & normal::TBS1_MASK) as usize,
+            csum: ChecksumInsertion::from_bits(tdes1 >> normal::TDES1_CIC_SHIFT),
+        },
+        DescFormat::Enhanced => TxFields {
+            first: tdes0 & enhanced::TDES0_FS != 0,
+            last: tdes0 & enhanced::TDES0_LS != 0,
+            end_of_ring: tdes0 & enhanced::TDES0_TER != 0,
+            chained: tdes0 & enhanced::TDES0_TCH != 0,
+            len1: (tdes1 & enhanced::TBS1_MASK) as usize,
+            len2: ((tdes1 >> enhanced::TBS2_SHIFT) & enhanced::TBS1_MASK) as usize,
+            csum: ChecksumInsertion::from_bits(tdes0 >> enhanced::TDES0_CIC_SHIFT),
+        },
     }
 }
 
@@ -282,6 +379,50 @@ mod tests {
         assert!(bit(t0_end, 21), "TER 21");
         assert_eq!(t0_end, (1 << 29) | (1 << 28) | (1 << 21));
         assert_eq!(t1_end, 4000, "13-bit size field holds 4000");
+    }
+
+    #[test]
+    fn two_buffer_normal_descriptor_bit_positions() {
+        // An RTP row: 62-byte header in buffer 1, 1440 pixel bytes in buffer 2.
+        let [t0, t1] = tx_control_split(DescFormat::Normal, 62, 1440, false, Full);
+        assert_eq!(t0, 0, "normal TDES0 carries only OWN/status");
+        assert_eq!(field(t1, 21, 11), 1440, "TBS2 21:11");
+        assert_eq!(field(t1, 10, 0), 62, "TBS1 10:0");
+        assert!(!bit(t1, 24), "TCH 24 clear: TDES3 is buffer 2, not the next descriptor");
+        assert!(bit(t1, 30) && bit(t1, 29), "LS and FS: the whole frame");
+        assert_eq!(field(t1, 28, 27), 3, "CIC 28:27");
+        assert_eq!(t1, (1 << 30) | (1 << 29) | (3 << 27) | (1440 << 11) | 62);
+        // The largest sizes fill their fields and no neighbour.
+        let [_, max] = tx_control_split(DescFormat::Normal, 2047, 2047, true, Off);
+        assert_eq!(max, (1 << 30) | (1 << 29) | (1 << 25) | (0x7ff << 11) | 0x7ff);
+    }
+
+    #[test]
+    fn two_buffer_enhanced_descriptor_bit_positions() {
+        let [t0, t1] = tx_control_split(DescFormat::Enhanced, 62, 1440, false, Full);
+        assert_eq!(field(t1, 28, 16), 1440, "TBS2 28:16");
+        assert_eq!(field(t1, 12, 0), 62, "TBS1 12:0");
+        assert_eq!(t1, (1440 << 16) | 62, "nothing else in TDES1");
+        assert!(!bit(t0, 20), "TCH 20 clear: TDES3 is buffer 2");
+        assert_eq!(t0, (1 << 29) | (1 << 28) | (3 << 22), "LS, FS, CIC 3");
+        let [_, max] = tx_control_split(DescFormat::Enhanced, 8191, 8191, true, Off);
+        assert_eq!(max, (0x1fff << 16) | 0x1fff);
+    }
+
+    #[test]
+    fn two_buffer_descriptors_decode_back() {
+        for format in [DescFormat::Normal, DescFormat::Enhanced] {
+            for (len1, len2, end, csum) in [(62, 1440, false, Full), (14, 0, true, Off), (1514, 1, false, Off)] {
+                let f = tx_fields(format, tx_control_split(format, len1, len2, end, csum));
+                let want = TxFields { first: true, last: true, end_of_ring: end, chained: false, len1, len2, csum };
+                assert_eq!(f, want, "{format:?}");
+            }
+            assert_eq!(tx_control(format, 60, true, Full), tx_control_split(format, 60, 0, true, Full));
+        }
+        // Chaining bits decode where the table puts them.
+        assert!(tx_fields(DescFormat::Normal, [0, 1 << 24]).chained);
+        assert!(tx_fields(DescFormat::Enhanced, [1 << 20, 0]).chained);
+        assert!(!tx_fields(DescFormat::Enhanced, [0, 1 << 24]).chained);
     }
 
     #[test]

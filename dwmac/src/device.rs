@@ -78,8 +78,33 @@ impl RxState {
 }
 
 impl TxState {
-    fn free<S>(&self, shared: &Shared<'_, S>) -> bool {
-        shared.area.tx_descriptor(self.next).word(0) & OWN == 0
+    /// Take back every descriptor the DMA has finished with (OWN clear),
+    /// oldest first; returns how many split frames that completed. Reads
+    /// at most `pending` descriptor words.
+    pub(crate) fn reclaim<S: DmaSync>(&mut self, shared: &Shared<'_, S>) -> usize {
+        let mut taken = 0;
+        let mut split = 0;
+        while self.pending > 0 && shared.area.tx_descriptor(self.dirty).word(0) & OWN == 0 {
+            if core::mem::take(&mut self.split[self.dirty]) {
+                self.split_done += 1;
+                split += 1;
+            }
+            self.dirty = (self.dirty + 1) % TX_RING;
+            self.pending -= 1;
+            taken += 1;
+        }
+        if taken > 0 {
+            // OWN seen clear: whatever the caller does next (refill the
+            // buffer, let the FPGA overwrite a payload) comes after it.
+            shared.sync.dmb();
+        }
+        split
+    }
+
+    /// Whether the descriptor at `next` is the CPU's (after a reclaim).
+    pub(crate) fn free<S: DmaSync>(&mut self, shared: &Shared<'_, S>) -> bool {
+        self.reclaim(shared);
+        self.pending < TX_RING
     }
 
     /// Fill the descriptor at `next` with a frame of `len` bytes built by
@@ -87,7 +112,7 @@ impl TxState {
     fn send<S: DmaSync, R>(&mut self, shared: &Shared<'_, S>, len: usize, f: impl FnOnce(&mut [u8]) -> R) -> R {
         let i = self.next;
         let len = len.min(BUFFER_SIZE - TX_SKEW);
-        let (desc, buffer) = (shared.area.tx_descriptor(i), shared.area.tx_buffer(i));
+        let buffer = shared.area.tx_buffer(i);
         // OWN was seen clear (`free`): the MAC is done with the buffer.
         shared.sync.dmb();
         // SAFETY: the CPU owns descriptor `i` and its buffer until OWN is set
@@ -97,19 +122,37 @@ impl TxState {
         // Checksum insertion for this frame's protocol (crate::csum): never
         // CIC 3 over a checksum the stack filled in (ICMP).
         let cic = csum::for_frame(frame, shared.csum);
-        let [tdes0, tdes1] = desc::tx_control(shared.format, len, i == TX_RING - 1, cic);
+        let control = desc::tx_control(shared.format, len, i == TX_RING - 1, cic);
+        self.hand_over(shared, control, buffer.bus_address() + TX_SKEW as u32, 0, false);
+        self.bytes = self.bytes.saturating_add(len as u64);
+        r
+    }
+
+    /// Write the descriptor at `next` (`control` = TDES0 without OWN and
+    /// TDES1, buffer addresses `buf1` and `buf2`), give it to the DMA and
+    /// demand a poll. The caller has filled the buffers the CPU writes.
+    pub(crate) fn hand_over<S: DmaSync>(
+        &mut self,
+        shared: &Shared<'_, S>,
+        [tdes0, tdes1]: [u32; 2],
+        buf1: u32,
+        buf2: u32,
+        split: bool,
+    ) {
+        let i = self.next;
+        let desc = shared.area.tx_descriptor(i);
         desc.set_word(1, tdes1);
-        desc.set_word(2, buffer.bus_address() + TX_SKEW as u32);
-        desc.set_word(3, 0);
+        desc.set_word(2, buf1);
+        desc.set_word(3, buf2);
         // Buffer and control words before OWN; OWN visible before the poll.
         shared.sync.dsb();
         desc.set_word(0, tdes0 | OWN);
         shared.publish();
         shared.regs.tx_poll_demand();
+        self.split[i] = split;
+        self.pending += 1;
         self.next = (i + 1) % TX_RING;
         self.frames = self.frames.saturating_add(1);
-        self.bytes = self.bytes.saturating_add(len as u64);
-        r
     }
 }
 

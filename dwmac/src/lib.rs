@@ -10,7 +10,8 @@
 //! * [`ring`]: descriptors and buffers in memory the MAC's DMA shares with
 //!   the CPU, accessed through volatile cells and raw pointers only.
 //! * [`mac`]: bring-up, link configuration and statistics; [`device`]: the
-//!   smoltcp `Device`.
+//!   smoltcp `Device`; [`split`]: zero-copy header + payload transmit beside
+//!   it (RTP rows straight from the frame ring).
 //! * [`phy`]: IEEE 802.3 clause 22 PHYs (and the Micrel KSZ9021's RGMII
 //!   skews) and the link monitor the main loop polls.
 //! * [`sync`]: the barriers and outer-cache drain a hand-over needs, which
@@ -26,11 +27,13 @@ pub mod mac;
 pub mod phy;
 pub mod regs;
 pub mod ring;
+pub mod split;
 pub mod sync;
 pub mod wait;
 
 pub use mac::{Dwmac, Error, Stats};
 pub use ring::{DmaArea, RX_RING, TX_RING};
+pub use split::{SplitError, SplitSeq};
 pub use sync::DmaSync;
 
 #[cfg(test)]

@@ -106,6 +106,11 @@ pub struct Stats {
     /// Times smoltcp asked for a TX token while every descriptor was the
     /// MAC's (the stack keeps the segment and retries; nothing is dropped).
     pub tx_ring_full: u32,
+    /// Split frames ([`Dwmac::send_split`]) handed to the DMA; also counted
+    /// in `tx_frames` and `tx_bytes`.
+    pub tx_split: u32,
+    /// Times [`Dwmac::send_split`] found every descriptor the MAC's.
+    pub tx_split_full: u32,
 }
 
 /// The parts of the driver both tokens of a receive need.
@@ -136,13 +141,57 @@ pub(crate) struct RxState {
     pub(crate) dropped: u32,
 }
 
-/// Transmit ring position and counters.
-#[derive(Default)]
+/// Transmit ring position, what the DMA still owns, and counters.
+///
+/// Descriptors `dirty`, `dirty + 1`, ... (`pending` of them, modulo the
+/// ring) were handed to the DMA and not yet seen back; the DMA works
+/// through a ring in order, so they come back in that order too.
 pub(crate) struct TxState {
+    /// Next descriptor to fill.
     pub(crate) next: usize,
+    /// Oldest descriptor handed over and not yet seen back.
+    pub(crate) dirty: usize,
+    /// Descriptors handed over and not yet seen back (0..=TX_RING).
+    pub(crate) pending: usize,
+    /// Which pending descriptors carry a split frame.
+    pub(crate) split: [bool; TX_RING],
+    /// Split frames handed over since the driver was created.
+    pub(crate) split_sent: u64,
+    /// Split frames seen back (always the oldest: in order).
+    pub(crate) split_done: u64,
     pub(crate) frames: u32,
     pub(crate) bytes: u64,
     pub(crate) ring_full: u32,
+    pub(crate) split_frames: u32,
+    pub(crate) split_full: u32,
+}
+
+impl TxState {
+    pub(crate) const fn new() -> TxState {
+        TxState {
+            next: 0,
+            dirty: 0,
+            pending: 0,
+            split: [false; TX_RING],
+            split_sent: 0,
+            split_done: 0,
+            frames: 0,
+            bytes: 0,
+            ring_full: 0,
+            split_frames: 0,
+            split_full: 0,
+        }
+    }
+
+    /// A fresh ring after a restart: counters zero, but split sequence
+    /// numbers go on, and every frame in flight counts as done (the DMA
+    /// was reset and reads none of them any more).
+    pub(crate) const fn restarted(&self) -> TxState {
+        let mut t = TxState::new();
+        t.split_sent = self.split_sent;
+        t.split_done = self.split_sent;
+        t
+    }
 }
 
 /// The MAC with its rings, barriers `S` and delay `D`.
@@ -163,7 +212,7 @@ impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
         Dwmac {
             shared: Shared { regs, area, sync, format: DescFormat::from_hw_feature(hw), csum },
             rx: RxState::default(),
-            tx: TxState::default(),
+            tx: TxState::new(),
             delay,
         }
     }
@@ -199,7 +248,7 @@ impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
             }
         }
         self.rx = RxState::default();
-        self.tx = TxState::default();
+        self.tx = self.tx.restarted();
         self.shared.publish();
         let (regs, area) = (&self.shared.regs, self.shared.area);
         regs.set_descriptor_lists(bus_address(area.rx_descriptor(0)), bus_address(area.tx_descriptor(0)));
@@ -255,6 +304,8 @@ impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
             tx_frames: self.tx.frames,
             tx_bytes: self.tx.bytes,
             tx_ring_full: self.tx.ring_full,
+            tx_split: self.tx.split_frames,
+            tx_split_full: self.tx.split_full,
         }
     }
 

@@ -18,6 +18,8 @@ use crate::regs::{RegisterBlock, Regs};
 use crate::ring::{DmaArea, BUFFER_SIZE, RX_RING, TX_RING, TX_SKEW};
 use crate::sync::DmaSync;
 
+mod split;
+
 const BLOCK_WORDS: usize = size_of::<RegisterBlock>() / 4;
 const BUS_MODE: usize = 0x1000 / 4;
 const TX_POLL: usize = 0x1004 / 4;
@@ -346,7 +348,9 @@ fn receive_hands_over_good_frames_and_returns_descriptors() {
             rx_dropped: 1,
             tx_frames: 0,
             tx_bytes: 0,
-            tx_ring_full: 0
+            tx_ring_full: 0,
+            tx_split: 0,
+            tx_split_full: 0,
         }
     );
 

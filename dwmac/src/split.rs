@@ -1,0 +1,140 @@
+//! Zero-copy transmit of frames in two pieces: a header the CPU builds and
+//! a payload the CPU never touches (an RTP row the FPGA wrote to SDRAM).
+//!
+//! Each frame takes one descriptor with two buffers in ring mode
+//! ([`desc::tx_control_split`]): buffer 1 is the descriptor's own transmit
+//! buffer, into which the header is copied (its *header slot*); buffer 2 is
+//! the caller's bus address, which the DMA reads directly. The CPU reads
+//! none of the payload, so the driver neither checksums it nor cleans or
+//! invalidates a cache line of it: **the caller owns the payload memory's
+//! coherence**. For a row the FPGA wrote through the FPGA-to-SDRAM port the
+//! bytes are in SDRAM once the FPGA reports the row done, and the CPU, which
+//! never writes them, holds no dirty line that could later overwrite them;
+//! memory the CPU wrote through a write-back cache must be cleaned to the
+//! point of coherency by the caller before [`Dwmac::send_split`].
+//!
+//! The payload must stay unchanged until the DMA is done with it. Frames
+//! get consecutive [`SplitSeq`] numbers and complete in that order (the DMA
+//! walks the ring in order); [`Dwmac::split_done`] says when one and all
+//! before it are done, so a frame-ring slot goes back to the FPGA once the
+//! sequence number of its last row is.
+//!
+//! Ring size: [`TX_RING`] descriptors, shared with smoltcp. 32 split frames
+//! of 1,502 bytes (62-byte header, 1,440-byte row) are 49 KB, 0.39 ms at
+//! 1 Gbit/s, so a 360-row picture needs the main loop to come back about
+//! a dozen times: [`Dwmac::send_split`] returns [`SplitError::Full`] rather
+//! than wait, and [`Dwmac::tx_free`] says how many frames fit now.
+
+use embedded_hal::delay::DelayNs;
+
+use crate::csum;
+use crate::desc;
+use crate::mac::{Dwmac, MAX_FRAME};
+use crate::ring::{BUFFER_SIZE, TX_RING, TX_SKEW};
+use crate::sync::DmaSync;
+
+/// Sequence number of a split frame: the n-th one handed to the DMA since
+/// the driver was created, counting from 0. Never reused (64 bits: 584,000
+/// years at a million frames a second).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct SplitSeq(pub u64);
+
+/// Why [`Dwmac::send_split`] did not take a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SplitError {
+    /// Every transmit descriptor is the DMA's: try again after it has sent
+    /// some (the next call reclaims them).
+    Full,
+    /// Header and payload together exceed [`MAX_FRAME`] bytes, or the
+    /// header is shorter than an Ethernet header (14 bytes).
+    Length,
+}
+
+/// Shortest header: destination, source, EtherType (IEEE 802.3 3.1.1).
+const MIN_HEADER: usize = 14;
+
+// A header slot is the rest of a transmit buffer; it holds any header a
+// frame of MAX_FRAME bytes can have.
+const _: () = assert!(MAX_FRAME <= BUFFER_SIZE - TX_SKEW);
+
+impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
+    /// Send one frame made of `header` (Ethernet header on; copied into
+    /// the descriptor's header slot) followed by `payload_len` bytes the DMA
+    /// reads from bus address `payload` (any byte alignment). The CPU never
+    /// reads the payload: see the [module documentation](self) for who
+    /// keeps that memory coherent and unchanged until [`split_done`].
+    ///
+    /// Checksums: for a UDP or TCP over IPv4 header the descriptor asks the
+    /// MAC for the IPv4 header checksum and the UDP/TCP checksum with the
+    /// pseudo-header (CIC 3, [`crate::csum`]), computed over header and
+    /// payload as they leave; the fields' contents do not matter. Without
+    /// the engine ([`Dwmac::checksum_insertion`] is `Off`) nothing is
+    /// inserted: the caller fills in the IPv4 header checksum and sets the
+    /// UDP checksum to 0, "no checksum" (RFC 768).
+    ///
+    /// [`split_done`]: Dwmac::split_done
+    pub fn send_split(&mut self, header: &[u8], payload: u32, payload_len: usize) -> Result<SplitSeq, SplitError> {
+        let len = header.len().checked_add(payload_len).ok_or(SplitError::Length)?;
+        if header.len() < MIN_HEADER || len > MAX_FRAME {
+            return Err(SplitError::Length);
+        }
+        let (shared, tx) = (&self.shared, &mut self.tx);
+        if !tx.free(shared) {
+            tx.split_full = tx.split_full.saturating_add(1);
+            return Err(SplitError::Full);
+        }
+        let i = tx.next;
+        let slot = shared.area.tx_buffer(i);
+        // OWN was seen clear (`free`, which ends with a dmb when it took a
+        // descriptor back): the MAC is done with the slot.
+        // SAFETY: the CPU owns descriptor `i` and its buffer until
+        // `hand_over` sets OWN, and this is the only slice of the buffer.
+        unsafe { slot.bytes_mut(TX_SKEW, header.len()) }.copy_from_slice(header);
+        let cic = csum::for_frame(header, shared.csum);
+        let control = desc::tx_control_split(shared.format, header.len(), payload_len, i == TX_RING - 1, cic);
+        tx.hand_over(shared, control, slot.bus_address() + TX_SKEW as u32, payload, true);
+        let seq = SplitSeq(tx.split_sent);
+        tx.split_sent += 1;
+        tx.split_frames = tx.split_frames.saturating_add(1);
+        tx.bytes = tx.bytes.saturating_add(len as u64);
+        Ok(seq)
+    }
+
+    /// Take back the descriptors the DMA has finished with; returns how
+    /// many split frames that completed. Every other call here does it too.
+    pub fn tx_reclaim(&mut self) -> usize {
+        self.tx.reclaim(&self.shared)
+    }
+
+    /// Whether the DMA is done with split frame `seq` and every one before
+    /// it: their payload memory may change.
+    pub fn split_done(&mut self, seq: SplitSeq) -> bool {
+        seq < self.split_completed()
+    }
+
+    /// The first split frame the DMA may still read: every [`SplitSeq`]
+    /// below it is done (reclaims first).
+    pub fn split_completed(&mut self) -> SplitSeq {
+        self.tx.reclaim(&self.shared);
+        SplitSeq(self.tx.split_done)
+    }
+
+    /// Split frames the DMA may still read (reclaims first).
+    pub fn split_in_flight(&mut self) -> usize {
+        self.tx.reclaim(&self.shared);
+        // At most TX_RING: every one holds a pending descriptor.
+        self.tx.split.iter().filter(|s| **s).count()
+    }
+
+    /// Transmit descriptors handed to the DMA and not yet done, split or
+    /// not (reclaims first).
+    pub fn tx_in_flight(&mut self) -> usize {
+        self.tx.reclaim(&self.shared);
+        self.tx.pending
+    }
+
+    /// Frames that fit into the transmit ring now (reclaims first).
+    pub fn tx_free(&mut self) -> usize {
+        TX_RING - self.tx_in_flight()
+    }
+}
