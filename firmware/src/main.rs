@@ -19,6 +19,7 @@
 mod bench;
 mod board;
 mod boards;
+mod camera;
 mod cpu;
 mod display;
 mod log;

@@ -12,6 +12,9 @@ use dwmac::phy::LinkMonitor;
 use dwmac::regs::Regs;
 use dwmac::{DmaArea, Dwmac};
 use hal_avalon::RegisterPort;
+use rt_protocol::camera::Camera;
+use rt_protocol::camera_service::{CameraBuffers, CameraService, PeerMacs, Snoop, RTSP_SOCKETS};
+use rt_protocol::rtsp::{self, MAX_SESSIONS, RTSP_PORT, SERVER_RTP_PORT};
 use rt_protocol::service::{FrameService, SocketBuffers};
 use rt_protocol::{FrameSource, FRAME_PORT, PERSISTENT_PORT};
 use smoltcp::iface::{Config, Interface, SocketSet, SocketStorage};
@@ -35,6 +38,8 @@ use crate::render::Frames;
 pub const SOCKETS: usize = 24;
 /// Sockets on the seed port.
 pub const FRAME_PORT_SOCKETS: usize = 18;
+/// Sockets of the network camera: RTSP listeners and the RTCP socket.
+const CAMERA_SOCKETS: usize = RTSP_SOCKETS + 1;
 
 /// Why the network did not start.
 #[derive(Clone, Copy, Debug)]
@@ -121,12 +126,17 @@ pub fn run<B: Board, P: RegisterPort>(
 ) -> Result<core::convert::Infallible, NetError> {
     static SOCKET_BUFFERS: ConstStaticCell<[SocketBuffers; SOCKETS]> =
         ConstStaticCell::new([const { SocketBuffers::new() }; SOCKETS]);
-    static SOCKET_STORAGE: ConstStaticCell<[SocketStorage<'static>; SOCKETS]> =
-        ConstStaticCell::new([SocketStorage::EMPTY; SOCKETS]);
+    static SOCKET_STORAGE: ConstStaticCell<[SocketStorage<'static>; SOCKETS + CAMERA_SOCKETS]> =
+        ConstStaticCell::new([SocketStorage::EMPTY; SOCKETS + CAMERA_SOCKETS]);
+    static CAMERA_BUFFERS: ConstStaticCell<CameraBuffers> = ConstStaticCell::new(CameraBuffers::new());
+    // The RTP senders' repair windows, some 32 KiB a session.
+    static CAMERA: ConstStaticCell<Camera<MAX_SESSIONS>> = ConstStaticCell::new(Camera::new());
     let mut log = Log;
     let dma = take_dma_area().ok_or(TAKEN_TWICE)?;
     let socket_buffers = SOCKET_BUFFERS.try_take().ok_or(TAKEN_TWICE)?;
     let socket_storage = SOCKET_STORAGE.try_take().ok_or(TAKEN_TWICE)?;
+    let camera_buffers = CAMERA_BUFFERS.try_take().ok_or(TAKEN_TWICE)?;
+    let camera_senders = CAMERA.try_take().ok_or(TAKEN_TWICE)?;
 
     // SAFETY: the board's DesignWare MAC, mapped Device; only this driver
     // uses it.
@@ -174,6 +184,45 @@ pub fn run<B: Board, P: RegisterPort>(
     );
     log::flush();
 
+    // The network camera, in frame mode: its packets point into the ring.
+    let slot_addresses = frames.slot_addresses();
+    // A live stream's light until its first SET_PARAMETER: rt-client's first.
+    let live_light = model::Light::from_world(3.0, 4.0, -2.0).ok();
+    let mut camera = match slot_addresses.zip(live_light) {
+        Some((_, live_light)) => {
+            let config = rtsp::Config { server_ip: cidr.address(), rtp_port: SERVER_RTP_PORT, live_light };
+            let mac_addr = EthernetAddress(B::MAC_ADDR);
+            match CameraService::new(
+                &mut sockets,
+                camera_buffers,
+                camera_senders,
+                config,
+                mac_addr,
+                timer.ticks() as u32,
+            ) {
+                Ok(c) => {
+                    let _ = writeln!(
+                        log,
+                        "camera: RTSP on TCP {RTSP_PORT}, RTP from UDP {SERVER_RTP_PORT}, rows zero-copy from the ring"
+                    );
+                    Some(c)
+                }
+                Err(e) => {
+                    let _ = writeln!(log, "camera: cannot bind RTCP: {e:?}");
+                    None
+                }
+            }
+        }
+        None => {
+            let _ = writeln!(log, "camera: off in row mode (its packets point into frame slots)");
+            None
+        }
+    };
+    let mut peers = PeerMacs::new();
+    let mut in_flight = [None; crate::render::RING_SLOTS];
+    let mut refused = 0u32;
+    log::flush();
+
     let mut display = Display::probe(frames, &mut log);
     let mut requests = 0u32;
     let mut link_up = false;
@@ -199,8 +248,14 @@ pub fn run<B: Board, P: RegisterPort>(
             }
         }
         let now = Instant::from_micros(i64::try_from(now_us).unwrap_or(i64::MAX));
-        iface.poll(now, &mut mac, &mut sockets);
+        iface.poll(now, &mut Snoop { inner: &mut mac, peers: &mut peers }, &mut sockets);
         service.poll(now, &mut sockets, &mut Counting { frames: &mut *frames, begun: &mut requests }, &mut log);
+        if let (Some(c), Some(slots)) = (&mut camera, &slot_addresses) {
+            let held = crate::camera::slots_in_flight(&mut mac, &mut in_flight);
+            let mut tx =
+                crate::camera::ZeroCopy { mac: &mut mac, slots, in_flight: &mut in_flight, refused: &mut refused };
+            c.poll(now, &mut sockets, &peers, frames, &mut tx, held, &mut log);
+        }
         frames.report(&mut log);
         if let Some(d) = &mut display {
             let status = rt_protocol::monitor::Status {

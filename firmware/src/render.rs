@@ -206,6 +206,15 @@ impl<P: RegisterPort> Frames<P> {
         Frames::Rows(RowFrames::new(Fallback::new(primary, bench::TimedRows::new(SoftwareRenderer))))
     }
 
+    /// Bus addresses of the ring's slots, in frame mode (the network
+    /// camera points the MAC at its rows there).
+    pub fn slot_addresses(&self) -> Option<[u32; RING_SLOTS]> {
+        match self {
+            Frames::Ring(r) => Some(core::array::from_fn(|i| r.slot_address(i))),
+            Frames::Rows(_) => None,
+        }
+    }
+
     /// "frame mode" or "row mode", and what renders.
     pub fn describe(&mut self) -> &'static str {
         match self {
@@ -288,6 +297,16 @@ impl<P: RegisterPort> FrameSource for Frames<P> {
         match self {
             Frames::Ring(r) => r.end(frame),
             Frames::Rows(r) => r.end(frame),
+        }
+    }
+}
+
+/// The network camera resends rows from ring slots; row mode has none (the
+/// camera runs in frame mode only, net.rs).
+impl<P: RegisterPort> rt_protocol::camera::SlotSource for Frames<P> {
+    fn set_held(&mut self, mask: u32) {
+        if let Frames::Ring(r) = self {
+            r.set_held(mask)
         }
     }
 }

@@ -18,7 +18,9 @@
 //! [`StreamSpec::light_at`] the stream's media time. Its rows go out as
 //! they land; when the last has gone the frame is ended, but every packet
 //! stays in the stream's [`FrameRepairWindow`] for the repair hold
-//! ([`repair_hold`]), and a slot that any window holds must not be
+//! ([`repair_hold`]) counted from the frame's last row (a receiver asks
+//! only after the marker, and a frame rendered in software on the
+//! emulated board takes longer than the hold to go out), and a slot that any window holds must not be
 //! rendered into ([`Camera::held`], [`FrameRing::set_held`]). A NACK's
 //! packets are sent again from there, unchanged.
 //!
@@ -104,6 +106,8 @@ struct Current {
     slot: usize,
     stamp: FrameStamp,
     next_row: u16,
+    /// The extended sequence number of its first row.
+    first_seq: u32,
 }
 
 /// One session's sender state (its repair window lives in the [`Camera`],
@@ -214,6 +218,11 @@ impl<const N: usize> Camera<N> {
         self.streams.iter().position(|s| s.as_ref().is_some_and(|s| s.session == session))
     }
 
+    /// Packets `session`'s repair window holds (what a NACK can get back).
+    pub fn repairable(&self, session: SessionId) -> usize {
+        self.index(session).map_or(0, |i| self.windows[i].len())
+    }
+
     /// The frame slots the repair windows hold (bit `i`: slot `i`); give it
     /// to the source ([`SlotSource::set_held`]) after every call that
     /// sends or forgets.
@@ -268,6 +277,7 @@ impl<const N: usize> Camera<N> {
                     // The rest of the frame is not sent; its rows so far
                     // stay repairable.
                     source.end(c.slot);
+                    self.windows[i].restart_hold(c.first_seq, now);
                     s.stats.failed += 1;
                 }
                 s.media_at_resume = s.media_ticks(now) + 1;
@@ -309,7 +319,10 @@ impl<const N: usize> Camera<N> {
         for i in 0..N {
             let Some(s) = self.streams[i].as_mut() else { continue };
             let window = &mut self.windows[i];
-            if window.expire(now).released != 0 {
+            // Packets expire by time only between frames: a frame's hold
+            // starts when its last row went (`restart_hold`), however long
+            // it took; meanwhile the window's size bounds what it keeps.
+            if s.current.is_none() && window.expire(now).released != 0 {
                 progress = true;
             }
             if s.playing && s.reports.poll(now) {
@@ -332,7 +345,8 @@ impl<const N: usize> Camera<N> {
                 match source.begin(&light) {
                     Ok(Some(slot)) => {
                         let stamp = s.packetiser.begin_frame(media);
-                        s.current = Some(Current { slot, stamp, next_row: 0 });
+                        let first_seq = s.packetiser.highest_seq().map_or(0, |h| h.wrapping_add(1));
+                        s.current = Some(Current { slot, stamp, next_row: 0, first_seq });
                         if let Some(iv) = interval {
                             // Keep the rate; after a stall, start afresh.
                             s.due = if now.saturating_duration_since(s.due) > iv { now + iv } else { s.due + iv };
@@ -354,6 +368,7 @@ impl<const N: usize> Camera<N> {
                 Ok(r) => r.min(ROWS),
                 Err(_) => {
                     source.end(c.slot);
+                    window.restart_hold(c.first_seq, now);
                     s.current = None;
                     s.stats.failed += 1;
                     progress = true;
@@ -374,6 +389,7 @@ impl<const N: usize> Camera<N> {
             }
             if c.next_row == ROWS {
                 source.end(c.slot);
+                window.restart_hold(c.first_seq, now);
                 s.current = None;
                 s.stats.frames += 1;
             } else {
@@ -712,6 +728,40 @@ mod tests {
             assert_eq!(r, original, "byte for byte the original packet");
         }
         assert_eq!(camera.stream(SessionId(1)).unwrap().stats().resent, 3);
+    }
+
+    #[test]
+    fn a_nack_arriving_while_the_next_frame_goes_out_is_still_answered() {
+        let (mut camera, mut ring, mut sink) = rig(ROWS);
+        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(5)), t(0), &mut ring);
+        settle(&mut camera, t(0), &mut ring, &mut sink);
+        sink.room = 72;
+        settle(&mut camera, t(200), &mut ring, &mut sink);
+        assert_eq!(sink.rows.len(), 432);
+        let row17 = sink.rows[17].clone();
+        sink.room = usize::MAX;
+        camera.rtcp_received(CLIENT, 6001, &nack(SSRC, &[(row17.seq16(), 0)]), &mut sink);
+        assert_eq!(camera.stream(SessionId(1)).unwrap().stats().unrepairable, 0);
+        assert_eq!(sink.rows.last(), Some(&row17));
+    }
+
+    #[test]
+    fn a_slowly_rendered_frame_stays_repairable_for_the_hold_after_its_last_row() {
+        // One row per poll: the frame takes 3.6 s to go out at 10 ms a row,
+        // far beyond the 400 ms hold of fps=5.
+        let (mut camera, mut ring, mut sink) = rig(1);
+        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(5)), t(0), &mut ring);
+        let mut ms = 0;
+        while sink.rows.len() < usize::from(ROWS) {
+            camera.poll(t(ms), 0, &mut ring, &mut sink);
+            ms += 10;
+        }
+        let first = sink.rows[0].clone();
+        settle(&mut camera, t(ms + 350), &mut ring, &mut sink);
+        let before = sink.rows.len();
+        camera.rtcp_received(CLIENT, 6001, &nack(SSRC, &[(first.seq16(), 0)]), &mut sink);
+        assert_eq!(sink.rows.len(), before + 1, "row 0, sent 3.6 s ago, is still repairable");
+        assert_eq!(sink.rows[before], first);
     }
 
     #[test]

@@ -26,6 +26,9 @@
 //!   and switches a wedged one off.
 //! * `service` (feature `smoltcp`): the server bound to smoltcp TCP sockets,
 //!   as the firmware runs it.
+//! * `camera_service` (feature `smoltcp`): the network camera bound to
+//!   smoltcp (RTSP on TCP, RTCP on UDP) with rows leaving through a
+//!   zero-copy transmitter beside smoltcp.
 //!
 //! The answer to a request is one frame of 518,400 bytes: 480 x 360 RGB888,
 //! row-major, top row first ([`model::FRAME_BYTES`]).
@@ -33,6 +36,8 @@
 #![forbid(unsafe_code)]
 
 pub mod camera;
+#[cfg(feature = "smoltcp")]
+pub mod camera_service;
 pub mod fallback;
 pub mod frames;
 pub mod monitor;

@@ -796,6 +796,25 @@ impl<const N: usize> RepairWindow<N> {
         }
     }
 
+    /// Count the hold of the packets from `first` (an extended sequence
+    /// number) to the newest from `now`: a frame's packets are repairable
+    /// for the hold after its last row went, however long its rows took to
+    /// render (a receiver asks only once the frame's marker arrived).
+    /// Bounded: at most `N` entries.
+    pub fn restart_hold(&mut self, first: u32, now: Instant) {
+        let from =
+            if self.next.wrapping_sub(first) <= self.next.wrapping_sub(self.oldest) { first } else { self.oldest };
+        let mut s = from;
+        while s != self.next {
+            if let Some(e) = self.entries[s as usize % N].as_mut() {
+                if e.packet.seq == s {
+                    e.at = now;
+                }
+            }
+            s = s.wrapping_add(1);
+        }
+    }
+
     /// Drop the packets recorded longer than the hold time before `now`;
     /// returns the slots released (bounded: at most `N` entries).
     pub fn expire(&mut self, now: Instant) -> SlotChanges {

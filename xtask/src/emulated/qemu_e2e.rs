@@ -213,7 +213,7 @@ fn t_uart_log(g: &mut Guest) -> Result<()> {
 pub fn run(elf: &std::path::Path) -> Result<()> {
     let mut g = Guest::boot(elf, &[])?;
     type Test = fn(&mut Guest) -> Result<()>;
-    let tests: [(&str, Test); 7] = [
+    let tests: [(&str, Test); 10] = [
         ("frames on the frame port equal the model", t_seed_port_frames),
         ("pipelined frames on the persistent port equal the model", t_persistent_port_pipelined),
         ("out-of-range request: no frame, next client served", t_out_of_range_then_next_client),
@@ -221,9 +221,15 @@ pub fn run(elf: &std::path::Path) -> Result<()> {
         ("two clients at once both served", t_two_clients_at_once),
         ("24 seed-port clients at once: at least 16 served, the rest refused cleanly, the next served", t_overload),
         ("UART log shows link up and each request", t_uart_log),
+        ("RTSP: a fixed light's frames equal the model's, a NACKed row comes back", t_rtsp_fixed_light),
+        ("RTSP: an orbit's frames are the model's at their timestamps' lights", t_rtsp_orbit),
+        ("RTSP: a live stream follows SET_PARAMETER", t_rtsp_live),
     ];
+    // RT_E2E_ONLY=text runs only the tests whose name contains it (while
+    // working on one).
+    let only = std::env::var("RT_E2E_ONLY").unwrap_or_default();
     let (mut passed, mut failed) = (0, 0);
-    for (name, t) in tests {
+    for (name, t) in tests.into_iter().filter(|(name, _)| name.contains(only.as_str())) {
         let start = std::time::Instant::now();
         match t(&mut g) {
             Ok(()) => {
@@ -242,6 +248,63 @@ pub fn run(elf: &std::path::Path) -> Result<()> {
         return Err(format!("{failed} QEMU end-to-end test(s) failed"));
     }
     Ok(())
+}
+
+/// The network camera's stream at `path`, through the forwarded RTSP and
+/// RTCP ports.
+fn rtsp_stream(g: &Guest, path: &str) -> Result<crate::support::rtsp_client::Stream> {
+    let f = g.forwards.ok_or("the guest has no forwarded RTSP port")?;
+    let rtcp = std::net::SocketAddr::from(([127, 0, 0, 1], f.rtcp));
+    crate::support::rtsp_client::Stream::open(std::net::SocketAddr::from(([127, 0, 0, 1], f.rtsp)), path, Some(rtcp))
+}
+
+fn t_rtsp_fixed_light(g: &mut Guest) -> Result<()> {
+    let mut s = rtsp_stream(g, "/light/3,4,-2?fps=5")?;
+    s.drop_once = Some(17);
+    let expected = expected_frame([3072, 4096, -2048])?;
+    for i in 0..3 {
+        let f = s.next_frame(Duration::from_secs(60))?;
+        if f.bytes != expected {
+            return Err(format!("RTSP frame {i} (timestamp {}) is not the model's", f.timestamp));
+        }
+    }
+    let (repaired, nacks) = (s.repaired_rows, s.nacks);
+    s.teardown()?;
+    if repaired == 0 {
+        return Err("row 17, dropped on purpose, never came back by NACK".into());
+    }
+    println!("qemu e2e: 3 RTSP frames exact ({repaired} rows repaired after {nacks} NACKs)");
+    Ok(())
+}
+
+fn t_rtsp_orbit(g: &mut Guest) -> Result<()> {
+    let path = "/orbit?radius=3&height=4&period=2&fps=4";
+    let spec = rt_protocol::rtsp::StreamSpec::parse(&format!("rtsp://h{path}")).map_err(|e| format!("{e:?}"))?;
+    let mut s = rtsp_stream(g, path)?;
+    let live = model::Light::from_world(0.0, 4.0, 0.0).map_err(|e| format!("{e:?}"))?;
+    for i in 0..2 {
+        let f = s.next_frame(Duration::from_secs(60))?;
+        let t = Duration::from_micros(u64::from(f.timestamp.wrapping_sub(s.rtptime)) * 100 / 9);
+        let light = spec.light_at(t, live);
+        if f.bytes != model::render_frame(&light) {
+            return Err(format!("orbit frame {i} at media time {t:?} is not the model's for {light:?}"));
+        }
+    }
+    s.teardown()
+}
+
+fn t_rtsp_live(g: &mut Guest) -> Result<()> {
+    let mut s = rtsp_stream(g, "/live?fps=5")?;
+    s.next_frame(Duration::from_secs(60))?;
+    s.set_light(-2.0, 3.0, 1.5)?;
+    let expected = expected_frame([-2048, 3072, 1536])?;
+    // Frames begun before the request still carry the old light.
+    for _ in 0..5 {
+        if s.next_frame(Duration::from_secs(60))?.bytes == expected {
+            return s.teardown();
+        }
+    }
+    Err("no frame with the light SET_PARAMETER gave within 5 frames".into())
 }
 
 /// The boot self-test's line without an accelerator.

@@ -9,6 +9,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use clap::Args;
+use rt_protocol::rtsp::{RTSP_PORT, SERVER_RTP_PORT};
 use rt_protocol::{persistent_port, FRAME_PORT, PERSISTENT_PORT};
 
 use super::uimage;
@@ -36,14 +37,55 @@ pub fn free_port() -> Result<u16> {
     Ok(l.local_addr().map_err(|e| e.to_string())?.port())
 }
 
+/// Host ports forwarded into the emulated board (slirp's `hostfwd`).
+#[derive(Clone, Copy, Debug)]
+pub struct Forwards {
+    /// To the frame port.
+    pub single: u16,
+    /// To the persistent port.
+    pub persistent: u16,
+    /// To the RTSP port (TCP).
+    pub rtsp: u16,
+    /// To the RTCP port (UDP): the board's RTP port + 1. A player sends
+    /// its reports and NACKs to the `server_port` the board announced
+    /// (5005) on the address it connected to, so only host port 5005
+    /// reaches the board from a stock player; tests with their own client
+    /// may use any.
+    pub rtcp: u16,
+}
+
+impl Forwards {
+    /// Free host ports for all four (RTCP on 5005 when that is free).
+    pub fn free() -> Result<Forwards> {
+        let rtcp = if std::net::UdpSocket::bind(("127.0.0.1", SERVER_RTP_PORT + 1)).is_ok() {
+            SERVER_RTP_PORT + 1
+        } else {
+            free_udp_port()?
+        };
+        Ok(Forwards { single: free_port()?, persistent: free_port()?, rtsp: free_port()?, rtcp })
+    }
+}
+
+/// A free UDP port on 127.0.0.1 (asked from the OS, then released).
+pub fn free_udp_port() -> Result<u16> {
+    let s = std::net::UdpSocket::bind("127.0.0.1:0").map_err(|e| format!("no free UDP port: {e}"))?;
+    Ok(s.local_addr().map_err(|e| e.to_string())?.port())
+}
+
 /// The QEMU command line for `elf` with host ports forwarded to the
-/// firmware's frame and persistent ports.
-pub fn qemu_command(elf: &Path, port_single: u16, port_persistent: u16) -> Command {
+/// firmware's frame, persistent, RTSP and RTCP ports. The board's RTP
+/// leaves for the client's ports on 10.0.2.2, which slirp delivers to the
+/// host's 127.0.0.1 (QEMU's user networking: the host's alias).
+pub fn qemu_command(elf: &Path, f: &Forwards) -> Command {
     let mut c = Command::new("qemu-system-arm");
+    let (single, persistent, rtsp, rtcp) = (f.single, f.persistent, f.rtsp, f.rtcp);
     c.args(["-M", "npcm750-evb", "-kernel"]).arg(elf).args([
         "-nic",
         &format!(
-            "user,id=n0,model=npcm-gmac,hostfwd=tcp:127.0.0.1:{port_single}-:{FRAME_PORT},hostfwd=tcp:127.0.0.1:{port_persistent}-:{PERSISTENT_PORT}"
+            "user,id=n0,model=npcm-gmac,hostfwd=tcp:127.0.0.1:{single}-:{FRAME_PORT},\
+             hostfwd=tcp:127.0.0.1:{persistent}-:{PERSISTENT_PORT},hostfwd=tcp:127.0.0.1:{rtsp}-:{RTSP_PORT},\
+             hostfwd=udp:127.0.0.1:{rtcp}-:{}",
+            SERVER_RTP_PORT + 1
         ),
     ]);
     c
@@ -74,14 +116,18 @@ pub struct Guest {
     pub port_single: u16,
     /// Host port forwarded to the persistent port.
     pub port_persistent: u16,
+    /// Host ports forwarded to the RTSP and RTCP ports (0 without slirp).
+    pub forwards: Option<Forwards>,
 }
 
 impl Guest {
     /// Boot `elf` with extra QEMU arguments; wait (at most 60 s) until the
     /// firmware says it listens.
     pub fn boot(elf: &Path, extra: &[&str]) -> Result<Guest> {
-        let (port_single, port_persistent) = (free_port()?, free_port()?);
-        Guest::start(qemu_command(elf, port_single, port_persistent), port_single, port_persistent, extra)
+        let f = Forwards::free()?;
+        let mut g = Guest::start(qemu_command(elf, &f), f.single, f.persistent, extra)?;
+        g.forwards = Some(f);
+        Ok(g)
     }
 
     /// Boot `elf` with the MAC on `netdev` (a `-netdev` value, `id=n0`)
@@ -103,7 +149,7 @@ impl Guest {
             .stderr(Stdio::from(File::create(log.with_extension("stderr")).map_err(|e| e.to_string())?));
         let child =
             c.spawn().map_err(|e| format!("cannot start qemu-system-arm: {e} (cargo xtask test installs it)"))?;
-        let mut g = Guest { child, log, port_single, port_persistent };
+        let mut g = Guest { child, log, port_single, port_persistent, forwards: None };
         g.wait_for_log("listening on TCP", Duration::from_secs(60))?;
         Ok(g)
     }
@@ -154,6 +200,10 @@ pub struct QemuArgs {
     /// to its persistent port).
     #[arg(long, default_value_t = FRAME_PORT)]
     pub port: u16,
+    /// Host port forwarded to the firmware's RTSP port (UDP 5005 goes to
+    /// its RTCP port, where players send reports and NACKs).
+    #[arg(long, default_value_t = RTSP_PORT)]
+    pub rtsp_port: u16,
 }
 
 /// Build the QEMU firmware and boot it in the foreground (Ctrl-A X quits).
@@ -164,8 +214,11 @@ pub fn qemu(args: &QemuArgs) -> Result<()> {
     println!("firmware: {}", elf.display());
     println!("forwarded: 127.0.0.1:{p1} -> firmware :{FRAME_PORT} (one frame per connection)");
     println!("forwarded: 127.0.0.1:{p2} -> firmware :{PERSISTENT_PORT} (persistent)");
+    let f = Forwards { single: p1, persistent: p2, rtsp: args.rtsp_port, rtcp: SERVER_RTP_PORT + 1 };
+    println!("forwarded: 127.0.0.1:{} -> firmware :{RTSP_PORT} (RTSP), UDP {} -> :{} (RTCP)", f.rtsp, f.rtcp, f.rtcp);
     println!("try: rt-client orbit --server 127.0.0.1:{p1}    (quit QEMU with Ctrl-A X)");
-    let mut c = qemu_command(&elf, p1, p2);
+    println!("or:  gst-launch-1.0 rtspsrc location=rtsp://127.0.0.1:{}/light/3,4,-2 ! rtpvrawdepay ! videoconvert ! autovideosink", f.rtsp);
+    let mut c = qemu_command(&elf, &f);
     c.arg("-nographic");
     let st = c.status().map_err(|e| format!("cannot start qemu-system-arm: {e}"))?;
     if st.success() {

@@ -1,0 +1,73 @@
+//! The board as a network camera: `rt_protocol::camera_service` (RTSP on
+//! TCP port 8554, RTP/RTCP on UDP 5004/5005) over the frame ring, its rows
+//! leaving zero-copy: each packet is one two-buffer descriptor of the
+//! DesignWare MAC, buffer 1 the 62-byte header, buffer 2 the row where the
+//! FPGA wrote it in the ring (`dwmac::Dwmac::send_split`). The CPU never
+//! reads a pixel on this path.
+//!
+//! Coherence: the ring's rows are in DRAM when a packet points at them:
+//! the FPGA-to-SDRAM port writes behind the caches, and the CPU cleans
+//! everything it writes there (render.rs, `RingMemory`). The MAC reads
+//! DRAM through the L3 interconnect, so no maintenance is needed here.
+
+use dwmac::desc::ChecksumInsertion;
+use dwmac::{DmaSync, Dwmac, SplitError, SplitSeq};
+use embedded_hal::delay::DelayNs;
+use model::ROW_BYTES;
+use rt_protocol::camera_service::RowTransmitter;
+use rt_protocol::rtp::FRAME_HEADER_BYTES;
+
+use crate::render::RING_SLOTS;
+
+/// Rows out through the MAC's two-buffer descriptors.
+pub struct ZeroCopy<'m, 'a, S, D> {
+    /// The MAC.
+    pub mac: &'m mut Dwmac<'a, S, D>,
+    /// Bus address of each ring slot.
+    pub slots: &'m [u32; RING_SLOTS],
+    /// The newest descriptor pointing into each slot.
+    pub in_flight: &'m mut [Option<SplitSeq>; RING_SLOTS],
+    /// Rows dropped as malformed (never expected: headers are 62 bytes).
+    pub refused: &'m mut u32,
+}
+
+impl<S: DmaSync, D: DelayNs> RowTransmitter for ZeroCopy<'_, '_, S, D> {
+    fn send(&mut self, header: &[u8; FRAME_HEADER_BYTES], slot: usize, row: u16) -> bool {
+        let Some(&base) = self.slots.get(slot) else {
+            *self.refused += 1;
+            return true;
+        };
+        let payload = base + u32::from(row) * ROW_BYTES as u32;
+        match self.mac.send_split(header, payload, ROW_BYTES) {
+            Ok(seq) => {
+                self.in_flight[slot] = Some(seq);
+                true
+            }
+            Err(SplitError::Full) => false,
+            Err(SplitError::Length) => {
+                *self.refused += 1;
+                true
+            }
+        }
+    }
+
+    fn checksum_offload(&self) -> bool {
+        self.mac.checksum_insertion() == ChecksumInsertion::Full
+    }
+}
+
+/// The slots some descriptor still points into (bit `i`: slot `i`);
+/// forgets the finished ones.
+pub fn slots_in_flight<S: DmaSync, D: DelayNs>(
+    mac: &mut Dwmac<'_, S, D>,
+    in_flight: &mut [Option<SplitSeq>; RING_SLOTS],
+) -> u32 {
+    let mut mask = 0;
+    for (i, seq) in in_flight.iter_mut().enumerate() {
+        match *seq {
+            Some(s) if !mac.split_done(s) => mask |= 1 << i,
+            _ => *seq = None,
+        }
+    }
+    mask
+}

@@ -1,0 +1,272 @@
+//! A small RTSP/RTP client for the suite's checks of the network camera
+//! (the emulated board, the lossy relay): it sets a stream up as a player
+//! does, gathers frames by timestamp, asks for missing rows with generic
+//! NACKs (RFC 4585) once a frame's marker arrived, and counts what came by
+//! repair. Strict: anything off-spec in a packet is an error.
+
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{SocketAddr, TcpStream, UdpSocket};
+use std::time::{Duration, Instant};
+
+use super::Result;
+
+const ROWS: usize = 360;
+const ROW_BYTES: usize = 1440;
+const HEADER: usize = 20;
+
+/// An RTSP session playing one stream.
+pub struct Stream {
+    ctrl: TcpStream,
+    reader: BufReader<TcpStream>,
+    cseq: u32,
+    url: String,
+    session: String,
+    rtp: UdpSocket,
+    rtcp: UdpSocket,
+    server_rtcp: SocketAddr,
+    /// The SSRC the SETUP answer announced.
+    pub ssrc: u32,
+    /// RTP-Info's `rtptime`: the timestamp of media time 0.
+    pub rtptime: u32,
+    partial: BTreeMap<u32, Partial>,
+    /// Rows received again after a NACK.
+    pub repaired_rows: usize,
+    /// NACK datagrams sent.
+    pub nacks: usize,
+    /// A line to ignore the first time it arrives (a loss made on
+    /// purpose, for the repair to fill).
+    pub drop_once: Option<usize>,
+}
+
+/// A frame being received.
+struct Partial {
+    rows: Vec<Option<Vec<u8>>>,
+    /// A row's sequence number and its line, to number the missing ones.
+    known: Option<(u32, usize)>,
+    marked: bool,
+    nacked_at: Option<Instant>,
+}
+
+/// A whole frame.
+pub struct Frame {
+    /// Its RTP timestamp.
+    pub timestamp: u32,
+    /// 518,400 bytes.
+    pub bytes: Vec<u8>,
+}
+
+type Headers = BTreeMap<String, String>;
+
+impl Stream {
+    /// Set up and play `path` (e.g. `/light/3,4,-2?fps=10`) on the RTSP
+    /// server at `rtsp`. `rtcp` overrides where RTCP goes (a forwarded
+    /// port); by default the announced `server_port` on the server's
+    /// address.
+    pub fn open(rtsp: SocketAddr, path: &str, rtcp: Option<SocketAddr>) -> Result<Stream> {
+        let ctrl =
+            TcpStream::connect_timeout(&rtsp, Duration::from_secs(10)).map_err(|e| format!("RTSP {rtsp}: {e}"))?;
+        ctrl.set_read_timeout(Some(Duration::from_secs(20))).map_err(|e| e.to_string())?;
+        let reader = BufReader::new(ctrl.try_clone().map_err(|e| e.to_string())?);
+        let (rtp, rtcp_sock) = udp_pair()?;
+        let mut s = Stream {
+            ctrl,
+            reader,
+            cseq: 0,
+            url: format!("rtsp://{rtsp}{path}"),
+            session: String::new(),
+            rtp,
+            rtcp: rtcp_sock,
+            server_rtcp: rtsp,
+            ssrc: 0,
+            rtptime: 0,
+            partial: BTreeMap::new(),
+            repaired_rows: 0,
+            nacks: 0,
+            drop_once: None,
+        };
+        let url = s.url.clone();
+        let (_, sdp) = s.request("DESCRIBE", &url, &[("Accept", "application/sdp")], "")?;
+        for needed in ["a=rtpmap:96 raw/90000", "sampling=RGB; width=480; height=360; depth=8", "a=rtcp-fb:96 nack"] {
+            if !sdp.contains(needed) {
+                return Err(format!("the SDP lacks {needed:?}:\n{sdp}"));
+            }
+        }
+        let port = s.rtp.local_addr().map_err(|e| e.to_string())?.port();
+        let transport = format!("RTP/AVP;unicast;client_port={port}-{}", port + 1);
+        let (h, _) = s.request("SETUP", &format!("{url}/trackID=0"), &[("Transport", &transport)], "")?;
+        s.session = field(&h, "session")?.split(';').next().unwrap_or_default().to_string();
+        let transport = field(&h, "transport")?;
+        let param = |name: &str| transport.split(';').find_map(|p| p.strip_prefix(name)).map(str::to_string);
+        let ports = param("server_port=").ok_or(format!("no server_port in {transport:?}"))?;
+        let rtcp_port: u16 = ports.split('-').nth(1).and_then(|p| p.parse().ok()).ok_or("bad server_port")?;
+        s.server_rtcp = rtcp.unwrap_or(SocketAddr::new(rtsp.ip(), rtcp_port));
+        s.ssrc = param("ssrc=").and_then(|x| u32::from_str_radix(&x, 16).ok()).ok_or("no ssrc in Transport")?;
+        let session = s.session.clone();
+        let (h, _) = s.request("PLAY", &url, &[("Session", &session)], "")?;
+        let info = field(&h, "rtp-info")?;
+        s.rtptime = info
+            .split(';')
+            .find_map(|p| p.strip_prefix("rtptime="))
+            .and_then(|t| t.parse().ok())
+            .ok_or(format!("no rtptime in RTP-Info {info:?}"))?;
+        Ok(s)
+    }
+
+    fn request(&mut self, method: &str, url: &str, headers: &[(&str, &str)], body: &str) -> Result<(Headers, String)> {
+        self.cseq += 1;
+        let mut req = format!("{method} {url} RTSP/1.0\r\nCSeq: {}\r\n", self.cseq);
+        for (k, v) in headers {
+            req += &format!("{k}: {v}\r\n");
+        }
+        if !body.is_empty() {
+            req += &format!("Content-Length: {}\r\n", body.len());
+        }
+        req += "\r\n";
+        req += body;
+        self.ctrl.write_all(req.as_bytes()).map_err(|e| format!("{method}: {e}"))?;
+        let mut status = String::new();
+        self.reader.read_line(&mut status).map_err(|e| format!("{method}: {e}"))?;
+        let mut h = Headers::new();
+        loop {
+            let mut line = String::new();
+            self.reader.read_line(&mut line).map_err(|e| format!("{method}: {e}"))?;
+            let line = line.trim_end();
+            if line.is_empty() {
+                break;
+            }
+            if let Some((k, v)) = line.split_once(':') {
+                h.insert(k.trim().to_ascii_lowercase(), v.trim().to_string());
+            }
+        }
+        let len: usize = h.get("content-length").and_then(|v| v.parse().ok()).unwrap_or(0);
+        let mut body = vec![0; len];
+        self.reader.read_exact(&mut body).map_err(|e| format!("{method} body: {e}"))?;
+        if !status.starts_with("RTSP/1.0 200") {
+            return Err(format!("{method} {url}: {}", status.trim_end()));
+        }
+        Ok((h, String::from_utf8_lossy(&body).into_owned()))
+    }
+
+    /// Move a live stream's light (`SET_PARAMETER`, world units).
+    pub fn set_light(&mut self, x: f64, y: f64, z: f64) -> Result<()> {
+        let (url, session) = (self.url.clone(), self.session.clone());
+        let headers = [("Session", session.as_str()), ("Content-Type", "text/parameters")];
+        self.request("SET_PARAMETER", &url, &headers, &format!("light: {x},{y},{z}\r\n")).map(|_| ())
+    }
+
+    /// End the session.
+    pub fn teardown(mut self) -> Result<()> {
+        let (url, session) = (self.url.clone(), self.session.clone());
+        self.request("TEARDOWN", &url, &[("Session", &session)], "").map(|_| ())
+    }
+
+    /// The next whole frame (rows repaired by NACK where lost), within
+    /// `timeout`.
+    pub fn next_frame(&mut self, timeout: Duration) -> Result<Frame> {
+        let deadline = Instant::now() + timeout;
+        let mut buf = [0u8; 2048];
+        loop {
+            let now = Instant::now();
+            if now >= deadline {
+                return Err(format!("no whole frame within {timeout:?}"));
+            }
+            self.rtp.set_read_timeout(Some(Duration::from_millis(50))).map_err(|e| e.to_string())?;
+            match self.rtp.recv(&mut buf) {
+                Ok(n) => {
+                    if let Some(frame) = self.take(&buf[..n])? {
+                        return Ok(frame);
+                    }
+                }
+                Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
+                Err(e) => return Err(format!("RTP: {e}")),
+            }
+            self.ask_for_missing()?;
+        }
+    }
+
+    /// One RTP packet; a frame if it completed one.
+    fn take(&mut self, p: &[u8]) -> Result<Option<Frame>> {
+        if p.len() != HEADER + ROW_BYTES || p[0] != 0x80 || p[1] & 0x7f != 96 {
+            return Err(format!("not a row packet of this stream ({} bytes, {:02x} {:02x})", p.len(), p[0], p[1]));
+        }
+        let be16 = |i: usize| u16::from_be_bytes([p[i], p[i + 1]]);
+        let be32 = |i: usize| u32::from_be_bytes([p[i], p[i + 1], p[i + 2], p[i + 3]]);
+        if be32(8) != self.ssrc || usize::from(be16(14)) != ROW_BYTES || be16(18) != 0 {
+            return Err("an RTP header field is off (SSRC, length or offset)".into());
+        }
+        let (seq, ts, marker) = (u32::from(be16(12)) << 16 | u32::from(be16(2)), be32(4), p[1] & 0x80 != 0);
+        let line = usize::from(be16(16) & 0x7fff);
+        if line >= ROWS || marker != (line == ROWS - 1) {
+            return Err(format!("line {line} with marker {marker}"));
+        }
+        let f = self.partial.entry(ts).or_insert_with(|| Partial {
+            rows: vec![None; ROWS],
+            known: None,
+            marked: false,
+            nacked_at: None,
+        });
+        if self.drop_once == Some(line) {
+            self.drop_once = None;
+        } else if f.rows[line].is_none() {
+            if f.nacked_at.is_some() {
+                self.repaired_rows += 1;
+            }
+            f.rows[line] = Some(p[HEADER..].to_vec());
+        }
+        f.known.get_or_insert((seq, line));
+        f.marked |= marker;
+        if f.rows.iter().all(Option::is_some) {
+            let f = self.partial.remove(&ts).ok_or("frame vanished")?;
+            // Older incomplete frames are given up.
+            self.partial.retain(|&t, _| t.wrapping_sub(ts) < 1 << 31);
+            return Ok(Some(Frame { timestamp: ts, bytes: f.rows.into_iter().flatten().flatten().collect() }));
+        }
+        Ok(None)
+    }
+
+    /// NACK the missing rows of marked frames (again every 100 ms).
+    fn ask_for_missing(&mut self) -> Result<()> {
+        let now = Instant::now();
+        let mut lost = Vec::new();
+        for f in self.partial.values_mut() {
+            let Some((seq, line)) = f.known else { continue };
+            if !f.marked || f.nacked_at.is_some_and(|t| now - t < Duration::from_millis(100)) {
+                continue;
+            }
+            f.nacked_at = Some(now);
+            let first = seq.wrapping_sub(line as u32);
+            lost.extend((0..ROWS).filter(|&y| f.rows[y].is_none()).map(|y| first.wrapping_add(y as u32)));
+        }
+        for chunk in lost.chunks(200) {
+            let mut d = vec![0x81, 205];
+            d.extend_from_slice(&(2 + chunk.len() as u16).to_be_bytes());
+            d.extend_from_slice(&0x0bad_cafe_u32.to_be_bytes());
+            d.extend_from_slice(&self.ssrc.to_be_bytes());
+            for &s in chunk {
+                d.extend_from_slice(&(s as u16).to_be_bytes());
+                d.extend_from_slice(&0u16.to_be_bytes());
+            }
+            self.rtcp.send_to(&d, self.server_rtcp).map_err(|e| format!("NACK: {e}"))?;
+            self.nacks += 1;
+        }
+        Ok(())
+    }
+}
+
+fn field(h: &Headers, name: &str) -> Result<String> {
+    h.get(name).cloned().ok_or(format!("no {name} header in {h:?}"))
+}
+
+/// Two client UDP sockets on consecutive ports, the first even.
+fn udp_pair() -> Result<(UdpSocket, UdpSocket)> {
+    for _ in 0..64 {
+        let probe = UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
+        let port = probe.local_addr().map_err(|e| e.to_string())?.port() & !1;
+        drop(probe);
+        if let (Ok(a), Ok(b)) = (UdpSocket::bind(("0.0.0.0", port)), UdpSocket::bind(("0.0.0.0", port + 1))) {
+            return Ok((a, b));
+        }
+    }
+    Err("no free UDP port pair".into())
+}
