@@ -10,7 +10,7 @@
 //! * the groups: [`emulated`] (the firmware on QEMU: end-to-end tests,
 //!   benches, soak), which uses [`images`] (firmware, U-Boot image, SD
 //!   card); [`fpga`] (RTL checks); [`host`] (model commands, live viewer,
-//!   fuzz harnesses);
+//!   real players, fuzz harnesses);
 //! * [`support`]: paths, the step runner, tool installation, the error type.
 
 mod emulated;
@@ -68,6 +68,9 @@ enum Command {
     /// A long run of the emulated board: 1,000 frames in one boot, every
     /// one checked, nothing leaked.
     Soak(emulated::soak::SoakArgs),
+    /// Real players as clients: GStreamer receives hps-sim's RTSP streams
+    /// (a fixed light, an orbit); every frame must be the model's.
+    Players,
     /// The hostile-input harnesses with many cases (frame server, MAC
     /// receive path).
     Fuzz(host::fuzz::FuzzArgs),
@@ -99,6 +102,7 @@ fn main() -> ExitCode {
         Command::LiveTest => host::live_test::run(),
         Command::LossyBench(args) => emulated::lossy::bench(&args),
         Command::Soak(args) => emulated::soak::run(&args),
+        Command::Players => host::players::run(),
         Command::Fuzz(args) => host::fuzz::run(&args),
         Command::LossyClient(args) => emulated::lossy::client(&args),
         Command::Rtl(args) => fpga::rtl::run_cli(&args),

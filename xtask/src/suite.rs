@@ -53,6 +53,10 @@ pub fn run() -> Result<()> {
     }
     // Plain `cargo test`: every default member, i.e. every host crate.
     step("host tests", cargo(&["test"]))?;
+    // Real players as clients of hps-sim's RTSP server: GStreamer, from
+    // Debian's packages (docs/streaming.md).
+    ensure_apt_packages(&crate::host::players::GSTREAMER_PACKAGES, None)?;
+    crate::host::players::run()?;
     // The workspace run enables the model's `std` feature (fast float paths);
     // this runs the arithmetic properties against the pure-integer paths the
     // firmware uses.
