@@ -92,6 +92,19 @@ pub fn run() -> Result<()> {
     Ok(())
 }
 
+/// `cargo xtask players`' GStreamer checks against the emulated board.
+pub fn players_on_the_emulated_board(elf: &std::path::Path) -> Result<()> {
+    let g = crate::images::firmware::Guest::boot(elf, &[])?;
+    let f = g.forwards.ok_or("the guest has no forwarded ports")?;
+    if f.rtcp != rt_protocol::rtsp::SERVER_RTP_PORT + 1 {
+        println!("players: host UDP port 5005 is taken: GStreamer's RTCP will not reach the board (no repair)");
+    }
+    let dir = crate::support::tools::root().join("target/players/emulated");
+    std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let rtsp = std::net::SocketAddr::from(([127, 0, 0, 1], f.rtsp));
+    crate::host::players::check_server("the emulated board", rtsp, &dir)
+}
+
 /// Build the QEMU firmware (warnings are errors) and run the end-to-end
 /// tests against it.
 pub fn qemu_tests() -> Result<()> {
@@ -111,6 +124,10 @@ pub fn qemu_tests() -> Result<()> {
     // The frame-mode build over the simulated accelerator (map version 3)
     // also drives the VGA display: attract mode, the display's counter, a
     // client's frame on screen.
+    // A real player against the emulated board: GStreamer through the
+    // forwarded RTSP port (the rows leave through two-buffer descriptors).
+    let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
+    players_on_the_emulated_board(&elf)?;
     for (features, renderer, uart, display) in [
         (&["row-mode"][..], "row mode, software renderer", skipped, false),
         (&["sim-accelerator"][..], "frame mode, FPGA frame DMA into the ring (software fallback)", pass.clone(), true),

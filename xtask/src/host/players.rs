@@ -80,13 +80,25 @@ pub fn run() -> Result<()> {
         .map_err(|e| format!("hps-sim: {e}"))?;
     let mut sim = Guard(sim, "hps-sim");
     wait_for_port(&mut sim, rtsp, &log)?;
+    check_server("hps-sim", rtsp, &dir)?;
+    if let Ok(Some(status)) = sim.0.try_wait() {
+        return Err(format!("hps-sim exited during the test ({status}); see {}", log.display()));
+    }
+    println!("players: done in {:.1} s", started.elapsed().as_secs_f64());
+    Ok(())
+}
 
+/// GStreamer against the RTSP server at `rtsp` (hps-sim, or the emulated
+/// board through its forwarded port), captures under `dir`: a fixed
+/// light's frames and an orbit's equal the model's.
+pub fn check_server(name: &str, rtsp: SocketAddr, dir: &Path) -> Result<()> {
+    ensure_apt_packages(&GSTREAMER_PACKAGES, None)?;
     let light = Light::from_world(3.0, 4.0, -2.0).map_err(|e| format!("{e:?}"))?;
     let path = format!("/light/3,4,-2?fps={FPS}");
     let capture = gstreamer(&dir.join("light"), &format!("rtsp://{rtsp}{path}"), FRAMES)?;
     let expected = model::render_frame(&light);
     let report = check_fixed(&capture, &expected)?;
-    println!("players: GStreamer, {path}: {report}");
+    println!("players: GStreamer from {name}, {path}: {report}");
 
     let path = format!("/orbit?radius=3&height=4&period=2&fps={FPS}");
     let url = format!("rtsp://{rtsp}{path}");
@@ -94,12 +106,7 @@ pub fn run() -> Result<()> {
     let capture = gstreamer(&dir.join("orbit"), &url, FRAMES)?;
     let orbit = |ms: u64| spec.light_at(Duration::from_millis(ms), light);
     let report = check_orbit(&capture, orbit)?;
-    println!("players: GStreamer, {path}: {report}");
-
-    if let Ok(Some(status)) = sim.0.try_wait() {
-        return Err(format!("hps-sim exited during the test ({status}); see {}", log.display()));
-    }
-    println!("players: done in {:.1} s", started.elapsed().as_secs_f64());
+    println!("players: GStreamer from {name}, {path}: {report}");
     Ok(())
 }
 
