@@ -610,6 +610,14 @@ mod tests {
     /// A canned server: answers each request in turn with `answers` (CSeq
     /// filled in), recording the requests.
     fn canned(answers: Vec<String>) -> (SocketAddr, std::thread::JoinHandle<Vec<String>>) {
+        canned_then(answers, |_, _| {})
+    }
+
+    /// [`canned`], calling `after(i, request)` once answer `i` is sent.
+    fn canned_then(
+        answers: Vec<String>,
+        mut after: impl FnMut(usize, &str) + Send + 'static,
+    ) -> (SocketAddr, std::thread::JoinHandle<Vec<String>>) {
         let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
         let addr = listener.local_addr().unwrap();
         let handle = std::thread::spawn(move || {
@@ -639,6 +647,7 @@ mod tests {
                 seen.push(String::from_utf8_lossy(&buf[..end + body_len]).into_owned());
                 buf.drain(..end + body_len);
                 s.write_all(a.replace("CSeq: N", &format!("CSeq: {}", i + 1)).as_bytes()).unwrap();
+                after(i, seen.last().unwrap());
             }
             seen
         });
@@ -670,5 +679,83 @@ mod tests {
         assert!(seen[2].starts_with("SET_PARAMETER rtsp://127.0.0.1:8554/live RTSP/1.0\r\nCSeq: 3\r\n"));
         assert!(seen[2].contains("Session: 1111111122222222\r\n"), "{}", seen[2]);
         assert!(seen[2].ends_with("Content-Type: text/parameters\r\nContent-Length: 14\r\n\r\nlight: 1,2,3\r\n"));
+    }
+
+    /// Two frames over real sockets from a fake camera that drops row 10
+    /// of the first and answers NACKs: the stream asks, and the frame comes
+    /// out repaired and whole.
+    #[test]
+    fn a_stream_repairs_a_dropped_row_over_udp() {
+        use rt_protocol::rtp::{NackRequests, Packetiser};
+        let camera_rtp = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let camera_rtcp = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let rtcp_port = camera_rtcp.local_addr().unwrap().port();
+        let rtp_port = camera_rtp.local_addr().unwrap().port();
+        let ok = "RTSP/1.0 200 OK\r\nCSeq: N\r\n\r\n".to_string();
+        let setup = format!(
+            "RTSP/1.0 200 OK\r\nCSeq: N\r\nTransport: RTP/AVP;unicast;client_port=1-2;server_port={rtp_port}-{rtcp_port}\r\n\
+             Session: 00000000000000AB;timeout=60\r\n\r\n"
+        );
+        let sdp = "v=0\r\na=control:*\r\n";
+        let describe = format!("RTSP/1.0 200 OK\r\nCSeq: N\r\nContent-Length: {}\r\n\r\n{sdp}", sdp.len());
+        let mut client_rtp = None;
+        let (addr, server) = canned_then(vec![ok.clone(), describe, setup, ok.clone(), ok], move |i, req| {
+            if i == 2 {
+                let ports = req.split("client_port=").nth(1).unwrap();
+                client_rtp = Some(ports.split('-').next().unwrap().parse::<u16>().unwrap());
+            }
+            if i != 3 {
+                return;
+            }
+            let to = SocketAddr::from(([127, 0, 0, 1], client_rtp.unwrap()));
+            let (rtp, rtcp) = (camera_rtp.try_clone().unwrap(), camera_rtcp.try_clone().unwrap());
+            std::thread::spawn(move || {
+                let mut p = Packetiser::new(0xabcd, 0xfff0, 0);
+                let mut sent = vec![];
+                for k in 0..2u8 {
+                    let f = p.begin_frame(u64::from(k) * 3_000);
+                    for y in 0..360 {
+                        let packet = p.next_packet(f, y).unwrap();
+                        let mut d = vec![k * 100 + (y % 100) as u8; PACKET_BYTES];
+                        p.emit(&packet, &mut d).unwrap();
+                        if (k, y) != (0, 10) {
+                            rtp.send_to(&d, to).unwrap();
+                        }
+                        sent.push(d);
+                        if y % 20 == 0 {
+                            std::thread::sleep(Duration::from_millis(1));
+                        }
+                    }
+                }
+                rtcp.set_read_timeout(Some(Duration::from_millis(500))).unwrap();
+                let mut buf = [0u8; 1500];
+                while let Ok(n) = rtcp.recv(&mut buf) {
+                    for seq in NackRequests::new(&buf[..n], 0xabcd, p.highest_seq()) {
+                        rtp.send_to(&sent[seq.wrapping_sub(0xfff0) as usize], to).unwrap();
+                    }
+                }
+            });
+        });
+        let url = "rtsp://127.0.0.1:8554/light/3,4,-2";
+        let mut stream = RtpStream::open(addr, url).unwrap();
+        let mut got = vec![];
+        while got.len() < 2 {
+            let n = stream
+                .receive(Duration::from_secs(3), |f| got.push((f.quality, f.pixels[10 * 1_440], f.pixels.to_vec())))
+                .unwrap();
+            assert!(n > 0, "no frame within 3 s");
+        }
+        assert_eq!(got[0].0, rt_protocol::receiver::Quality::Repaired);
+        assert_eq!(got[0].1, 10, "row 10 came by NACK");
+        for (k, (_, _, pixels)) in got.iter().enumerate() {
+            for y in 0..360 {
+                assert_eq!(pixels[y * 1_440], k as u8 * 100 + (y % 100) as u8, "frame {k} row {y}");
+            }
+        }
+        assert!(stream.counts().nacks >= 1);
+        stream.close().unwrap();
+        let seen = server.join().unwrap();
+        assert!(seen[4].starts_with("TEARDOWN rtsp://127.0.0.1:8554/light/3,4,-2 RTSP/1.0"), "{}", seen[4]);
+        assert!(seen[3].starts_with("PLAY "));
     }
 }
