@@ -21,12 +21,37 @@ use model::{Light, FRAME_BYTES, HEIGHT, WIDTH};
 use crate::control::{Control, Effect, Input, Key, Requests, DEPTH};
 use crate::net;
 use crate::output::{save_png, FrameSink};
+use crate::rtsp::RtpStream;
 use crate::script::Script;
+
+/// Where the frames come from.
+#[derive(Clone, Debug)]
+pub enum Target {
+    /// The persistent port: one frame per light requested.
+    Tcp(SocketAddr),
+    /// An RTSP server's `/live` stream at `url`: frames at the stream's
+    /// rate, the light moved by `SET_PARAMETER`.
+    Rtsp {
+        /// The RTSP server.
+        addr: SocketAddr,
+        /// The stream's URL.
+        url: String,
+    },
+}
+
+impl std::fmt::Display for Target {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Target::Tcp(a) => write!(f, "{a}"),
+            Target::Rtsp { url, .. } => f.write_str(url),
+        }
+    }
+}
 
 /// `rt-client live` options after the server is known.
 pub struct LiveOptions {
-    /// The frame port (persistent port = + 1).
-    pub server: SocketAddr,
+    /// Where the frames come from.
+    pub target: Target,
     /// What the title calls the server.
     pub server_name: String,
     /// Integer window scale.
@@ -47,15 +72,65 @@ pub(crate) enum FromServer {
     Lost(String),
 }
 
-/// One persistent connection: requests written here, frames read by a
-/// thread.
+/// One connection: requests written here, frames read by a thread.
 pub(crate) struct Link {
-    stream: TcpStream,
+    lights: LightsTo,
     pub(crate) frames: Receiver<FromServer>,
 }
 
+/// Where a [`Link`]'s lights go.
+enum LightsTo {
+    /// Requests on the persistent connection.
+    Tcp(TcpStream),
+    /// To the RTSP thread, which sends them as `SET_PARAMETER`.
+    Rtsp(mpsc::Sender<Light>),
+}
+
 impl Link {
-    pub(crate) fn open(addr: SocketAddr) -> Result<Link, String> {
+    pub(crate) fn open(target: &Target) -> Result<Link, String> {
+        match target {
+            Target::Tcp(addr) => Link::open_tcp(*addr),
+            Target::Rtsp { addr, url } => Link::open_rtsp(*addr, url),
+        }
+    }
+
+    /// The RTSP stream on a thread that owns it: between datagrams it
+    /// sends the newest light asked for.
+    fn open_rtsp(addr: SocketAddr, url: &str) -> Result<Link, String> {
+        let mut stream = RtpStream::open(addr, url).map_err(|e| e.to_string())?;
+        let (tx, frames) = mpsc::channel();
+        let (lights, wanted) = mpsc::channel::<Light>();
+        thread::Builder::new()
+            .name("rtsp".into())
+            .spawn(move || loop {
+                let mut newest = None;
+                loop {
+                    match wanted.try_recv() {
+                        Ok(l) => newest = Some(l),
+                        Err(mpsc::TryRecvError::Empty) => break,
+                        // The window went away: stop (the drop tears down).
+                        Err(mpsc::TryRecvError::Disconnected) => return,
+                    }
+                }
+                if let Some(l) = newest {
+                    if let Err(e) = stream.set_light(&l) {
+                        let _ = tx.send(FromServer::Lost(e.to_string()));
+                        return;
+                    }
+                }
+                let sent = stream.receive(Duration::from_millis(5), |f| {
+                    let _ = tx.send(FromServer::Frame(f.pixels.to_vec()));
+                });
+                if let Err(e) = sent {
+                    let _ = tx.send(FromServer::Lost(e.to_string()));
+                    return;
+                }
+            })
+            .map_err(|e| format!("thread: {e}"))?;
+        Ok(Link { lights: LightsTo::Rtsp(lights), frames })
+    }
+
+    fn open_tcp(addr: SocketAddr) -> Result<Link, String> {
         let stream = net::connect(addr).map_err(|e| e.to_string())?;
         let mut reader = stream.try_clone().map_err(|e| format!("socket: {e}"))?;
         // No read timeout: a quiet server is normal while nothing is asked.
@@ -78,17 +153,22 @@ impl Link {
                 }
             })
             .map_err(|e| format!("thread: {e}"))?;
-        Ok(Link { stream, frames })
+        Ok(Link { lights: LightsTo::Tcp(stream), frames })
     }
 
     pub(crate) fn request(&mut self, light: &Light) -> Result<(), String> {
-        net::send_request(&mut self.stream, light).map_err(|e| e.to_string())
+        match &mut self.lights {
+            LightsTo::Tcp(stream) => net::send_request(stream, light).map_err(|e| e.to_string()),
+            LightsTo::Rtsp(tx) => tx.send(*light).map_err(|_| "the RTSP stream stopped".into()),
+        }
     }
 }
 
 impl Drop for Link {
     fn drop(&mut self) {
-        let _ = self.stream.shutdown(std::net::Shutdown::Both);
+        if let LightsTo::Tcp(stream) = &self.lights {
+            let _ = stream.shutdown(std::net::Shutdown::Both);
+        }
     }
 }
 
@@ -159,7 +239,7 @@ pub fn run(opts: LiveOptions) -> Result<(), String> {
         .map_err(|e| format!("cannot open a window (is DISPLAY set?): {e}"))?;
     window.set_target_fps(120);
     let mut pixels = vec![0u32; w * h];
-    let persistent = net::persistent_addr(opts.server).map_err(|e| e.to_string())?;
+    let persistent = opts.target.clone();
     let mut sink = FrameSink::new(opts.record.clone())?;
 
     let mut control = Control::default();
@@ -229,7 +309,7 @@ pub fn run(opts: LiveOptions) -> Result<(), String> {
 
         // ---- Connection ----
         if link.is_none() && now >= retry_at {
-            match Link::open(persistent) {
+            match Link::open(&persistent) {
                 Ok(l) => {
                     link = Some(l);
                     attempt = 0;
@@ -323,7 +403,7 @@ pub fn run(opts: LiveOptions) -> Result<(), String> {
         }
     }
     if let Some(written) = sink.finish()? {
-        eprintln!("rt-client: {written}");
+        eprintln!("rt-client: {}", written.summary);
     }
     Ok(())
 }
@@ -347,7 +427,7 @@ fn send(link: &mut Option<Link>, status: &mut String, light: &Light, tag: u64, s
 /// the first frame whose request was made at or after it.
 pub fn bench(server: SocketAddr, events: usize, hz: f64) -> Result<(), String> {
     let persistent = net::persistent_addr(server).map_err(|e| e.to_string())?;
-    let mut link = Link::open(persistent)?;
+    let mut link = Link::open(&Target::Tcp(persistent))?;
     let mut control = Control::default();
     let mut requests = Requests::new(DEPTH);
     let period = Duration::from_secs_f64(1.0 / hz.max(1.0));

@@ -6,6 +6,7 @@ mod live;
 mod net;
 mod orbit;
 mod output;
+mod rtsp;
 mod script;
 mod stats;
 mod window;
@@ -15,7 +16,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Instant;
 
-use clap::{Args, Parser, Subcommand};
+use clap::{Args, Parser, Subcommand, ValueEnum};
 use hps_sim::HpsSim;
 use indicatif::{ProgressBar, ProgressStyle};
 use model::Light;
@@ -57,7 +58,9 @@ enum Command {
         #[arg(long)]
         show: bool,
     },
-    /// Measure frames/s and latency of an orbit, saving nothing.
+    /// Measure frames/s and latency of an orbit, saving nothing (with
+    /// --transport rtsp: frames/s and how many frames came exact,
+    /// repaired, damaged or were lost).
     Bench {
         #[command(flatten)]
         run: RunArgs,
@@ -84,12 +87,30 @@ enum Command {
         /// (docs/live-viewer.md: one `MS EVENT` per line).
         #[arg(long)]
         script: Option<PathBuf>,
+        /// How frames travel: `tcp`, one request per frame on the
+        /// persistent port; `rtsp`, the `/live` RTP stream with the light
+        /// moved by SET_PARAMETER (frames/s and latency then count every
+        /// streamed frame).
+        #[arg(long, value_enum, default_value_t = Transport::Tcp)]
+        transport: Transport,
+        /// The RTSP server, HOST:PORT, for --transport rtsp; default
+        /// --server's host on port 8554.
+        #[arg(long)]
+        rtsp: Option<String>,
         /// Write the frames shown to an animated GIF.
         #[arg(long)]
         record: Option<PathBuf>,
         /// On exit, save the last frame shown as PNG.
         #[arg(long)]
         save_last: Option<PathBuf>,
+    },
+    /// Print a server's stream URLs (light, orbit, live), for any RTSP
+    /// player.
+    Url {
+        /// The server, HOST or HOST:PORT; PORT is the RTSP port (default
+        /// 8554).
+        #[arg(long)]
+        server: String,
     },
     /// Measure the live viewer's input-to-screen latency (no window).
     BenchLive {
@@ -120,13 +141,50 @@ struct RunArgs {
     /// Light height in world units.
     #[arg(long, default_value_t = 4.0, allow_hyphen_values = true)]
     height: f64,
+    /// How frames travel: `tcp`, one request per light on the persistent
+    /// port (--frames lights evenly round the orbit); `rtsp`, the server's
+    /// `/orbit` RTP stream, the light placed by stream time (--period),
+    /// lost rows asked for again by NACK.
+    #[arg(long, value_enum, default_value_t = Transport::Tcp)]
+    transport: Transport,
+    /// The RTSP server, HOST:PORT, for --transport rtsp; default
+    /// --server's host on port 8554.
+    #[arg(long)]
+    rtsp: Option<String>,
+    /// rtsp: seconds per turn. --frames frames span frames/rate seconds of
+    /// the orbit; `--fps 24 --period F/24` makes F frames one turn, like tcp.
+    #[arg(long, default_value_t = 2.0)]
+    period: f64,
+    /// rtsp: frames per second asked of the stream, 1-1000 or `max`.
+    #[arg(long, default_value = "max", value_parser = parse_fps)]
+    fps: String,
+}
+
+/// How frames travel from the server.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum Transport {
+    /// The seed protocol's persistent TCP port: a request per frame.
+    Tcp,
+    /// An RTSP session and its RTP/UDP stream.
+    Rtsp,
+}
+
+fn parse_fps(s: &str) -> Result<String, String> {
+    match s.parse::<u16>() {
+        _ if s.eq_ignore_ascii_case("max") => Ok("max".into()),
+        Ok(n) if (1..=rt_protocol::rtsp::MAX_FPS).contains(&n) => Ok(n.to_string()),
+        _ => Err(format!("expected 1-{} or max", rt_protocol::rtsp::MAX_FPS)),
+    }
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Frame { server, light, out } => frame(server.as_deref(), &light, &out),
-        Command::Live { server, scale, script, record, save_last } => live(server, scale, script, record, save_last),
+        Command::Live { server, scale, script, transport, rtsp, record, save_last } => {
+            live(server, scale, script, transport, rtsp, record, save_last)
+        }
+        Command::Url { server } => url(&server),
         Command::BenchLive { server, events, hz } => {
             board(server.as_deref()).and_then(|(addr, _b)| live::bench(addr, events, hz))
         }
@@ -156,10 +214,51 @@ fn board(server: Option<&str>) -> Result<(SocketAddr, Option<HpsSim>), String> {
     }
 }
 
+/// The RTSP server: `--rtsp`, else `--server`'s host on port 8554, else a
+/// simulated board started in-process (kept alive by the returned handle).
+fn rtsp_board(server: Option<&str>, rtsp: Option<&str>) -> Result<(SocketAddr, Option<HpsSim>), String> {
+    match (rtsp, server) {
+        (Some(r), _) => Ok((net::resolve(r).map_err(|e| e.to_string())?, None)),
+        (None, Some(s)) => Ok((rtsp::rtsp_addr_of(net::resolve(s).map_err(|e| e.to_string())?), None)),
+        (None, None) => {
+            let board = HpsSim::start_quiet(SocketAddr::from(([127, 0, 0, 1], 0)))
+                .map_err(|e| format!("cannot start the simulated board: {e}"))?;
+            let addr = sim_rtsp_addr(&board)?;
+            eprintln!("rt-client: simulated board, RTSP on {addr}");
+            Ok((addr, Some(board)))
+        }
+    }
+}
+
+/// The simulated board's RTSP address: the one place that needs hps-sim's
+/// RTSP server (`Ok(board.rtsp_addr())` once it has one).
+fn sim_rtsp_addr(_board: &HpsSim) -> Result<SocketAddr, String> {
+    Err("the simulated board has no RTSP server yet: give --server or --rtsp, or use --transport tcp".into())
+}
+
+fn url(server: &str) -> Result<(), String> {
+    let with_port = if server.parse::<SocketAddr>().is_ok()
+        || server.rsplit_once(':').is_some_and(|(h, p)| !h.contains(':') && p.parse::<u16>().is_ok())
+    {
+        server.to_string()
+    } else if server.contains(':') && !server.starts_with('[') {
+        format!("[{server}]:{}", rt_protocol::rtsp::RTSP_PORT)
+    } else {
+        format!("{server}:{}", rt_protocol::rtsp::RTSP_PORT)
+    };
+    let base = format!("rtsp://{with_port}");
+    println!("{base}/light/3,4,-2?fps=30        fixed light at (3, 4, -2), 30 frames/s");
+    println!("{base}/orbit?radius=3&height=4&period=2&fps=max   orbiting light, one turn per 2 s, as fast as rendered");
+    println!("{base}/live?fps=60                light moved by SET_PARAMETER (light: x,y,z), 60 frames/s");
+    Ok(())
+}
+
 fn live(
     server: Option<String>,
     scale: u32,
     script: Option<PathBuf>,
+    transport: Transport,
+    rtsp: Option<String>,
     record: Option<PathBuf>,
     save_last: Option<PathBuf>,
 ) -> Result<(), String> {
@@ -169,12 +268,22 @@ fn live(
         }
         None => None,
     };
-    let (addr, _board) = board(server.as_deref())?;
-    let server_name = match &server {
-        Some(s) => s.clone(),
-        None => format!("simulated board {addr}"),
+    let (target, _board) = match transport {
+        Transport::Tcp => {
+            let (addr, b) = board(server.as_deref())?;
+            (live::Target::Tcp(net::persistent_addr(addr).map_err(|e| e.to_string())?), b)
+        }
+        Transport::Rtsp => {
+            let (addr, b) = rtsp_board(server.as_deref(), rtsp.as_deref())?;
+            (live::Target::Rtsp { addr, url: rtsp::stream_url(addr, "/live?fps=60") }, b)
+        }
     };
-    live::run(live::LiveOptions { server: addr, server_name, scale: scale as usize, script, record, save_last })
+    let server_name = match (&server, &target) {
+        (_, live::Target::Rtsp { url, .. }) => url.clone(),
+        (Some(s), _) => s.clone(),
+        (None, live::Target::Tcp(addr)) => format!("simulated board {addr}"),
+    };
+    live::run(live::LiveOptions { target, server_name, scale: scale as usize, script, record, save_last })
 }
 
 fn frame(server: Option<&str>, light: &Light, out: &std::path::Path) -> Result<(), String> {
@@ -188,6 +297,9 @@ fn frame(server: Option<&str>, light: &Light, out: &std::path::Path) -> Result<(
 }
 
 fn orbit(args: &RunArgs, out: Option<PathBuf>, show: bool) -> Result<(), String> {
+    if args.transport == Transport::Rtsp {
+        return orbit_rtsp(args, out, show);
+    }
     let path = OrbitPath { frames: args.frames as usize, radius: args.radius, height: args.height };
     let lights = path.lights().map_err(|e| format!("orbit leaves the light range: {e}"))?;
     // Keep the in-process board alive for the whole run.
@@ -214,8 +326,84 @@ fn orbit(args: &RunArgs, out: Option<PathBuf>, show: bool) -> Result<(), String>
         return Err(e);
     }
     println!("{}", stats.report());
-    if let Some(written) = sink.finish()? {
-        println!("{written}");
+    finish_sink(sink)
+}
+
+/// Wait for the encoder and say how long it took, apart from the stream.
+fn finish_sink(sink: FrameSink) -> Result<(), String> {
+    let waited = Instant::now();
+    if let Some(w) = sink.finish()? {
+        println!(
+            "{}; encoding took {:.2} s, {:.2} s of it after the last frame",
+            w.summary,
+            w.busy.as_secs_f64(),
+            waited.elapsed().as_secs_f64()
+        );
     }
     Ok(())
+}
+
+/// `orbit`/`bench` over RTSP: `--frames` frames of the `/orbit` stream.
+fn orbit_rtsp(args: &RunArgs, out: Option<PathBuf>, show: bool) -> Result<(), String> {
+    let (addr, _board) = rtsp_board(args.server.as_deref(), args.rtsp.as_deref())?;
+    let url = rtsp::stream_url(
+        addr,
+        &format!("/orbit?radius={}&height={}&period={}&fps={}", args.radius, args.height, args.period, args.fps),
+    );
+    let frames = args.frames as usize;
+    let mut window = if show { Some(window::LiveWindow::open("rt-client orbit")?) } else { None };
+    let mut sink = FrameSink::new(out)?;
+    let bar = ProgressBar::new(frames as u64).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} frames  {per_sec}  eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let start = Instant::now();
+    let mut stream = rtsp::RtpStream::open(addr, &url).map_err(|e| e.to_string())?;
+    let (mut got, mut first_at, mut last_at) = (0usize, None, start);
+    let mut failure: Option<String> = None;
+    let mut closed = false;
+    while got < frames && failure.is_none() && !closed {
+        stream
+            .receive(rtsp::STREAM_TIMEOUT, |f| {
+                if got >= frames || failure.is_some() {
+                    return;
+                }
+                got += 1;
+                last_at = Instant::now();
+                first_at.get_or_insert(last_at);
+                bar.inc(1);
+                if let Err(e) = sink.push(f.pixels) {
+                    failure = Some(e);
+                }
+                closed |= window.as_mut().is_some_and(|w| !w.show(f.pixels));
+            })
+            .map_err(|e| e.to_string())?;
+    }
+    let counts = stream.counts();
+    if let Err(e) = stream.close() {
+        eprintln!("rt-client: {e}");
+    }
+    bar.finish_and_clear();
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    let elapsed = last_at.duration_since(start).as_secs_f64().max(1e-9);
+    // The rate between the first frame and the last leaves out the set-up.
+    let steady = first_at.map(|f| last_at.duration_since(f).as_secs_f64()).filter(|&s| s > 0.0 && got > 1);
+    println!(
+        "{got} frames in {elapsed:.2} s over RTSP: {:.1} frames/s ({} after the first), {:.1} MB/s\n\
+         frames: {} exact, {} repaired, {} damaged, {} lost; {} NACKs for {} rows, {} duplicates, {} late",
+        got as f64 / elapsed,
+        steady.map_or("-".into(), |s| format!("{:.1}", (got - 1) as f64 / s)),
+        got as f64 * model::FRAME_BYTES as f64 / elapsed / 1e6,
+        counts.exact,
+        counts.repaired,
+        counts.damaged,
+        counts.lost,
+        counts.nacks,
+        counts.rows_nacked,
+        counts.duplicates,
+        counts.late,
+    );
+    finish_sink(sink)
 }

@@ -154,3 +154,19 @@ fn bad_arguments_fail() {
         assert!(!r.stderr.is_empty(), "{args:?} says why");
     }
 }
+
+/// `bench --transport rtsp` against the in-process simulated board: needs
+/// hps-sim's RTSP server, wired in `main.rs`'s `sim_rtsp_addr`.
+#[test]
+#[ignore = "needs hps-sim's RTSP server: un-ignore once sim_rtsp_addr returns board.rtsp_addr()"]
+fn bench_over_rtsp_counts_every_frame() {
+    let r = rt_client(&["bench", "--transport", "rtsp", "--frames", "20", "--fps", "max"]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let out = String::from_utf8_lossy(&r.stdout);
+    assert!(out.contains("20 frames in "), "{out}");
+    let count = |what: &str| -> u64 {
+        let at = out.find(&format!(" {what}")).unwrap_or_else(|| panic!("no {what} in {out}"));
+        out[..at].rsplit([' ', ':']).next().unwrap().parse().unwrap()
+    };
+    assert_eq!(count("exact,") + count("repaired,") + count("damaged,"), 20, "{out}");
+}

@@ -22,6 +22,8 @@
 //! * [`camera`]: the RTP sender behind the RTSP server: per playing
 //!   session, frames paced from a frame ring, rows handed to the caller's
 //!   sink, NACKs answered from the repair window, sender reports.
+//! * [`receiver`]: the client's end of the RTP stream: datagrams to whole
+//!   frames (exact, repaired or damaged), lost frames counted, NACKs out.
 //! * [`fallback`]: a row source that falls back to another where it fails,
 //!   and switches a wedged one off.
 //! * `service` (feature `smoltcp`): the server bound to smoltcp TCP sockets,
@@ -42,6 +44,7 @@ pub mod fallback;
 pub mod frames;
 pub mod monitor;
 pub mod orbit;
+pub mod receiver;
 pub mod rtp;
 pub mod rtsp;
 pub mod server;
