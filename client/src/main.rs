@@ -221,19 +221,15 @@ fn rtsp_board(server: Option<&str>, rtsp: Option<&str>) -> Result<(SocketAddr, O
         (Some(r), _) => Ok((net::resolve(r).map_err(|e| e.to_string())?, None)),
         (None, Some(s)) => Ok((rtsp::rtsp_addr_of(net::resolve(s).map_err(|e| e.to_string())?), None)),
         (None, None) => {
-            let board = HpsSim::start_quiet(SocketAddr::from(([127, 0, 0, 1], 0)))
+            let mut board = HpsSim::start_quiet(SocketAddr::from(([127, 0, 0, 1], 0)))
                 .map_err(|e| format!("cannot start the simulated board: {e}"))?;
-            let addr = sim_rtsp_addr(&board)?;
+            let addr = board
+                .start_rtsp(SocketAddr::from(([127, 0, 0, 1], 0)), hps_sim::Device::Sim, false)
+                .map_err(|e| format!("cannot start the simulated board's RTSP server: {e}"))?;
             eprintln!("rt-client: simulated board, RTSP on {addr}");
             Ok((addr, Some(board)))
         }
     }
-}
-
-/// The simulated board's RTSP address: the one place that needs hps-sim's
-/// RTSP server (`Ok(board.rtsp_addr())` once it has one).
-fn sim_rtsp_addr(_board: &HpsSim) -> Result<SocketAddr, String> {
-    Err("the simulated board has no RTSP server yet: give --server or --rtsp, or use --transport tcp".into())
 }
 
 fn url(server: &str) -> Result<(), String> {

@@ -375,11 +375,30 @@ impl RtspClient {
 
 // ---- The stream --------------------------------------------------------------------------
 
+/// The RTP socket's receive buffer asked for: two frames' 720 packets
+/// (about 2.3 KB each in the kernel's accounting). Linux caps it at
+/// `net.core.rmem_max` (208 KiB by default: about a third of a frame, so
+/// bursts then lose rows for the NACKs to repair); GStreamer's rtspsrc asks
+/// for 512 KiB the same way.
+pub const RTP_RECEIVE_BUFFER: usize = 2 << 20;
+
+/// A UDP socket on `ip:port` with a receive buffer of
+/// [`RTP_RECEIVE_BUFFER`] (as much of it as the kernel grants).
+fn bind_rtp(ip: IpAddr, port: u16) -> std::io::Result<UdpSocket> {
+    use socket2::{Domain, Protocol, Socket, Type};
+    let addr = std::net::SocketAddr::new(ip, port);
+    let socket = Socket::new(Domain::for_address(addr), Type::DGRAM, Some(Protocol::UDP))?;
+    // Best effort: a smaller buffer still works, with more repairs.
+    let _ = socket.set_recv_buffer_size(RTP_RECEIVE_BUFFER);
+    socket.bind(&addr.into())?;
+    Ok(socket.into())
+}
+
 /// Two UDP sockets on consecutive ports (RTP even by convention, RTCP the
 /// next), bound on `ip`.
 fn bind_pair(ip: IpAddr) -> Result<(UdpSocket, UdpSocket), RtspError> {
     for _ in 0..32 {
-        let rtp = UdpSocket::bind((ip, 0)).map_err(io_error("binding the RTP socket"))?;
+        let rtp = bind_rtp(ip, 0).map_err(io_error("binding the RTP socket"))?;
         let port = rtp.local_addr().map_err(io_error("binding the RTP socket"))?.port();
         if port == u16::MAX {
             continue;

@@ -155,10 +155,9 @@ fn bad_arguments_fail() {
     }
 }
 
-/// `bench --transport rtsp` against the in-process simulated board: needs
-/// hps-sim's RTSP server, wired in `main.rs`'s `sim_rtsp_addr`.
+/// `bench --transport rtsp` against the in-process simulated board's RTSP
+/// server.
 #[test]
-#[ignore = "needs hps-sim's RTSP server: un-ignore once sim_rtsp_addr returns board.rtsp_addr()"]
 fn bench_over_rtsp_counts_every_frame() {
     let r = rt_client(&["bench", "--transport", "rtsp", "--frames", "20", "--fps", "max"]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));

@@ -127,9 +127,17 @@ pub struct Stream {
     /// When the next frame is due (`fps=N`).
     due: Instant,
     current: Option<Current>,
+    /// NACKed packets not sent again yet (the sink was full): they go
+    /// before new rows, which a receiver waits for less.
+    repairs: heapless::Deque<u32, MAX_PENDING_REPAIRS>,
     reports: ReportTimer,
     stats: StreamStats,
 }
+
+/// NACKed packets a stream queues for resending (more are not repairable:
+/// more than a frame's worth asked for at once is a receiver that lost
+/// the stream, not a few rows).
+pub const MAX_PENDING_REPAIRS: usize = 512;
 
 impl Stream {
     /// The session.
@@ -263,6 +271,7 @@ impl<const N: usize> Camera<N> {
                             resumed_at: now,
                             due: now,
                             current: None,
+                            repairs: heapless::Deque::new(),
                             reports: ReportTimer::new(now),
                             stats: StreamStats::default(),
                         });
@@ -330,6 +339,14 @@ impl<const N: usize> Camera<N> {
                 let n = sr.write(&mut self.rtcp).unwrap_or(0);
                 if let Ok(m) = write_sdes_cname(s.packetiser.ssrc(), CNAME, &mut self.rtcp[n..]) {
                     let _ = sink.send_rtcp(&s.to, &self.rtcp[..n + m]);
+                }
+            }
+            if !s.repairs.is_empty() {
+                let before = s.stats.resent;
+                let done = s.send_repairs(window, sink);
+                progress |= s.stats.resent != before;
+                if !done {
+                    continue;
                 }
             }
             if !s.playing {
@@ -422,16 +439,11 @@ impl<const N: usize> Camera<N> {
         let s = self.streams[i].as_mut()?;
         let window = &self.windows[i];
         for seq in NackRequests::new(datagram, s.packetiser.ssrc(), s.packetiser.highest_seq()) {
-            match window.lookup(seq) {
-                Some(r) => {
-                    if !sink.send_row(&s.to, &s.packetiser, &r.packet, r.slot) {
-                        break;
-                    }
-                    s.stats.resent += 1;
-                }
-                None => s.stats.unrepairable += 1,
+            if window.lookup(seq).is_none() || s.repairs.push_back(seq).is_err() {
+                s.stats.unrepairable += 1;
             }
         }
+        s.send_repairs(window, sink);
         Some(s.session)
     }
 
@@ -446,11 +458,30 @@ impl<const N: usize> Camera<N> {
     /// Whether any stream is sending a frame (waiting for its rows or the
     /// sink): the caller should poll again soon.
     pub fn busy(&self) -> bool {
-        self.streams().any(|s| s.current.is_some())
+        self.streams().any(|s| s.current.is_some() || !s.repairs.is_empty())
     }
 }
 
 impl Stream {
+    /// Resend the NACKed packets still waiting, oldest request first, while
+    /// the sink takes them; whether none is left.
+    fn send_repairs<K: RtpSink>(&mut self, window: &FrameRepairWindow, sink: &mut K) -> bool {
+        while let Some(&seq) = self.repairs.front() {
+            match window.lookup(seq) {
+                Some(r) => {
+                    if !sink.send_row(&self.to, &self.packetiser, &r.packet, r.slot) {
+                        return false;
+                    }
+                    self.stats.resent += 1;
+                }
+                // Left the window while it waited.
+                None => self.stats.unrepairable += 1,
+            }
+            self.repairs.pop_front();
+        }
+        true
+    }
+
     /// The 90 kHz tick count of `now` on the clock the frames were stamped
     /// with (media time), for the sender reports.
     fn packetiser_ticks(&self, now: Instant) -> u64 {
@@ -743,6 +774,25 @@ mod tests {
         camera.rtcp_received(CLIENT, 6001, &nack(SSRC, &[(row17.seq16(), 0)]), &mut sink);
         assert_eq!(camera.stream(SessionId(1)).unwrap().stats().unrepairable, 0);
         assert_eq!(sink.rows.last(), Some(&row17));
+    }
+
+    #[test]
+    fn repairs_the_sink_cannot_take_wait_and_go_before_new_rows() {
+        let (mut camera, mut ring, mut sink) = rig(ROWS);
+        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(10)), t(0), &mut ring);
+        settle(&mut camera, t(0), &mut ring, &mut sink);
+        let sent = sink.rows.len();
+        sink.room = 2;
+        // Ask for 10 rows: 2 go at once, 8 wait.
+        camera.rtcp_received(CLIENT, 6001, &nack(SSRC, &[(65_500, 0x1ff)]), &mut sink);
+        assert_eq!(sink.rows.len(), sent + 2);
+        assert!(camera.busy());
+        sink.room = usize::MAX;
+        settle(&mut camera, t(100), &mut ring, &mut sink);
+        let again: Vec<u32> = sink.rows[sent..sent + 10].iter().map(Received::ext_seq).collect();
+        assert_eq!(again, (65_500..65_510).collect::<Vec<_>>(), "all ten, before the next frame's rows");
+        assert_eq!(sink.rows[sent + 10].line(), 0, "then the next frame");
+        assert_eq!(camera.stream(SessionId(1)).unwrap().stats().resent, 10);
     }
 
     #[test]
