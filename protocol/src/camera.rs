@@ -79,8 +79,11 @@ pub fn repair_hold(spec: &StreamSpec) -> Duration {
     spec.fps.interval().map_or(MIN_REPAIR_HOLD, |i| (i * 2).max(MIN_REPAIR_HOLD))
 }
 
-/// The shortest repair hold.
-pub const MIN_REPAIR_HOLD: Duration = Duration::from_millis(200);
+/// The shortest repair hold: a second, for a NACK that crosses a slow or
+/// lossy path, or waits behind a long poll (the emulated board renders a
+/// frame on its CPU in one). It costs little: a window keeps at most
+/// [`rtp::REPAIR_ENTRIES`] packets (under three frames) whatever the hold.
+pub const MIN_REPAIR_HOLD: Duration = Duration::from_secs(1);
 
 /// The CNAME in the sender reports' SDES (RFC 3550 section 6.5.1).
 pub const CNAME: &[u8] = b"raytracer@board";
@@ -823,10 +826,10 @@ mod tests {
         assert_eq!(camera.held(), 1 << slot0);
         assert_eq!(ring.held(), 1 << slot0, "the ring knows");
         assert_eq!(ring.free_slots(), 3);
-        // 10 fps: two frame times are 200 ms.
-        settle(&mut camera, t(150), &mut ring, &mut sink);
+        // 10 fps: two frame times are 200 ms, the hold at least a second.
+        settle(&mut camera, t(950), &mut ring, &mut sink);
         assert_eq!(camera.held() & 1, 1, "still repairable");
-        settle(&mut camera, t(250), &mut ring, &mut sink);
+        settle(&mut camera, t(1_050), &mut ring, &mut sink);
         assert_eq!(camera.held() & 1, 0, "released after the hold");
         assert_eq!(ring.held() & 1, 0);
         let before = sink.rows.len();

@@ -34,6 +34,8 @@ pub struct Stream {
     pub repaired_rows: usize,
     /// NACK datagrams sent.
     pub nacks: usize,
+    /// Incomplete frames given up because a newer one completed first.
+    pub given_up: usize,
     /// A line to ignore the first time it arrives (a loss made on
     /// purpose, for the repair to fill).
     pub drop_once: Option<usize>,
@@ -84,6 +86,7 @@ impl Stream {
             repaired_rows: 0,
             nacks: 0,
             drop_once: None,
+            given_up: 0,
         };
         let url = s.url.clone();
         let (_, sdp) = s.request("DESCRIBE", &url, &[("Accept", "application/sdp")], "")?;
@@ -216,10 +219,18 @@ impl Stream {
         }
         f.known.get_or_insert((seq, line));
         f.marked |= marker;
-        if f.rows.iter().all(Option::is_some) {
+        let complete = f.rows.iter().all(Option::is_some);
+        // A newer frame's packet also ends the older ones (their marker
+        // may be what was lost).
+        for (_, older) in self.partial.iter_mut().filter(|(&t, _)| ts.wrapping_sub(t).wrapping_sub(1) < 1 << 31) {
+            older.marked = true;
+        }
+        if complete {
             let f = self.partial.remove(&ts).ok_or("frame vanished")?;
             // Older incomplete frames are given up.
+            let before = self.partial.len();
             self.partial.retain(|&t, _| t.wrapping_sub(ts) < 1 << 31);
+            self.given_up += before - self.partial.len();
             return Ok(Some(Frame { timestamp: ts, bytes: f.rows.into_iter().flatten().flatten().collect() }));
         }
         Ok(None)
