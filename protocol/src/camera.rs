@@ -881,7 +881,7 @@ mod tests {
         let mut bytes = vec![0; FRAME_BYTES];
         let mut ring = FrameRing::<_, _, 1>::new(
             crate::frames::SliceMemory::new(0, &mut bytes),
-            crate::frames::RowEngine::new(crate::server::SoftwareRenderer),
+            crate::frames::RowEngine::new(crate::rows::SoftwareRenderer),
         );
         struct Copy(Vec<(RowPacket, usize)>);
         impl RtpSink for Copy {

@@ -17,7 +17,7 @@ use core::fmt;
 
 use model::{row_to_rgb888, Light, FRAME_BYTES, HEIGHT, ROW_BYTES, WIDTH};
 
-use crate::server::RowSource;
+use crate::rows::RowSource;
 
 /// Rows of a frame.
 pub const ROWS: u16 = HEIGHT as u16;
@@ -739,7 +739,7 @@ impl<M: FrameMemory, E: FrameEngine<M>, C: FnMut() -> crate::time::Instant> Fram
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::server::SoftwareRenderer;
+    use crate::rows::SoftwareRenderer;
 
     /// An engine that lands `step` rows per progress call, failing the
     /// frame of a chosen light.

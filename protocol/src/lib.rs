@@ -24,6 +24,8 @@
 //!   sink, NACKs answered from the repair window, sender reports.
 //! * [`receiver`]: the client's end of the RTP stream: datagrams to whole
 //!   frames (exact, repaired or damaged), lost frames counted, NACKs out.
+//! * [`rows`]: where rows come from ([`RowSource`], the software
+//!   renderer), below the server, the frame sources and the fallback.
 //! * [`fallback`]: a row source that falls back to another where it fails,
 //!   and switches a wedged one off.
 //! * `service` (feature `smoltcp`): the server bound to smoltcp TCP sockets,
@@ -45,6 +47,7 @@ pub mod frames;
 pub mod monitor;
 pub mod orbit;
 pub mod receiver;
+pub mod rows;
 pub mod rtp;
 pub mod rtsp;
 pub mod server;
@@ -57,7 +60,8 @@ pub use frames::{
     Completed, EngineError, FallbackEngine, FrameEngine, FrameMemory, FrameRing, FrameSource, RowEngine, RowFrames,
     SliceMemory, Watchdog, WatchdogError,
 };
-pub use server::{Action, Closed, Mode, RowSource, Session, SoftwareRenderer};
+pub use rows::{RowSource, SoftwareRenderer};
+pub use server::{Action, Closed, Mode, Session};
 pub use time::Instant;
 pub use wire::{
     decode_request, encode_raw_request, encode_request, persistent_port, FRAME_PORT, PERSISTENT_PORT, REQUEST_BYTES,

@@ -36,7 +36,7 @@
 use core::time::Duration;
 
 use heapless::Deque;
-use model::{Light, LightError, ROW_BYTES, WIDTH};
+use model::{Light, LightError, ROW_BYTES};
 
 use crate::frames::{FrameSource, ROWS};
 use crate::time::Instant;
@@ -406,29 +406,6 @@ impl<F: Copy> Session<F> {
     }
 }
 
-/// Anything that renders one row of line-buffer words: the model on the CPU,
-/// the accelerator through hal-avalon's driver, the simulated accelerator.
-pub trait RowSource {
-    /// Why a row could not be rendered.
-    type Error: core::fmt::Debug;
-
-    /// Render row `y` (`0..360`) for `light` into `out` (`0x00RRGGBB` words).
-    fn render_row(&mut self, y: u16, light: &Light, out: &mut [u32; WIDTH]) -> Result<(), Self::Error>;
-}
-
-/// The software renderer: the bit-exact model running on the CPU.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct SoftwareRenderer;
-
-impl RowSource for SoftwareRenderer {
-    type Error = core::convert::Infallible;
-
-    fn render_row(&mut self, y: u16, light: &Light, out: &mut [u32; WIDTH]) -> Result<(), Self::Error> {
-        model::render_row(y, light, out);
-        Ok(())
-    }
-}
-
 /// Carry out [`Session::poll`]'s actions with `source` until the session
 /// must wait: for input ([`Action::Wait`]), for room in the transport
 /// ([`Action::Send`]: `send` took nothing), for rows ([`Action::Progress`]:
@@ -500,7 +477,8 @@ pub fn drive<S: FrameSource>(
 mod tests {
     use super::*;
     use crate::frames::RowFrames;
-    use model::FRAME_BYTES;
+    use crate::rows::{RowSource, SoftwareRenderer};
+    use model::{FRAME_BYTES, WIDTH};
 
     type Source = RowFrames<SoftwareRenderer, 2>;
 
