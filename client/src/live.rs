@@ -421,6 +421,79 @@ fn send(link: &mut Option<Link>, status: &mut String, light: &Light, tag: u64, s
     }
 }
 
+/// The row whose pixels tell which light a streamed frame has (crosses the
+/// sphere and the floor, where the light shows).
+const PROBE_ROW: u16 = 200;
+
+/// `rt-client bench-live --transport rtsp`: the same input at `hz` for
+/// `events` events, each moving the live stream's light with
+/// `SET_PARAMETER`; an event is on screen with the first frame showing its
+/// light or a later one (recognised by one row rendered with the model:
+/// frames carry no request tag over RTP).
+pub fn bench_rtsp(addr: SocketAddr, url: &str, events: usize, hz: f64) -> Result<(), String> {
+    let mut link = Link::open(&Target::Rtsp { addr, url: url.to_string() })?;
+    let mut control = Control::default();
+    let period = Duration::from_secs_f64(1.0 / hz.max(1.0));
+    let start = Instant::now();
+    // Per event: when, and the probe row of its light.
+    let mut sent: Vec<(Instant, Vec<u8>)> = Vec::with_capacity(events);
+    let mut latencies: Vec<Duration> = Vec::with_capacity(events);
+    let mut frames = 0usize;
+    let probe = |l: &Light| {
+        let mut words = [0u32; model::WIDTH];
+        model::render_row(PROBE_ROW, l, &mut words);
+        words.iter().flat_map(|w| [(w >> 16) as u8, (w >> 8) as u8, *w as u8]).collect::<Vec<u8>>()
+    };
+    let row = usize::from(PROBE_ROW) * model::ROW_BYTES..(usize::from(PROBE_ROW) + 1) * model::ROW_BYTES;
+    loop {
+        let now = Instant::now();
+        while sent.len() < events && now >= start + period * sent.len() as u32 {
+            control.apply(Input::Drag(5.0, 0.0));
+            let l = control.orbit.light();
+            sent.push((Instant::now(), probe(&l)));
+            link.request(&l)?;
+        }
+        match link.frames.recv_timeout(Duration::from_millis(1)) {
+            Ok(FromServer::Frame(f)) => {
+                frames += 1;
+                let arrived = Instant::now();
+                let shown = f.get(row.clone()).ok_or("a short frame")?;
+                // The newest event whose light this frame shows: it and
+                // every event before it are on screen.
+                if let Some(k) = sent.iter().rposition(|(_, p)| p.as_slice() == shown) {
+                    while latencies.len() <= k {
+                        latencies.push(arrived.duration_since(sent[latencies.len()].0));
+                    }
+                }
+            }
+            Ok(FromServer::Lost(why)) => return Err(format!("lost the server: {why}")),
+            Err(mpsc::RecvTimeoutError::Timeout) => {}
+            Err(mpsc::RecvTimeoutError::Disconnected) => return Err("lost the server".into()),
+        }
+        if latencies.len() == events {
+            break;
+        }
+        if start.elapsed() > Duration::from_secs(600) {
+            return Err("no end after 10 minutes".into());
+        }
+    }
+    print_latencies(events, hz, frames, start, &mut latencies, "over RTSP");
+    Ok(())
+}
+
+fn print_latencies(events: usize, hz: f64, frames: usize, start: Instant, latencies: &mut [Duration], how: &str) {
+    latencies.sort();
+    let pct =
+        |p: f64| latencies.get(((latencies.len() as f64 - 1.0) * p).round() as usize).copied().unwrap_or_default();
+    println!(
+        "{events} input events at {hz:.0} Hz, {frames} frames in {:.2} s {how}; input to screen: median {:.1} ms, 95th percentile {:.1} ms, max {:.1} ms",
+        start.elapsed().as_secs_f64(),
+        pct(0.5).as_secs_f64() * 1e3,
+        pct(0.95).as_secs_f64() * 1e3,
+        pct(1.0).as_secs_f64() * 1e3
+    );
+}
+
 /// `rt-client bench-live`: input-to-screen latency without a window. Drag
 /// events arrive at `hz` for `events` events through the same control,
 /// coalescing and connection as the viewer; an event is on screen with
@@ -473,15 +546,6 @@ pub fn bench(server: SocketAddr, events: usize, hz: f64) -> Result<(), String> {
             return Err("no end after 10 minutes".into());
         }
     }
-    latencies.sort();
-    let pct =
-        |p: f64| latencies.get(((latencies.len() as f64 - 1.0) * p).round() as usize).copied().unwrap_or_default();
-    println!(
-        "{events} input events at {hz:.0} Hz, {frames} frames in {:.2} s; input to screen: median {:.1} ms, 95th percentile {:.1} ms, max {:.1} ms",
-        start.elapsed().as_secs_f64(),
-        pct(0.5).as_secs_f64() * 1e3,
-        pct(0.95).as_secs_f64() * 1e3,
-        pct(1.0).as_secs_f64() * 1e3
-    );
+    print_latencies(events, hz, frames, start, &mut latencies, "over TCP");
     Ok(())
 }

@@ -123,6 +123,14 @@ enum Command {
         /// Input events per second.
         #[arg(long, default_value_t = 60.0)]
         hz: f64,
+        /// tcp: a frame requested per light on the persistent port; rtsp:
+        /// the `/live?fps=max` stream, its light moved by SET_PARAMETER.
+        #[arg(long, value_enum, default_value_t = Transport::Tcp)]
+        transport: Transport,
+        /// The RTSP server, HOST:PORT, for --transport rtsp; default
+        /// --server's host on port 8554.
+        #[arg(long)]
+        rtsp: Option<String>,
     },
 }
 
@@ -185,8 +193,12 @@ fn main() -> ExitCode {
             live(server, scale, script, transport, rtsp, record, save_last)
         }
         Command::Url { server } => url(&server),
-        Command::BenchLive { server, events, hz } => {
+        Command::BenchLive { server, events, hz, transport: Transport::Tcp, .. } => {
             board(server.as_deref()).and_then(|(addr, _b)| live::bench(addr, events, hz))
+        }
+        Command::BenchLive { server, events, hz, transport: Transport::Rtsp, rtsp } => {
+            rtsp_board(server.as_deref(), rtsp.as_deref())
+                .and_then(|(addr, _b)| live::bench_rtsp(addr, &rtsp::stream_url(addr, "/live?fps=120"), events, hz))
         }
         Command::Orbit { run, out, show } => orbit(&run, Some(out), show),
         Command::Bench { run } => orbit(&run, None, false),
@@ -271,7 +283,7 @@ fn live(
         }
         Transport::Rtsp => {
             let (addr, b) = rtsp_board(server.as_deref(), rtsp.as_deref())?;
-            (live::Target::Rtsp { addr, url: rtsp::stream_url(addr, "/live?fps=60") }, b)
+            (live::Target::Rtsp { addr, url: rtsp::stream_url(addr, "/live?fps=120") }, b)
         }
     };
     let server_name = match (&server, &target) {

@@ -111,6 +111,9 @@ pub struct Stats {
     pub tx_split: u32,
     /// Times [`Dwmac::send_split`] found every descriptor the MAC's.
     pub tx_split_full: u32,
+    /// Payload bytes of the split frames: sent from the caller's memory,
+    /// never written by the CPU into a DMA buffer (within `tx_bytes`).
+    pub tx_split_payload_bytes: u64,
 }
 
 /// The parts of the driver both tokens of a receive need.
@@ -164,6 +167,7 @@ pub(crate) struct TxState {
     pub(crate) ring_full: u32,
     pub(crate) split_frames: u32,
     pub(crate) split_full: u32,
+    pub(crate) split_payload_bytes: u64,
 }
 
 impl TxState {
@@ -180,6 +184,7 @@ impl TxState {
             ring_full: 0,
             split_frames: 0,
             split_full: 0,
+            split_payload_bytes: 0,
         }
     }
 
@@ -306,6 +311,7 @@ impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
             tx_ring_full: self.tx.ring_full,
             tx_split: self.tx.split_frames,
             tx_split_full: self.tx.split_full,
+            tx_split_payload_bytes: self.tx.split_payload_bytes,
         }
     }
 

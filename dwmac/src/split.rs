@@ -96,6 +96,7 @@ impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
         let seq = SplitSeq(tx.split_sent);
         tx.split_sent += 1;
         tx.split_frames = tx.split_frames.saturating_add(1);
+        tx.split_payload_bytes = tx.split_payload_bytes.saturating_add(payload_len as u64);
         tx.bytes = tx.bytes.saturating_add(len as u64);
         Ok(seq)
     }

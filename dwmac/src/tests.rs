@@ -351,6 +351,7 @@ fn receive_hands_over_good_frames_and_returns_descriptors() {
             tx_ring_full: 0,
             tx_split: 0,
             tx_split_full: 0,
+            tx_split_payload_bytes: 0,
         }
     );
 

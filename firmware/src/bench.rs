@@ -64,6 +64,8 @@ pub struct Mac {
     pub tx_frames: u32,
     /// Bytes sent.
     pub tx_bytes: u64,
+    /// Of those, payload the MAC read from the frame ring (zero-copy).
+    pub tx_zero_copy: u64,
     /// Bytes received.
     pub rx_bytes: u64,
 }
@@ -169,7 +171,7 @@ pub struct Counts {
     #[cfg(feature = "bench")]
     seen: u32,
     #[cfg(feature = "bench")]
-    last: [u64; 12],
+    last: [u64; 13],
 }
 
 impl Counts {
@@ -192,17 +194,18 @@ impl Counts {
                 CLEANED.load(Ordering::Relaxed),
                 mac.rx_bytes,
                 mac.tx_bytes,
+                mac.tx_zero_copy,
                 u64::from(mac.tx_frames),
                 ns(BUSY_TICKS.load(Ordering::Relaxed)),
                 ns(RENDER_TOTAL_TICKS.load(Ordering::Relaxed)),
                 BUSY_LOOPS.load(Ordering::Relaxed),
             ];
-            let d: [u64; 12] = core::array::from_fn(|i| now[i].wrapping_sub(self.last[i]));
+            let d: [u64; 13] = core::array::from_fn(|i| now[i].wrapping_sub(self.last[i]));
             self.last = now;
             let _ = writeln!(
                 log,
-                "bench: counts lw_reads={} lw_line_words={} lw_writes={} cpu_copied={} lines_invalidated={} lines_cleaned={} uncached_read={} mac_tx={} tx_frames={} busy_ns={} render_ns={} busy_loops={}",
-                d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], d[8], d[9], d[10], d[11]
+                "bench: counts lw_reads={} lw_line_words={} lw_writes={} cpu_copied={} lines_invalidated={} lines_cleaned={} uncached_read={} mac_tx={} mac_tx_zero_copy={} tx_frames={} busy_ns={} render_ns={} busy_loops={}",
+                d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], d[8], d[9], d[10], d[11], d[12]
             );
         }
         let _ = (bus, mac, log);

@@ -286,6 +286,7 @@ pub fn run<B: Board, P: RegisterPort>(
             frames: mac_moved(&mac),
             tx_frames: stats.tx_frames,
             tx_bytes: stats.tx_bytes,
+            tx_zero_copy: stats.tx_split_payload_bytes,
             rx_bytes: stats.rx_bytes,
         };
         // The iteration ends before the report, so the report's window

@@ -260,6 +260,7 @@ fn an_rtp_row_leaves_as_header_plus_row_with_valid_checksums_and_the_cpu_reads_n
         assert!(mac.split_done(seq));
         let stats = mac.stats();
         assert_eq!((stats.tx_split, stats.tx_frames, stats.tx_bytes), (1, 1, (HEADER + ROW) as u64));
+        assert_eq!(stats.tx_split_payload_bytes, ROW as u64, "the row, which the CPU never wrote");
     }
 }
 

@@ -49,6 +49,7 @@ pub struct Counts<T = u64> {
     lines_cleaned: T,
     uncached_read: T,
     mac_tx: T,
+    mac_tx_zero_copy: T,
     tx_frames: T,
     busy_ns: T,
     render_ns: T,
@@ -56,7 +57,7 @@ pub struct Counts<T = u64> {
 }
 
 impl<T> Counts<T> {
-    fn fields_mut(&mut self) -> [&mut T; 12] {
+    fn fields_mut(&mut self) -> [&mut T; 13] {
         [
             &mut self.lw_reads,
             &mut self.lw_line_words,
@@ -66,6 +67,7 @@ impl<T> Counts<T> {
             &mut self.lines_cleaned,
             &mut self.uncached_read,
             &mut self.mac_tx,
+            &mut self.mac_tx_zero_copy,
             &mut self.tx_frames,
             &mut self.busy_ns,
             &mut self.render_ns,
@@ -75,7 +77,7 @@ impl<T> Counts<T> {
 }
 
 impl Counts {
-    const FIELDS: [&'static str; 12] = [
+    const FIELDS: [&'static str; 13] = [
         "lw_reads",
         "lw_line_words",
         "lw_writes",
@@ -84,6 +86,7 @@ impl Counts {
         "lines_cleaned",
         "uncached_read",
         "mac_tx",
+        "mac_tx_zero_copy",
         "tx_frames",
         "busy_ns",
         "render_ns",
@@ -140,6 +143,7 @@ impl Measured {
             lines_cleaned: self.counts.lines_cleaned,
             uncached_read: self.counts.uncached_read,
             mac_tx: self.counts.mac_tx,
+            mac_tx_zero_copy: self.counts.mac_tx_zero_copy,
             tx_frames: self.counts.tx_frames,
         }
     }
@@ -232,7 +236,10 @@ fn print_mode(name: &str, m: &Measured) {
         m.counts.lines_cleaned,
         m.counts.uncached_read
     );
-    println!("  MAC                 {:>11.0} bytes in {:.0} frames sent", m.counts.mac_tx, m.counts.tx_frames);
+    println!(
+        "  MAC                 {:>11.0} bytes in {:.0} frames sent, {:.0} of them read by the MAC from the ring (zero-copy)",
+        m.counts.mac_tx, m.counts.tx_frames, m.counts.mac_tx_zero_copy
+    );
     println!("  main loop           {:>11.0} busy iterations", m.counts.busy_loops);
 }
 
@@ -309,7 +316,7 @@ mod tests {
 
     #[test]
     fn counts_lines_parse_only_when_complete() {
-        let line = " lw_reads=3 lw_line_words=0 lw_writes=2 cpu_copied=518400 lines_invalidated=16200 lines_cleaned=0 uncached_read=1200 mac_tx=537000 tx_frames=358 busy_ns=900 render_ns=100 busy_loops=7";
+        let line = " lw_reads=3 lw_line_words=0 lw_writes=2 cpu_copied=518400 lines_invalidated=16200 lines_cleaned=0 uncached_read=1200 mac_tx=537000 mac_tx_zero_copy=0 tx_frames=358 busy_ns=900 render_ns=100 busy_loops=7";
         let c = Counts::parse(line).expect("complete");
         assert_eq!((c.lw_reads, c.lines_invalidated, c.tx_frames, c.busy_ns), (3, 16200, 358, 900));
         assert_eq!(Counts::parse(" lw_reads=3"), None, "fields missing");

@@ -165,8 +165,12 @@ pub struct FrameCounts {
     pub lines_cleaned: f64,
     /// Bytes the CPU read from uncached memory.
     pub uncached_read: f64,
-    /// Bytes the CPU wrote into the MAC's uncached TX buffers.
+    /// Bytes the MAC sent (frames, without preamble, FCS and gap).
     pub mac_tx: f64,
+    /// Of those, bytes the MAC read from the frame ring itself (the RTP
+    /// rows of two-buffer descriptors); the CPU wrote the rest into its
+    /// uncached TX buffers.
+    pub mac_tx_zero_copy: f64,
     /// Ethernet frames sent.
     pub tx_frames: f64,
 }
@@ -227,7 +231,10 @@ pub fn estimate(counts: &FrameCounts, fpga_cycles: f64) -> Estimate {
         Cost { name: "cache maintenance", seconds: (counts.lines_invalidated + counts.lines_cleaned) * LINE_OP.value },
         Cost { name: "cached DRAM reads", seconds: counts.lines_invalidated * line / CACHED_READ.value },
         Cost { name: "uncached DRAM reads", seconds: counts.uncached_read / UNCACHED_READ.value },
-        Cost { name: "uncached DRAM writes (TX)", seconds: counts.mac_tx * UNCACHED_WRITE.value },
+        Cost {
+            name: "uncached DRAM writes (TX)",
+            seconds: (counts.mac_tx - counts.mac_tx_zero_copy).max(0.0) * UNCACHED_WRITE.value,
+        },
     ];
     Estimate {
         cpu,
@@ -239,6 +246,15 @@ pub fn estimate(counts: &FrameCounts, fpga_cycles: f64) -> Estimate {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn zero_copy_bytes_cost_the_wire_but_not_the_cpu() {
+        let rows =
+            FrameCounts { mac_tx: 540_720.0, mac_tx_zero_copy: 518_400.0, tx_frames: 360.0, ..Default::default() };
+        let e = estimate(&rows, 0.0);
+        assert!((e.cpu_seconds() - 22_320.0 * 2.08e-9).abs() < 1e-12, "only the headers are written by the CPU");
+        assert!((e.wire - (540_720.0 + 360.0 * 24.0) / 125e6).abs() < 1e-12);
+    }
 
     #[test]
     fn every_constant_is_positive_and_sourced() {
