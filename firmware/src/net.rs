@@ -254,7 +254,11 @@ pub fn run<B: Board, P: RegisterPort>(
             let held = crate::camera::slots_in_flight(&mut mac, &mut in_flight);
             let mut tx =
                 crate::camera::ZeroCopy { mac: &mut mac, slots, in_flight: &mut in_flight, refused: &mut refused };
-            c.poll(now, &mut sockets, &peers, frames, &mut tx, held, &mut log);
+            // The camera's frames count as clients' for the display (its
+            // attract mode waits while they come).
+            let mut counted = Counting { frames: &mut *frames, begun: &mut requests };
+            let mut source = crate::bench::TimedSource(&mut counted);
+            crate::bench::camera(|| c.poll(now, &mut sockets, &peers, &mut source, &mut tx, held, &mut log));
         }
         frames.report(&mut log);
         if let Some(d) = &mut display {
@@ -326,5 +330,11 @@ impl<F: FrameSource> FrameSource for Counting<'_, F> {
 
     fn end(&mut self, frame: F::Frame) {
         self.frames.end(frame)
+    }
+}
+
+impl<F: rt_protocol::camera::SlotSource> rt_protocol::camera::SlotSource for Counting<'_, F> {
+    fn set_held(&mut self, mask: u32) {
+        self.frames.set_held(mask)
     }
 }

@@ -32,6 +32,10 @@ use crate::time;
 /// TCP sockets listening for RTSP: two clients setting up at once.
 pub const RTSP_SOCKETS: usize = 2;
 
+/// Most [`Camera::poll`] rounds per [`CameraService::poll`]: bounded, so
+/// the frame server and the display get their turn.
+pub const MAX_POLLS: usize = 64;
+
 /// Peers remembered by [`PeerMacs`].
 pub const PEERS: usize = 8;
 
@@ -294,7 +298,10 @@ impl<'c> CameraService<'c> {
         // The wall clock of the sender reports: time since start (the board
         // has no other; receivers use it to pair RTP and NTP times only).
         let wall = crate::rtp::ntp_timestamp(core::time::Duration::from_micros(now.total_micros().max(0) as u64));
-        for _ in 0..4 {
+        // While rows keep landing, keep sending: each main-loop iteration
+        // has a fixed cost (every socket, the display), so one that sends a
+        // frame's rows as they land costs less than many that send a few.
+        for _ in 0..MAX_POLLS {
             if !self.camera.poll(now_ms, wall, source, &mut sink) {
                 break;
             }

@@ -269,15 +269,26 @@ fn field(h: &Headers, name: &str) -> Result<String> {
     h.get(name).cloned().ok_or(format!("no {name} header in {h:?}"))
 }
 
-/// Two client UDP sockets on consecutive ports, the first even.
+/// Two client UDP sockets on consecutive ports, the first even; the RTP
+/// one with a receive buffer for two frames' bursts (as much of 4 MiB as
+/// `net.core.rmem_max` grants), as a player asks for.
 fn udp_pair() -> Result<(UdpSocket, UdpSocket)> {
     for _ in 0..64 {
         let probe = UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
         let port = probe.local_addr().map_err(|e| e.to_string())?.port() & !1;
         drop(probe);
-        if let (Ok(a), Ok(b)) = (UdpSocket::bind(("0.0.0.0", port)), UdpSocket::bind(("0.0.0.0", port + 1))) {
+        if let (Ok(a), Ok(b)) = (bind_rtp(port), UdpSocket::bind(("0.0.0.0", port + 1))) {
             return Ok((a, b));
         }
     }
     Err("no free UDP port pair".into())
+}
+
+fn bind_rtp(port: u16) -> std::io::Result<UdpSocket> {
+    use socket2::{Domain, Protocol, Socket, Type};
+    let socket = Socket::new(Domain::IPV4, Type::DGRAM, Some(Protocol::UDP))?;
+    // Best effort: a smaller buffer only means more repairs.
+    let _ = socket.set_recv_buffer_size(4 << 20);
+    socket.bind(&std::net::SocketAddr::from(([0, 0, 0, 0], port)).into())?;
+    Ok(socket.into())
 }
