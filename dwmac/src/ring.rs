@@ -10,8 +10,13 @@ use core::cell::UnsafeCell;
 
 use vcell::VolatileCell;
 
-/// Receive descriptors.
-pub const RX_RING: usize = 64;
+/// Receive descriptors: room for a burst of 24 clients connecting at once
+/// (SYN, ACK and request each, 72 frames) while the main loop renders;
+/// with 64 the burst overflowed the ring, and QEMU's slirp, retransmitting
+/// after a backed-off timeout, lost requests past the server's 5 s idle
+/// limit. (Linux stmmac's default is 512, `DMA_DEFAULT_RX_SIZE` in
+/// `drivers/net/ethernet/stmicro/stmmac/common.h`.)
+pub const RX_RING: usize = 128;
 /// Transmit descriptors.
 pub const TX_RING: usize = 32;
 /// Bytes per buffer: a whole Ethernet frame (1514) plus FCS, rounded up to

@@ -90,7 +90,7 @@ pub fn soak(frames: usize) -> Result<String> {
     let seen = g.uart().len();
     let idle = g.wait_for_line(seen, "net: idle:", Duration::from_secs(15))?;
     // firmware/src/net.rs SOCKETS; dwmac TX_RING and RX_RING.
-    let want = "24 of 24 sockets listening, 32 of 32 TX and 64 of 64 RX descriptors free";
+    let want = "24 of 24 sockets listening, 32 of 32 TX and 128 of 128 RX descriptors free";
     if !idle.contains(want) {
         return Err(format!("the firmware's last idle report is {idle:?}, want {want:?}"));
     }
