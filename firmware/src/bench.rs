@@ -43,10 +43,6 @@ static INVALIDATED: AtomicU64 = AtomicU64::new(0);
 static CLEANED: AtomicU64 = AtomicU64::new(0);
 #[cfg(feature = "bench")]
 static CAMERA_TICKS: AtomicU64 = AtomicU64::new(0);
-#[cfg(feature = "bench")]
-static SOURCE_TICKS: AtomicU64 = AtomicU64::new(0);
-#[cfg(feature = "bench")]
-static SPLIT_TICKS: AtomicU64 = AtomicU64::new(0);
 
 /// Accelerator bus accesses (from hal-avalon's `Counted` port).
 #[derive(Clone, Copy, Default)]
@@ -126,36 +122,6 @@ pub fn camera<R>(f: impl FnOnce() -> R) -> R {
         let t0 = crate::TIMER.ticks();
         let r = f();
         CAMERA_TICKS.fetch_add(crate::TIMER.ticks().wrapping_sub(t0), Ordering::Relaxed);
-        r
-    }
-    #[cfg(not(feature = "bench"))]
-    f()
-}
-
-/// Run `f` (handing one row's descriptor to the MAC), adding its guest
-/// time to the MAC's share of the camera's.
-#[inline(always)]
-pub fn split<R>(f: impl FnOnce() -> R) -> R {
-    #[cfg(feature = "bench")]
-    {
-        let t0 = crate::TIMER.ticks();
-        let r = f();
-        SPLIT_TICKS.fetch_add(crate::TIMER.ticks().wrapping_sub(t0), Ordering::Relaxed);
-        r
-    }
-    #[cfg(not(feature = "bench"))]
-    f()
-}
-
-/// Run `f` (a call into the frame source from the camera), adding its
-/// guest time to the source's share of the camera's.
-#[inline(always)]
-pub fn source<R>(f: impl FnOnce() -> R) -> R {
-    #[cfg(feature = "bench")]
-    {
-        let t0 = crate::TIMER.ticks();
-        let r = f();
-        SOURCE_TICKS.fetch_add(crate::TIMER.ticks().wrapping_sub(t0), Ordering::Relaxed);
         r
     }
     #[cfg(not(feature = "bench"))]
@@ -253,14 +219,11 @@ impl Counts {
             ];
             let d: [u64; 13] = core::array::from_fn(|i| now[i].wrapping_sub(self.last[i]));
             self.last = now;
+            // The camera's poll, the frame source's calls (and so the
+            // rendering they drive) included; finer timers cost more than
+            // they show (each timer read is some 20 instructions a row).
             let camera = ns(CAMERA_TICKS.swap(0, Ordering::Relaxed));
-            let source = ns(SOURCE_TICKS.swap(0, Ordering::Relaxed));
-            let split = ns(SPLIT_TICKS.swap(0, Ordering::Relaxed));
-            let _ = writeln!(
-                log,
-                "bench: camera {camera} ns: frame source {source} ns (rendering included), MAC descriptors {split} ns, the rest {} ns",
-                camera.saturating_sub(source).saturating_sub(split)
-            );
+            let _ = writeln!(log, "bench: camera {camera} ns (rendering included)");
             let _ = writeln!(
                 log,
                 "bench: counts lw_reads={} lw_line_words={} lw_writes={} cpu_copied={} lines_invalidated={} lines_cleaned={} uncached_read={} mac_tx={} mac_tx_zero_copy={} tx_frames={} busy_ns={} render_ns={} busy_loops={}",
@@ -351,36 +314,5 @@ impl<M: FrameMemory, E: FrameEngine<M>> FrameEngine<M> for TimedEngine<E> {
 
     fn abort(&mut self, mem: &mut M) -> Result<(), E::Error> {
         timed(|| self.engine.abort(mem))
-    }
-}
-
-/// The frame source as the network camera sees it, its calls timed apart
-/// ([`source`]).
-pub struct TimedSource<'a, F>(pub &'a mut F);
-
-impl<F: rt_protocol::FrameSource> rt_protocol::FrameSource for TimedSource<'_, F> {
-    type Frame = F::Frame;
-    type Error = F::Error;
-
-    fn begin(&mut self, light: &Light) -> Result<Option<F::Frame>, F::Error> {
-        source(|| self.0.begin(light))
-    }
-
-    fn rows_ready(&mut self, frame: F::Frame) -> Result<u16, F::Error> {
-        source(|| self.0.rows_ready(frame))
-    }
-
-    fn copy_row(&mut self, frame: F::Frame, y: u16, offset: usize, out: &mut [u8]) -> usize {
-        self.0.copy_row(frame, y, offset, out)
-    }
-
-    fn end(&mut self, frame: F::Frame) {
-        source(|| self.0.end(frame))
-    }
-}
-
-impl<F: rt_protocol::camera::SlotSource> rt_protocol::camera::SlotSource for TimedSource<'_, F> {
-    fn set_held(&mut self, mask: u32) {
-        source(|| self.0.set_held(mask))
     }
 }

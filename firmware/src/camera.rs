@@ -38,7 +38,7 @@ impl<S: DmaSync, D: DelayNs> RowTransmitter for ZeroCopy<'_, '_, S, D> {
             return true;
         };
         let payload = base + u32::from(row) * ROW_BYTES as u32;
-        match crate::bench::split(|| self.mac.send_split(header, payload, ROW_BYTES)) {
+        match self.mac.send_split(header, payload, ROW_BYTES) {
             Ok(seq) => {
                 self.in_flight[slot] = Some(seq);
                 true

@@ -257,8 +257,7 @@ pub fn run<B: Board, P: RegisterPort>(
             // The camera's frames count as clients' for the display (its
             // attract mode waits while they come).
             let mut counted = Counting { frames: &mut *frames, begun: &mut requests };
-            let mut source = crate::bench::TimedSource(&mut counted);
-            crate::bench::camera(|| c.poll(now, &mut sockets, &peers, &mut source, &mut tx, held, &mut log));
+            crate::bench::camera(|| c.poll(now, &mut sockets, &peers, &mut counted, &mut tx, held, &mut log));
         }
         frames.report(&mut log);
         if let Some(d) = &mut display {
