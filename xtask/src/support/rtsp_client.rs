@@ -34,7 +34,8 @@ pub struct Stream {
     pub repaired_rows: usize,
     /// NACK datagrams sent.
     pub nacks: usize,
-    /// Incomplete frames given up because a newer one completed first.
+    /// Incomplete frames given up (repairs not in within
+    /// [`GIVE_UP_AFTER`], or too many frames incomplete at once).
     pub given_up: usize,
     /// A line to ignore the first time it arrives (a loss made on
     /// purpose, for the repair to fill).
@@ -48,7 +49,19 @@ struct Partial {
     known: Option<(u32, usize)>,
     marked: bool,
     nacked_at: Option<Instant>,
+    /// When the frame's last packet of the first send could have come (its
+    /// marker, or a newer frame's packet).
+    marked_at: Option<Instant>,
 }
+
+/// How long a frame with missing rows waits for its repairs before it is
+/// given up, as a player's jitter buffer would (newer frames may complete
+/// meanwhile: the emulated board renders the next frame, on its CPU, before
+/// it reads the NACK).
+const GIVE_UP_AFTER: Duration = Duration::from_secs(3);
+
+/// Incomplete frames kept at most; the oldest is given up beyond.
+const MAX_PARTIAL: usize = 8;
 
 /// A whole frame.
 pub struct Frame {
@@ -181,7 +194,9 @@ impl Stream {
                         return Ok(frame);
                     }
                 }
-                Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
+                Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
+                    self.give_up(Instant::now())
+                }
                 Err(e) => return Err(format!("RTP: {e}")),
             }
             self.ask_for_missing()?;
@@ -208,6 +223,7 @@ impl Stream {
             known: None,
             marked: false,
             nacked_at: None,
+            marked_at: None,
         });
         if self.drop_once == Some(line) {
             self.drop_once = None;
@@ -218,22 +234,45 @@ impl Stream {
             f.rows[line] = Some(p[HEADER..].to_vec());
         }
         f.known.get_or_insert((seq, line));
-        f.marked |= marker;
+        let now = Instant::now();
+        if marker && !f.marked {
+            f.marked = true;
+            f.marked_at = Some(now);
+        }
         let complete = f.rows.iter().all(Option::is_some);
         // A newer frame's packet also ends the older ones (their marker
         // may be what was lost).
         for (_, older) in self.partial.iter_mut().filter(|(&t, _)| ts.wrapping_sub(t).wrapping_sub(1) < 1 << 31) {
-            older.marked = true;
+            if !older.marked {
+                older.marked = true;
+                older.marked_at = Some(now);
+            }
         }
         if complete {
             let f = self.partial.remove(&ts).ok_or("frame vanished")?;
-            // Older incomplete frames are given up.
-            let before = self.partial.len();
-            self.partial.retain(|&t, _| t.wrapping_sub(ts) < 1 << 31);
-            self.given_up += before - self.partial.len();
             return Ok(Some(Frame { timestamp: ts, bytes: f.rows.into_iter().flatten().flatten().collect() }));
         }
+        self.give_up(now);
         Ok(None)
+    }
+
+    /// Give up frames that waited [`GIVE_UP_AFTER`] for their repairs, and
+    /// the oldest beyond [`MAX_PARTIAL`].
+    fn give_up(&mut self, now: Instant) {
+        let before = self.partial.len();
+        self.partial.retain(|_, f| f.marked_at.is_none_or(|t| now - t < GIVE_UP_AFTER));
+        while self.partial.len() > MAX_PARTIAL {
+            // The oldest by timestamp (wrapping): the one every other is newer than.
+            let oldest =
+                self.partial.keys().copied().find(|&t| self.partial.keys().all(|&u| u.wrapping_sub(t) < 1 << 31));
+            match oldest {
+                Some(t) => {
+                    self.partial.remove(&t);
+                }
+                None => break,
+            }
+        }
+        self.given_up += before - self.partial.len();
     }
 
     /// NACK the missing rows of marked frames (again every 100 ms).
