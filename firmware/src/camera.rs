@@ -62,10 +62,12 @@ pub fn slots_in_flight<S: DmaSync, D: DelayNs>(
     mac: &mut Dwmac<'_, S, D>,
     in_flight: &mut [Option<SplitSeq>; RING_SLOTS],
 ) -> u32 {
+    // One reclaim for all slots: split frames complete in ring order.
+    let done = mac.split_completed();
     let mut mask = 0;
     for (i, seq) in in_flight.iter_mut().enumerate() {
         match *seq {
-            Some(s) if !mac.split_done(s) => mask |= 1 << i,
+            Some(s) if s >= done => mask |= 1 << i,
             _ => *seq = None,
         }
     }

@@ -350,12 +350,6 @@ fn apply<E: FrameEngine<SharedMemory>>(
     log: &mut Log,
 ) {
     let _ = writeln!(log, "rtsp: {action:?}");
-    if let Action::Play { session, .. } = action {
-        if camera.stream(session).is_none() && camera.streams().count() == MAX_SESSIONS {
-            server.remove(session);
-            return;
-        }
-    }
     if let Some((seq, rtptime)) = camera.apply(action, now, ring) {
         if let Action::Pause { session } = action {
             server.set_position(session, seq, rtptime);

@@ -338,7 +338,7 @@ impl<const N: usize> Camera<N> {
                 progress = true;
             }
             if s.playing && s.reports.poll(now) {
-                let sr = s.packetiser.sender_report(wall, s.packetiser_ticks(now));
+                let sr = s.packetiser.sender_report(wall, s.media_ticks(now));
                 let n = sr.write(&mut self.rtcp).unwrap_or(0);
                 if let Ok(m) = write_sdes_cname(s.packetiser.ssrc(), CNAME, &mut self.rtcp[n..]) {
                     let _ = sink.send_rtcp(&s.to, &self.rtcp[..n + m]);
@@ -483,12 +483,6 @@ impl Stream {
             self.repairs.pop_front();
         }
         true
-    }
-
-    /// The 90 kHz tick count of `now` on the clock the frames were stamped
-    /// with (media time), for the sender reports.
-    fn packetiser_ticks(&self, now: Instant) -> u64 {
-        self.media_ticks(now)
     }
 }
 
