@@ -291,6 +291,14 @@ impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
         self.shared.regs.mac().version.read()
     }
 
+    /// Whether the DMA has handed the next receive descriptor back (OWN
+    /// clear): a frame waits for [`smoltcp`]'s next poll. One descriptor
+    /// word read, so a busy sender can ask between packets and let the
+    /// stack in as soon as something arrives.
+    pub fn rx_waiting(&self) -> bool {
+        self.shared.area.rx_descriptor(self.rx.next).word(0) & OWN == 0
+    }
+
     /// Descriptors the CPU could fill now (transmit, OWN clear) and
     /// descriptors waiting for the DMA to receive into (OWN set): when idle,
     /// all of both rings, or something leaked.

@@ -113,6 +113,20 @@ impl Buffer {
         // `skew + len` stays within the buffer.
         unsafe { core::slice::from_raw_parts_mut(self.0.get().cast::<u8>().add(skew), len) }
     }
+
+    /// The first `count` words (at most the buffer's), writable: the
+    /// buffer is word aligned.
+    ///
+    /// # Safety
+    ///
+    /// As [`Buffer::bytes_mut`].
+    #[allow(clippy::mut_from_ref)] // interior mutability: the CPU owns the buffer
+    pub unsafe fn words_mut(&self, count: usize) -> &mut [u32] {
+        let count = count.min(BUFFER_SIZE / 4);
+        // SAFETY: as in `bytes_mut`; the buffer is 32-byte aligned
+        // (`repr(align(32))`) and `count` words stay within it.
+        unsafe { core::slice::from_raw_parts_mut(self.0.get().cast::<u32>(), count) }
+    }
 }
 
 impl Default for Buffer {

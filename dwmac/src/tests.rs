@@ -322,11 +322,13 @@ fn receive_hands_over_good_frames_and_returns_descriptors() {
     let mut mac = rig.mac(true);
     started(&mut mac);
     assert!(mac.receive(Instant::ZERO).is_none(), "nothing yet");
+    assert!(!mac.rx_waiting(), "nothing waits");
 
     let frame: Vec<u8> = (0..60u8).collect();
     // QEMU's race: OWN clear and FS, but no LS yet: not ready.
     mac.dma_receive(0, &frame, desc::RDES0_FS);
     assert!(mac.receive(Instant::ZERO).is_none());
+    assert!(mac.rx_waiting(), "a frame on its way counts as waiting");
     mac.dma_receive(0, &frame, FS_LS);
     mac.clear_events();
     let (rx, _tx) = mac.receive(Instant::ZERO).expect("a frame");
@@ -334,6 +336,7 @@ fn receive_hands_over_good_frames_and_returns_descriptors() {
     assert_eq!(mac.events()[0].op, "dmb", "OWN seen clear, dmb before the buffer is read");
     assert_eq!(got, frame, "FCS stripped");
     assert_eq!(mac.shared.area.rx_descriptor(0).word(0), OWN, "descriptor returned");
+    assert!(!mac.rx_waiting(), "taken: nothing waits");
 
     // A bad frame is dropped; the good one after it is delivered.
     mac.dma_receive(1, &frame, FS_LS | desc::RDES0_ES);

@@ -15,9 +15,12 @@ use dwmac::{DmaSync, Dwmac, SplitError, SplitSeq};
 use embedded_hal::delay::DelayNs;
 use model::ROW_BYTES;
 use rt_protocol::camera_service::RowTransmitter;
-use rt_protocol::rtp::FRAME_HEADER_BYTES;
+use rt_protocol::rtp::{HeaderWords, HEADER_PAD};
 
 use crate::render::RING_SLOTS;
+
+// The header words' padding is the MAC's transmit skew.
+const _: () = assert!(HEADER_PAD == dwmac::ring::TX_SKEW);
 
 /// Rows out through the MAC's two-buffer descriptors.
 pub struct ZeroCopy<'m, 'a, S, D> {
@@ -32,13 +35,13 @@ pub struct ZeroCopy<'m, 'a, S, D> {
 }
 
 impl<S: DmaSync, D: DelayNs> RowTransmitter for ZeroCopy<'_, '_, S, D> {
-    fn send(&mut self, header: &[u8; FRAME_HEADER_BYTES], slot: usize, row: u16) -> bool {
+    fn send(&mut self, header: &HeaderWords, slot: usize, row: u16) -> bool {
         let Some(&base) = self.slots.get(slot) else {
             *self.refused += 1;
             return true;
         };
         let payload = base + u32::from(row) * ROW_BYTES as u32;
-        match self.mac.send_split(header, payload, ROW_BYTES) {
+        match self.mac.send_split_words(&header.0, payload, ROW_BYTES) {
             Ok(seq) => {
                 self.in_flight[slot] = Some(seq);
                 true
@@ -53,6 +56,10 @@ impl<S: DmaSync, D: DelayNs> RowTransmitter for ZeroCopy<'_, '_, S, D> {
 
     fn checksum_offload(&self) -> bool {
         self.mac.checksum_insertion() == ChecksumInsertion::Full
+    }
+
+    fn receive_waiting(&self) -> bool {
+        self.mac.rx_waiting()
     }
 }
 

@@ -25,21 +25,24 @@ use smoltcp::time::Instant;
 use smoltcp::wire::{EthernetAddress, EthernetFrame, EthernetProtocol, IpEndpoint, Ipv4Packet};
 
 use crate::camera::{Camera, Destination, RtpSink, SlotSource};
-use crate::rtp::{Endpoints, HeaderTemplate, Packetiser, RowPacket, UdpChecksum, FRAME_HEADER_BYTES};
+use crate::rtp::{Endpoints, HeaderTemplate, HeaderWords, Packetiser, RowPacket, UdpChecksum};
 use crate::rtsp::{self, Action, Connection, Server, MAX_REQUEST_BYTES, MAX_RESPONSE_BYTES, MAX_SESSIONS, RTSP_PORT};
 use crate::time;
 
 /// TCP sockets listening for RTSP: two clients setting up at once.
 pub const RTSP_SOCKETS: usize = 2;
 
-/// Most [`Camera::poll`] rounds per [`CameraService::poll`]: bounded, so
-/// the frame server, the display and above all the RTCP socket get their
-/// turn (NACKs arrive only through `Interface::poll`). 64 rounds sent a
-/// whole frame per main-loop iteration on the emulated board and cut the
-/// instructions a frame by a quarter, but NACKs then waited a frame time
-/// and lossy-link repairs came too late (81-91% of frames exact at 2%
-/// loss); 4 rounds kept 100%.
-pub const MAX_POLLS: usize = 4;
+/// Most [`Camera::poll`] rounds per [`CameraService::poll`], a bound of
+/// last resort: a poll also ends when a round moves nothing, when a frame
+/// completes, and as soon as the transmitter says a frame was received
+/// ([`RowTransmitter::receive_waiting`]), so that NACKs, which arrive only
+/// through `Interface::poll`, wait no longer than one round. (Four rounds
+/// a poll, the earlier bound, cost a main-loop iteration per eight rows
+/// on the emulated board; 64 without the receive check let NACKs wait a
+/// frame time and lossy-link repairs come too late.) A productive round
+/// sends a row or begins a frame, so a frame takes at most about
+/// [`ROWS`](crate::frames::ROWS) of them.
+pub const MAX_POLLS: usize = 2 * crate::frames::ROWS as usize;
 
 /// Peers remembered by [`PeerMacs`].
 pub const PEERS: usize = 8;
@@ -47,13 +50,19 @@ pub const PEERS: usize = 8;
 /// The way rows leave: the board's zero-copy transmit path.
 pub trait RowTransmitter {
     /// Send one Ethernet frame: `header` (the 62 bytes of Ethernet, IPv4,
-    /// UDP, RTP and RFC 4175 headers), then row `row` of frame slot `slot`
-    /// as it is in memory. `false` if there is no room now (nothing sent).
-    fn send(&mut self, header: &[u8; FRAME_HEADER_BYTES], slot: usize, row: u16) -> bool;
+    /// UDP, RTP and RFC 4175 headers, as padded transmit-buffer words),
+    /// then row `row` of frame slot `slot` as it is in memory. `false` if
+    /// there is no room now (nothing sent).
+    fn send(&mut self, header: &HeaderWords, slot: usize, row: u16) -> bool;
 
     /// Whether the MAC computes the IPv4 and UDP checksums (else the UDP
     /// checksum is left zero, "none", as RFC 768 allows over IPv4).
     fn checksum_offload(&self) -> bool;
+
+    /// Whether a received frame waits for `Interface::poll` (the camera's
+    /// NACKs come that way): the camera then stops sending and lets the
+    /// main loop take it in.
+    fn receive_waiting(&self) -> bool;
 }
 
 /// IPv4 address to next-hop MAC, learnt from received frames; the newest
@@ -303,12 +312,15 @@ impl<'c> CameraService<'c> {
         // The wall clock of the sender reports: time since start (the board
         // has no other; receivers use it to pair RTP and NTP times only).
         let wall = crate::rtp::ntp_timestamp(core::time::Duration::from_micros(now.total_micros().max(0) as u64));
-        // Until a frame is complete: NACKs arrive only through the next
-        // `Interface::poll`, so one poll sends no more than a frame's rest.
+        // Rounds until nothing moves, a frame is complete or a frame was
+        // received: NACKs arrive only through the next `Interface::poll`.
         let frames = |c: &Camera<MAX_SESSIONS>| c.streams().map(|s| s.stats().frames).fold(0u32, u32::wrapping_add);
         let before = frames(self.camera);
         for _ in 0..MAX_POLLS {
-            if !self.camera.poll(now_ms, wall, source, &mut sink) || frames(self.camera) != before {
+            if !self.camera.poll(now_ms, wall, source, &mut sink)
+                || frames(self.camera) != before
+                || sink.tx.receive_waiting()
+            {
                 break;
             }
         }
@@ -470,11 +482,7 @@ impl<T: RowTransmitter> RtpSink for Sink<'_, '_, T> {
             }
         };
         let Some(r) = self.routes[route].as_mut() else { return false };
-        let mut header = [0u8; FRAME_HEADER_BYTES];
-        if r.template.write(packetiser, packet, &mut header).is_err() {
-            return false;
-        }
-        if !self.tx.send(&header, slot, packet.row) {
+        if !self.tx.send(r.template.words(packetiser, packet), slot, packet.row) {
             return false;
         }
         *self.rows_sent = self.rows_sent.wrapping_add(1);

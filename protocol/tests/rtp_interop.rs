@@ -188,3 +188,66 @@ fn rtcp_types_reads_the_sender_report_and_cname() {
     assert_eq!((item.type_(), item.value()), (rtcp_types::SdesItem::CNAME, &b"rt@de1-soc"[..]));
     assert!(packets.next().is_none());
 }
+
+proptest::proptest! {
+    /// The template's words (incremental IPv4 checksum, fields patched into
+    /// big-endian words) against a header built the plain way: smoltcp's
+    /// emitters with the identification set and the checksum computed over
+    /// the whole IPv4 header, and `Packetiser::emit` for the rest.
+    #[test]
+    fn the_header_words_equal_a_header_built_field_by_field(
+        macs in proptest::array::uniform12(proptest::num::u8::ANY),
+        src in proptest::num::u32::ANY, dst in proptest::num::u32::ANY,
+        ports in (proptest::num::u16::ANY, proptest::num::u16::ANY),
+        offload in proptest::bool::ANY, ident in proptest::num::u16::ANY,
+        ssrc in proptest::num::u32::ANY, seq in proptest::num::u32::ANY,
+        timestamp in proptest::num::u32::ANY, row in 0u16..360,
+        before in (proptest::num::u32::ANY, proptest::num::u32::ANY, 0u16..360),
+    ) {
+        let e = Endpoints {
+            src_mac: EthernetAddress(macs[..6].try_into().unwrap()),
+            dst_mac: EthernetAddress(macs[6..].try_into().unwrap()),
+            src: SocketAddrV4::new(Ipv4Addr::from(src), ports.0),
+            dst: SocketAddrV4::new(Ipv4Addr::from(dst), ports.1),
+        };
+        let checksum_mode = if offload { UdpChecksum::Offload } else { UdpChecksum::Zero };
+        let mut t = HeaderTemplate::new(&e, checksum_mode, ident.wrapping_sub(1));
+        let session = Packetiser::new(ssrc, 0, 0);
+        // A packet before: the template keeps the last header and
+        // overwrites only the per-packet fields.
+        t.words(&session, &RowPacket { seq: before.0, timestamp: before.1, row: before.2 });
+        let p = RowPacket { seq, timestamp, row };
+        let words = *t.words(&session, &p);
+
+        let mut want = [0u8; FRAME_HEADER_BYTES];
+        EthernetRepr { src_addr: e.src_mac, dst_addr: e.dst_mac, ethertype: EthernetProtocol::Ipv4 }
+            .emit(&mut EthernetFrame::new_unchecked(&mut want[..14]));
+        let ip_repr = Ipv4Repr {
+            src_addr: *e.src.ip(),
+            dst_addr: *e.dst.ip(),
+            next_header: IpProtocol::Udp,
+            payload_len: 1_468,
+            hop_limit: 64,
+        };
+        let mut ip = Ipv4Packet::new_unchecked(&mut want[14..34]);
+        ip_repr.emit(&mut ip, &ChecksumCapabilities::ignored());
+        ip.set_ident(ident);
+        ip.fill_checksum();
+        let mut udp = UdpPacket::new_unchecked(&mut want[34..42]);
+        udp.set_src_port(ports.0);
+        udp.set_dst_port(ports.1);
+        udp.set_len(1_468);
+        udp.set_checksum(if offload {
+            checksum::pseudo_header_v4(e.src.ip(), e.dst.ip(), IpProtocol::Udp, 1_468)
+        } else {
+            0
+        });
+        session.emit(&p, &mut want[42..]).unwrap();
+
+        proptest::prop_assert_eq!(words.bytes(), want);
+        let memory: Vec<u8> = words.0.iter().flat_map(|w| w.to_ne_bytes()).collect();
+        proptest::prop_assert_eq!(&memory[..rtp::HEADER_PAD], &[0u8; rtp::HEADER_PAD][..], "padding");
+        proptest::prop_assert_eq!(&memory[rtp::HEADER_PAD..], &want[..]);
+        proptest::prop_assert_eq!(t.next_ident(), ident.wrapping_add(1));
+    }
+}

@@ -264,6 +264,46 @@ fn an_rtp_row_leaves_as_header_plus_row_with_valid_checksums_and_the_cpu_reads_n
     }
 }
 
+/// `header` behind `TX_SKEW` zero bytes, as the words of a transmit buffer.
+fn padded_words(header: &[u8]) -> Vec<u32> {
+    let mut bytes = vec![0u8; TX_SKEW];
+    bytes.extend_from_slice(header);
+    assert_eq!(bytes.len() % 4, 0);
+    bytes.chunks_exact(4).map(|c| u32::from_ne_bytes([c[0], c[1], c[2], c[3]])).collect()
+}
+
+#[test]
+fn a_header_given_as_words_leaves_as_the_same_header_given_as_bytes() {
+    for hw in [QEMU_HW_FEATURE, CYCLONE_V_HW_FEATURE, NO_ENGINE_HW_FEATURE] {
+        let mut rig = Rig::new(hw);
+        let mut mac = rig.mac(true);
+        started(&mut mac);
+        let pixels = PixelMemory::new();
+        let mut dma = FakeDma { next: 0 };
+        let header = rtp_header(7);
+        let a = mac.send_split(&header, PixelMemory::row_bus(5), ROW).expect("room");
+        let b = mac.send_split_words(&padded_words(&header), PixelMemory::row_bus(5), ROW).expect("room");
+        assert_eq!((a, b), (SplitSeq(0), SplitSeq(1)));
+        let (d0, d1) = (mac.shared.area.tx_descriptor(0).words(), mac.shared.area.tx_descriptor(1).words());
+        assert_eq!(d1[0], d0[0], "TDES0 (neither ends the ring)");
+        assert_eq!((d1[1], d1[3]), (d0[1], d0[3]), "lengths, checksum insertion and buffer 2 alike");
+        assert_eq!(d1[2], mac.shared.area.tx_buffer(1).bus_address() + TX_SKEW as u32, "its own header slot");
+        let sent = dma.run(&mac, &pixels, usize::MAX);
+        assert_eq!(sent.len(), 2);
+        assert_eq!(sent[0].wire, sent[1].wire, "{hw:#x}: the same frame on the wire");
+        assert_eq!(sent[0].csum, sent[1].csum);
+        assert_eq!(pixels.bytes_read(Port::Cpu), 0);
+        assert_eq!(mac.stats().tx_bytes, 2 * (HEADER + ROW) as u64);
+    }
+    // Headers too short for an Ethernet header, the padding included.
+    let mut rig = Rig::new(QEMU_HW_FEATURE);
+    let mut mac = rig.mac(true);
+    started(&mut mac);
+    assert_eq!(mac.send_split_words(&[], 0, ROW), Err(SplitError::Length));
+    assert_eq!(mac.send_split_words(&[0; 3], 0, ROW), Err(SplitError::Length), "10 bytes after the padding");
+    assert_eq!(mac.send_split_words(&[0; 4], 0, 0), Ok(SplitSeq(0)), "14 bytes: just an Ethernet header");
+}
+
 #[test]
 fn without_the_checksum_engine_a_split_frame_goes_out_as_the_caller_built_it() {
     let mut rig = Rig::new(NO_ENGINE_HW_FEATURE);
