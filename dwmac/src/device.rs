@@ -81,6 +81,7 @@ impl TxState {
     /// Take back every descriptor the DMA has finished with (OWN clear),
     /// oldest first; returns how many split frames that completed. Reads
     /// at most `pending` descriptor words.
+    #[inline]
     pub(crate) fn reclaim<S: DmaSync>(&mut self, shared: &Shared<'_, S>) -> usize {
         let mut taken = 0;
         let mut split = 0;
@@ -102,6 +103,7 @@ impl TxState {
     }
 
     /// Whether the descriptor at `next` is the CPU's (after a reclaim).
+    #[inline]
     pub(crate) fn free<S: DmaSync>(&mut self, shared: &Shared<'_, S>) -> bool {
         self.reclaim(shared);
         self.pending < TX_RING
@@ -131,6 +133,7 @@ impl TxState {
     /// Write the descriptor at `next` (`control` = TDES0 without OWN and
     /// TDES1, buffer addresses `buf1` and `buf2`), give it to the DMA and
     /// demand a poll. The caller has filled the buffers the CPU writes.
+    #[inline]
     pub(crate) fn hand_over<S: DmaSync>(
         &mut self,
         shared: &Shared<'_, S>,

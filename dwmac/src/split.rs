@@ -28,7 +28,7 @@
 use embedded_hal::delay::DelayNs;
 
 use crate::csum;
-use crate::desc;
+use crate::desc::{self, ChecksumInsertion};
 use crate::mac::{Dwmac, MAX_FRAME};
 use crate::ring::{BUFFER_SIZE, TX_RING, TX_SKEW};
 use crate::sync::DmaSync;
@@ -87,31 +87,36 @@ impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
     /// [`send_split`](Self::send_split) with the header given as the words
     /// of the transmit buffer from its start: their bytes in memory are
     /// [`TX_SKEW`] bytes of padding, then the header (`4 * words.len() -
-    /// TX_SKEW` bytes). Word stores into the header slot instead of a byte
-    /// copy: the cheapest way into the uncached DMA memory, for a sender
-    /// that builds each header anyway.
+    /// TX_SKEW` bytes), copied into the header slot as words. `cic` is the
+    /// checksum insertion the frame takes, [`Dwmac::checksum_for`] its
+    /// header: a sender of many frames of one header layout (an RTP
+    /// stream's rows) works it out once instead of per frame.
+    #[inline]
     pub fn send_split_words(
         &mut self,
         words: &[u32],
+        cic: ChecksumInsertion,
         payload: u32,
         payload_len: usize,
     ) -> Result<SplitSeq, SplitError> {
-        // The words' bytes as memory holds them (what `bytemuck::cast_slice`
-        // does; one cast is not worth a dependency).
-        // SAFETY: `u32` has no padding and every byte is a valid `u8`; the
-        // slice covers exactly the words' memory and borrows it.
-        let bytes = unsafe { core::slice::from_raw_parts(words.as_ptr().cast::<u8>(), core::mem::size_of_val(words)) };
-        let header = bytes.get(TX_SKEW..).ok_or(SplitError::Length)?;
-        let i = self.split_slot(header.len(), payload_len)?;
+        let header_len = (words.len() * 4).checked_sub(TX_SKEW).ok_or(SplitError::Length)?;
+        let i = self.split_slot(header_len, payload_len)?;
         let slot = self.shared.area.tx_buffer(i);
         // SAFETY: as in `send_split`.
         unsafe { slot.words_mut(words.len()) }.copy_from_slice(words);
-        let cic = csum::for_frame(header, self.shared.csum);
-        Ok(self.split_hand_over(i, header.len(), cic, payload, payload_len))
+        Ok(self.split_hand_over(i, header_len, cic, payload, payload_len))
+    }
+
+    /// The checksum insertion a frame with this header takes ([`csum`]):
+    /// what [`send_split`](Self::send_split) asks for, and what
+    /// [`send_split_words`](Self::send_split_words) is told.
+    pub fn checksum_for(&self, header: &[u8]) -> ChecksumInsertion {
+        csum::for_frame(header, self.shared.csum)
     }
 
     /// The descriptor a split frame of these lengths goes into, if the
     /// lengths are right and the CPU owns it (OWN seen clear, then a dmb).
+    #[inline]
     fn split_slot(&mut self, header_len: usize, payload_len: usize) -> Result<usize, SplitError> {
         let len = header_len.checked_add(payload_len).ok_or(SplitError::Length)?;
         if header_len < MIN_HEADER || len > MAX_FRAME {
@@ -127,11 +132,12 @@ impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
 
     /// Hand descriptor `i`, its header slot filled, to the DMA with the
     /// payload as buffer 2.
+    #[inline]
     fn split_hand_over(
         &mut self,
         i: usize,
         header_len: usize,
-        cic: desc::ChecksumInsertion,
+        cic: ChecksumInsertion,
         payload: u32,
         payload_len: usize,
     ) -> SplitSeq {

@@ -32,16 +32,23 @@ pub struct ZeroCopy<'m, 'a, S, D> {
     pub in_flight: &'m mut [Option<SplitSeq>; RING_SLOTS],
     /// Rows dropped as malformed (never expected: headers are 62 bytes).
     pub refused: &'m mut u32,
+    /// The checksum insertion of the first header sent, for all after it:
+    /// every header is `rtp::HeaderTemplate`'s (Ethernet II, IPv4 without
+    /// fragments, UDP), which takes the same insertion.
+    pub cic: Option<ChecksumInsertion>,
 }
 
 impl<S: DmaSync, D: DelayNs> RowTransmitter for ZeroCopy<'_, '_, S, D> {
+    #[inline]
     fn send(&mut self, header: &HeaderWords, slot: usize, row: u16) -> bool {
         let Some(&base) = self.slots.get(slot) else {
             *self.refused += 1;
             return true;
         };
+        let mac = &mut *self.mac;
+        let cic = *self.cic.get_or_insert_with(|| mac.checksum_for(&header.bytes()));
         let payload = base + u32::from(row) * ROW_BYTES as u32;
-        match self.mac.send_split_words(&header.0, payload, ROW_BYTES) {
+        match self.mac.send_split_words(&header.0, cic, payload, ROW_BYTES) {
             Ok(seq) => {
                 self.in_flight[slot] = Some(seq);
                 true

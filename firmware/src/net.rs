@@ -252,8 +252,13 @@ pub fn run<B: Board, P: RegisterPort>(
         service.poll(now, &mut sockets, &mut Counting { frames: &mut *frames, begun: &mut requests }, &mut log);
         if let (Some(c), Some(slots)) = (&mut camera, &slot_addresses) {
             let held = crate::camera::slots_in_flight(&mut mac, &mut in_flight);
-            let mut tx =
-                crate::camera::ZeroCopy { mac: &mut mac, slots, in_flight: &mut in_flight, refused: &mut refused };
+            let mut tx = crate::camera::ZeroCopy {
+                mac: &mut mac,
+                slots,
+                in_flight: &mut in_flight,
+                refused: &mut refused,
+                cic: None,
+            };
             // The camera's frames count as clients' for the display (its
             // attract mode waits while they come).
             let mut counted = Counting { frames: &mut *frames, begun: &mut requests };

@@ -66,9 +66,36 @@ pub trait RtpSink {
     /// it is offered again later).
     fn send_row(&mut self, to: &Destination, packetiser: &Packetiser, packet: &RowPacket, slot: usize) -> bool;
 
+    /// Send a run of `count` packets: `first` and the ones after it
+    /// ([`RowPacket::nth`]), rows of slot `slot`. Returns how many went,
+    /// from the front (the rest are offered again later). The default
+    /// sends them one by one; a sink can do the per-run work once.
+    fn send_rows(
+        &mut self,
+        to: &Destination,
+        packetiser: &Packetiser,
+        first: &RowPacket,
+        count: u16,
+        slot: usize,
+    ) -> u16 {
+        for k in 0..count {
+            if !self.send_row(to, packetiser, &first.nth(k), slot) {
+                return k;
+            }
+        }
+        count
+    }
+
     /// Send an RTCP datagram to the client's RTCP port; `false` if it
     /// cannot be sent now (it is dropped: reports are periodic).
     fn send_rtcp(&mut self, to: &Destination, datagram: &[u8]) -> bool;
+
+    /// Whether the camera should return to its caller now rather than
+    /// ask the source for more rows: something arrived that the caller
+    /// must take in (a NACK, on the board). Asked after each batch of rows.
+    fn should_yield(&mut self) -> bool {
+        false
+    }
 }
 
 /// How long sent packets stay ready for a NACK: two frame times at the
@@ -136,6 +163,12 @@ pub struct Stream {
     reports: ReportTimer,
     stats: StreamStats,
 }
+
+/// Rows a stream gathers into one run while the source keeps landing
+/// them (each run costs the sink one route lookup and the repair window
+/// one check): 16 rows, 23 KB, 0.19 ms at 1 Gbit/s, half the MAC's
+/// transmit ring.
+pub const MIN_RUN: u16 = 16;
 
 /// NACKed packets a stream queues for resending (more are not repairable:
 /// more than a frame's worth asked for at once is a receiver that lost
@@ -384,28 +417,49 @@ impl<const N: usize> Camera<N> {
                 }
             }
             let Some(mut c) = s.current else { continue };
-            let ready = match source.rows_ready(c.slot) {
-                Ok(r) => r.min(ROWS),
-                Err(_) => {
-                    source.end(c.slot);
-                    window.restart_hold(c.first_seq, now);
-                    s.current = None;
-                    s.stats.failed += 1;
-                    progress = true;
-                    continue;
+            // The rows landed, asking again while the source lands more:
+            // rows go in runs of up to MIN_RUN gathered while they keep
+            // coming, so the per-run work (the sink's route, the window's
+            // bookkeeping, the calls) is paid once a run, not once a row.
+            // A run goes as soon as the source has nothing more right now,
+            // so no row waits for a later one that is not on its way.
+            let mut failed = false;
+            let mut seen = c.next_row;
+            loop {
+                let ready = match source.rows_ready(c.slot) {
+                    Ok(r) => r.min(ROWS),
+                    Err(_) => {
+                        failed = true;
+                        break;
+                    }
+                };
+                let landing = ready > seen;
+                seen = ready;
+                let waiting = ready.saturating_sub(c.next_row);
+                if waiting > 0 && (waiting >= MIN_RUN || ready == ROWS || !landing) {
+                    let Ok(first) = s.packetiser.peek_packet(c.stamp, c.next_row) else { break };
+                    let sent = sink.send_rows(&s.to, &s.packetiser, &first, waiting, c.slot);
+                    // The numbers peeked: nothing else numbers between.
+                    s.packetiser.advance(sent);
+                    let _ = window.record_run(now, c.slot, first, sent);
+                    s.stats.packets += u32::from(sent);
+                    c.next_row += sent;
+                    progress |= sent > 0;
+                    if sent < waiting {
+                        break;
+                    }
                 }
-            };
-            while c.next_row < ready {
-                let Ok(packet) = s.packetiser.peek_packet(c.stamp, c.next_row) else { break };
-                if !sink.send_row(&s.to, &s.packetiser, &packet, c.slot) {
+                if c.next_row == ROWS || !landing || sink.should_yield() {
                     break;
                 }
-                // The same numbers as peeked: nothing else numbers between.
-                let _ = s.packetiser.next_packet(c.stamp, c.next_row);
-                let _ = window.record(now, c.slot, packet);
-                s.stats.packets += 1;
-                c.next_row += 1;
+            }
+            if failed {
+                source.end(c.slot);
+                window.restart_hold(c.first_seq, now);
+                s.current = None;
+                s.stats.failed += 1;
                 progress = true;
+                continue;
             }
             if c.next_row == ROWS {
                 source.end(c.slot);
@@ -523,6 +577,8 @@ mod tests {
     struct Pattern {
         step: u16,
         rows: u16,
+        /// No more rows land than this (the test moves it).
+        cap: Rc<core::cell::Cell<u16>>,
     }
 
     fn pattern_row(light: &Light, y: u16) -> [u8; ROW_BYTES] {
@@ -541,7 +597,7 @@ mod tests {
             Ok(())
         }
         fn progress(&mut self, _: &mut Shared) -> Result<u16, &'static str> {
-            self.rows = (self.rows + self.step).min(ROWS);
+            self.rows = (self.rows + self.step).min(ROWS).min(self.cap.get().max(self.rows));
             Ok(self.rows)
         }
     }
@@ -581,6 +637,9 @@ mod tests {
         room: usize,
         rows: Vec<Received>,
         rtcp: Vec<(Destination, Vec<u8>)>,
+        /// `should_yield` says yes once this many rows went (`None`: never).
+        yield_at: Option<usize>,
+        yield_asked: usize,
     }
 
     impl RtpSink for Sink {
@@ -599,6 +658,10 @@ mod tests {
         fn send_rtcp(&mut self, to: &Destination, datagram: &[u8]) -> bool {
             self.rtcp.push((*to, datagram.to_vec()));
             true
+        }
+        fn should_yield(&mut self) -> bool {
+            self.yield_asked += 1;
+            self.yield_at.is_some_and(|n| self.rows.len() >= n)
         }
     }
 
@@ -629,8 +692,9 @@ mod tests {
 
     fn rig(step: u16) -> (Box<Camera<2>>, Ring, Sink) {
         let mem = Shared(Rc::new(RefCell::new(vec![0; 4 * FRAME_BYTES])));
-        let ring = FrameRing::new(mem.clone(), Pattern { step, rows: 0 });
-        (Box::new(Camera::new()), ring, Sink { mem, room: usize::MAX, rows: vec![], rtcp: vec![] })
+        let ring = FrameRing::new(mem.clone(), Pattern { step, rows: 0, cap: Rc::new(core::cell::Cell::new(ROWS)) });
+        let sink = Sink { mem, room: usize::MAX, rows: vec![], rtcp: vec![], yield_at: None, yield_asked: 0 };
+        (Box::new(Camera::new()), ring, sink)
     }
 
     /// Poll at `now` until nothing progresses.
@@ -682,6 +746,43 @@ mod tests {
         assert_eq!(frame[36].seq16(), 0, "the low 16 bits wrapped after 65,535");
         let next = &sink.rows[usize::from(ROWS)];
         assert_ne!(next.timestamp(), frame[0].timestamp(), "fps=max: the next frame at once, a new timestamp");
+    }
+
+    #[test]
+    fn one_poll_sends_the_rows_as_they_land_until_the_sink_asks_to_yield() {
+        // Two rows land per look at the source: one poll still sends the
+        // whole frame, asking the sink between batches.
+        let (mut camera, mut ring, mut sink) = rig(2);
+        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(30)), t(0), &mut ring);
+        assert!(camera.poll(t(0), 0, &mut ring, &mut sink));
+        assert_eq!(sink.rows.len(), usize::from(ROWS), "the frame in one poll");
+        assert_eq!(sink.yield_asked, usize::from(ROWS) / 2 - 1, "asked after each batch but the last");
+        // The sink asks to yield once 100 rows went: the poll returns at
+        // the end of that run (runs of MIN_RUN while rows keep landing),
+        // the next one goes on where it stopped.
+        sink.yield_at = Some(usize::from(ROWS) + 100);
+        assert!(camera.poll(t(34), 0, &mut ring, &mut sink));
+        let run = usize::from(MIN_RUN);
+        assert_eq!(sink.rows.len(), usize::from(ROWS) + (100 / run + 1) * run);
+        sink.yield_at = None;
+        assert!(camera.poll(t(34), 0, &mut ring, &mut sink));
+        assert_eq!(sink.rows.len(), 2 * usize::from(ROWS));
+        let lines: Vec<u16> = sink.rows[usize::from(ROWS)..].iter().map(Received::line).collect();
+        assert_eq!(lines, (0..ROWS).collect::<Vec<_>>(), "no row lost or repeated at the yield");
+    }
+
+    #[test]
+    fn rows_go_out_as_soon_as_the_source_stops_landing_more() {
+        let (mut camera, mut ring, mut sink) = rig(2);
+        let cap = Rc::clone(&ring.engine().cap);
+        cap.set(5);
+        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Max), t(0), &mut ring);
+        assert!(camera.poll(t(0), 0, &mut ring, &mut sink));
+        assert_eq!(sink.rows.len(), 5, "five landed, then none: all five go, short of a run");
+        cap.set(40);
+        assert!(camera.poll(t(0), 0, &mut ring, &mut sink));
+        assert_eq!(sink.rows.len(), 40);
+        assert!(!camera.poll(t(0), 0, &mut ring, &mut sink), "nothing new");
     }
 
     #[test]

@@ -454,44 +454,79 @@ struct Sink<'s, 'r, T> {
     no_route: &'s mut u32,
 }
 
+impl<T: RowTransmitter> Sink<'_, '_, T> {
+    /// The route to `to`, made (with its header template) the first time a
+    /// packet goes there; `None` while the next hop is unknown, or if
+    /// every route is taken.
+    fn route(&mut self, to: &Destination, first_ident: u16) -> Result<usize, NoRoute> {
+        if let Some(i) = self.routes.iter().position(|r| r.as_ref().is_some_and(|r| r.to == *to)) {
+            return Ok(i);
+        }
+        // The board speaks IPv4 only.
+        let IpAddr::V4(client) = to.addr else { return Err(NoRoute::Unknown) };
+        let Some(dst_mac) = self.peers.lookup(client) else { return Err(NoRoute::Unknown) };
+        let endpoints = Endpoints {
+            src_mac: self.local_mac,
+            dst_mac,
+            src: SocketAddrV4::new(self.local.server_ip, self.local.rtp_port),
+            dst: SocketAddrV4::new(client, to.rtp_port),
+        };
+        let checksum = if self.tx.checksum_offload() { UdpChecksum::Offload } else { UdpChecksum::Zero };
+        let i = self.routes.iter().position(Option::is_none).ok_or(NoRoute::Full)?;
+        self.routes[i] = Some(Route { to: *to, template: HeaderTemplate::new(&endpoints, checksum, first_ident) });
+        Ok(i)
+    }
+}
+
+/// Why a packet has no route.
+enum NoRoute {
+    /// The next hop is not known (or not IPv4): the packet is dropped.
+    Unknown,
+    /// Every route is taken (never expected: one per stream): try later.
+    Full,
+}
+
 impl<T: RowTransmitter> RtpSink for Sink<'_, '_, T> {
     fn send_row(&mut self, to: &Destination, packetiser: &Packetiser, packet: &RowPacket, slot: usize) -> bool {
-        let IpAddr::V4(client) = to.addr else {
-            // The board speaks IPv4 only; nothing can be sent.
-            *self.no_route += 1;
-            return true;
-        };
-        let route = match self.routes.iter().position(|r| r.as_ref().is_some_and(|r| r.to == *to)) {
-            Some(i) => i,
-            None => {
-                let Some(dst_mac) = self.peers.lookup(client) else {
-                    *self.no_route += 1;
-                    return true;
-                };
-                let endpoints = Endpoints {
-                    src_mac: self.local_mac,
-                    dst_mac,
-                    src: SocketAddrV4::new(self.local.server_ip, self.local.rtp_port),
-                    dst: SocketAddrV4::new(client, to.rtp_port),
-                };
-                let checksum = if self.tx.checksum_offload() { UdpChecksum::Offload } else { UdpChecksum::Zero };
-                let Some(i) = self.routes.iter().position(Option::is_none) else { return false };
-                self.routes[i] =
-                    Some(Route { to: *to, template: HeaderTemplate::new(&endpoints, checksum, packet.seq as u16) });
-                i
+        self.send_rows(to, packetiser, packet, 1, slot) == 1
+    }
+
+    fn send_rows(
+        &mut self,
+        to: &Destination,
+        packetiser: &Packetiser,
+        first: &RowPacket,
+        count: u16,
+        slot: usize,
+    ) -> u16 {
+        let route = match self.route(to, first.seq as u16) {
+            Ok(i) => i,
+            Err(NoRoute::Unknown) => {
+                *self.no_route += u32::from(count);
+                return count;
             }
+            Err(NoRoute::Full) => return 0,
         };
-        let Some(r) = self.routes[route].as_mut() else { return false };
-        if !self.tx.send(r.template.words(packetiser, packet), slot, packet.row) {
-            return false;
+        let Some(r) = self.routes[route].as_mut() else { return 0 };
+        let mut sent = 0;
+        while sent < count {
+            let packet = first.nth(sent);
+            if !self.tx.send(r.template.words(packetiser, &packet), slot, packet.row) {
+                break;
+            }
+            sent += 1;
         }
-        *self.rows_sent = self.rows_sent.wrapping_add(1);
-        true
+        *self.rows_sent = self.rows_sent.wrapping_add(u32::from(sent));
+        sent
     }
 
     fn send_rtcp(&mut self, to: &Destination, datagram: &[u8]) -> bool {
         let IpAddr::V4(addr) = to.addr else { return false };
         let endpoint = IpEndpoint::new(addr.into(), to.rtcp_port);
         self.rtcp.send_slice(datagram, endpoint).is_ok()
+    }
+
+    fn should_yield(&mut self) -> bool {
+        self.tx.receive_waiting()
     }
 }

@@ -282,7 +282,8 @@ fn a_header_given_as_words_leaves_as_the_same_header_given_as_bytes() {
         let mut dma = FakeDma { next: 0 };
         let header = rtp_header(7);
         let a = mac.send_split(&header, PixelMemory::row_bus(5), ROW).expect("room");
-        let b = mac.send_split_words(&padded_words(&header), PixelMemory::row_bus(5), ROW).expect("room");
+        let cic = mac.checksum_for(&header);
+        let b = mac.send_split_words(&padded_words(&header), cic, PixelMemory::row_bus(5), ROW).expect("room");
         assert_eq!((a, b), (SplitSeq(0), SplitSeq(1)));
         let (d0, d1) = (mac.shared.area.tx_descriptor(0).words(), mac.shared.area.tx_descriptor(1).words());
         assert_eq!(d1[0], d0[0], "TDES0 (neither ends the ring)");
@@ -299,9 +300,10 @@ fn a_header_given_as_words_leaves_as_the_same_header_given_as_bytes() {
     let mut rig = Rig::new(QEMU_HW_FEATURE);
     let mut mac = rig.mac(true);
     started(&mut mac);
-    assert_eq!(mac.send_split_words(&[], 0, ROW), Err(SplitError::Length));
-    assert_eq!(mac.send_split_words(&[0; 3], 0, ROW), Err(SplitError::Length), "10 bytes after the padding");
-    assert_eq!(mac.send_split_words(&[0; 4], 0, 0), Ok(SplitSeq(0)), "14 bytes: just an Ethernet header");
+    let off = ChecksumInsertion::Off;
+    assert_eq!(mac.send_split_words(&[], off, 0, ROW), Err(SplitError::Length));
+    assert_eq!(mac.send_split_words(&[0; 3], off, 0, ROW), Err(SplitError::Length), "10 bytes after the padding");
+    assert_eq!(mac.send_split_words(&[0; 4], off, 0, 0), Ok(SplitSeq(0)), "14 bytes: just an Ethernet header");
 }
 
 #[test]
