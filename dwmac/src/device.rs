@@ -48,11 +48,11 @@ impl RxState {
                     if shared.area.rx_descriptor(after).word(0) & OWN != 0 {
                         return None;
                     }
-                    self.dropped = self.dropped.saturating_add(1);
+                    self.dropped = self.dropped.wrapping_add(1);
                     self.recycle(shared);
                 }
                 RxStatus::Frame { .. } | RxStatus::Bad => {
-                    self.dropped = self.dropped.saturating_add(1);
+                    self.dropped = self.dropped.wrapping_add(1);
                     self.recycle(shared);
                 }
             }
@@ -102,9 +102,20 @@ impl TxState {
         split
     }
 
-    /// Whether the descriptor at `next` is the CPU's (after a reclaim).
+    /// Whether the descriptor at `next` is the CPU's. Reclaims only when
+    /// the ring looks full: a descriptor outside the `pending` ones was
+    /// reclaimed before (OWN seen clear, then a dmb) or never handed over,
+    /// so the common case reads no descriptor word. Completions are taken
+    /// in when the ring fills or a caller asks ([`Dwmac::split_completed`],
+    /// [`Dwmac::tx_reclaim`]).
+    ///
+    /// [`Dwmac::split_completed`]: crate::Dwmac::split_completed
+    /// [`Dwmac::tx_reclaim`]: crate::Dwmac::tx_reclaim
     #[inline]
     pub(crate) fn free<S: DmaSync>(&mut self, shared: &Shared<'_, S>) -> bool {
+        if self.pending < TX_RING {
+            return true;
+        }
         self.reclaim(shared);
         self.pending < TX_RING
     }
@@ -126,7 +137,7 @@ impl TxState {
         let cic = csum::for_frame(frame, shared.csum);
         let control = desc::tx_control(shared.format, len, i == TX_RING - 1, cic);
         self.hand_over(shared, control, buffer.bus_address() + TX_SKEW as u32, 0, false);
-        self.bytes = self.bytes.saturating_add(len as u64);
+        self.bytes = self.bytes.wrapping_add(len as u64);
         r
     }
 
@@ -155,7 +166,7 @@ impl TxState {
         self.split[i] = split;
         self.pending += 1;
         self.next = (i + 1) % TX_RING;
-        self.frames = self.frames.saturating_add(1);
+        self.frames = self.frames.wrapping_add(1);
     }
 }
 
@@ -178,8 +189,8 @@ impl<S: DmaSync> smoltcp::phy::RxToken for DwmacRxToken<'_, '_, S> {
         // SAFETY: `ready` saw OWN clear (then a dmb): the CPU owns the buffer
         // until `recycle` below hands it back; no mutable slice exists.
         let r = f(unsafe { buffer.bytes(self.len) });
-        self.rx.frames = self.rx.frames.saturating_add(1);
-        self.rx.bytes = self.rx.bytes.saturating_add(self.len as u64);
+        self.rx.frames = self.rx.frames.wrapping_add(1);
+        self.rx.bytes = self.rx.bytes.wrapping_add(self.len as u64);
         self.rx.recycle(self.shared);
         r
     }
@@ -215,7 +226,7 @@ impl<'a, S: DmaSync, D: DelayNs> Device for Dwmac<'a, S, D> {
 
     fn transmit(&mut self, _timestamp: Instant) -> Option<Self::TxToken<'_>> {
         if !self.tx.free(&self.shared) {
-            self.tx.ring_full = self.tx.ring_full.saturating_add(1);
+            self.tx.ring_full = self.tx.ring_full.wrapping_add(1);
             return None;
         }
         Some(DwmacTxToken { shared: &self.shared, tx: &mut self.tx })

@@ -90,7 +90,9 @@ impl From<PhyError> for Error {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ResetTimeout;
 
-/// Frame counters.
+/// Frame counters. They wrap (compare them by difference): the 64-bit
+/// byte counts never do in practice, and a wrapping add is two
+/// instructions on the per-packet path where a saturating one is eight.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Stats {
     /// Good frames handed to the stack.

@@ -124,7 +124,7 @@ impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
         }
         let (shared, tx) = (&self.shared, &mut self.tx);
         if !tx.free(shared) {
-            tx.split_full = tx.split_full.saturating_add(1);
+            tx.split_full = tx.split_full.wrapping_add(1);
             return Err(SplitError::Full);
         }
         Ok(tx.next)
@@ -147,14 +147,15 @@ impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
         tx.hand_over(shared, control, slot.bus_address() + TX_SKEW as u32, payload, true);
         let seq = SplitSeq(tx.split_sent);
         tx.split_sent += 1;
-        tx.split_frames = tx.split_frames.saturating_add(1);
-        tx.split_payload_bytes = tx.split_payload_bytes.saturating_add(payload_len as u64);
-        tx.bytes = tx.bytes.saturating_add((header_len + payload_len) as u64);
+        tx.split_frames = tx.split_frames.wrapping_add(1);
+        tx.split_payload_bytes = tx.split_payload_bytes.wrapping_add(payload_len as u64);
+        tx.bytes = tx.bytes.wrapping_add((header_len + payload_len) as u64);
         seq
     }
 
     /// Take back the descriptors the DMA has finished with; returns how
-    /// many split frames that completed. Every other call here does it too.
+    /// many split frames that completed. The calls below do it too, and a
+    /// send does when the ring looks full.
     pub fn tx_reclaim(&mut self) -> usize {
         self.tx.reclaim(&self.shared)
     }

@@ -66,15 +66,20 @@ impl CacheOps for Caches {
     }
 }
 
+// Inline: each is one instruction or one register write, on the
+// transmit path several times a packet.
 impl DmaSync for Caches {
+    #[inline(always)]
     fn dsb(&self) {
         dsb()
     }
 
+    #[inline(always)]
     fn dmb(&self) {
         dmb()
     }
 
+    #[inline(always)]
     fn outer_sync(&self) {
         self.l2.cache_sync()
     }

@@ -705,8 +705,21 @@ impl core::fmt::Display for RecordError {
 struct Entry {
     packet: RowPacket,
     slot: u8,
+}
+
+/// Packets from `first` on (up to the next span's `first`) whose hold
+/// counts from `at`.
+#[derive(Clone, Copy, Debug)]
+struct Span {
+    first: u32,
     at: Instant,
 }
+
+/// Hold spans a [`RepairWindow`] keeps: a frame's rows share one once the
+/// frame is done ([`RepairWindow::restart_hold`]), and a window holds
+/// under three frames. When they run out the two oldest merge into the
+/// later one's time: their packets are then held longer, never shorter.
+const SPANS: usize = 8;
 
 /// Retransmission bookkeeping (RFC 4585 section 3.1's "repair"): for each
 /// of the last `N` packets sent, its header fields and the frame slot and
@@ -721,7 +734,9 @@ struct Entry {
 /// window when `N` newer ones were recorded, or when they are older than
 /// the hold time ([`expire`](Self::expire)), so an idle stream lets its
 /// slots go. `N` must be a power of two (sequence numbers index a ring);
-/// [`REPAIR_ENTRIES`] covers two frames and slack.
+/// [`REPAIR_ENTRIES`] covers two frames and slack. The times are kept per
+/// run of packets (a span), not per packet: recording a packet and
+/// restarting a frame's hold touch no other entry.
 ///
 /// [`FrameRing::pin`]: crate::frames::FrameRing::pin
 #[derive(Clone, Debug)]
@@ -736,6 +751,9 @@ pub struct RepairWindow<const N: usize> {
     refs: [u32; MAX_SLOTS],
     held: u32,
     hold: Duration,
+    /// The hold times, oldest first; the first covers `oldest` (its
+    /// `first` may lie before it).
+    spans: heapless::Deque<Span, SPANS>,
 }
 
 impl<const N: usize> RepairWindow<N> {
@@ -743,7 +761,16 @@ impl<const N: usize> RepairWindow<N> {
     /// frame times; it also keeps no more than `N`).
     pub const fn new(hold: Duration) -> RepairWindow<N> {
         const { assert!(N.is_power_of_two() && N <= 1 << 16, "N indexes a ring by sequence number") };
-        RepairWindow { entries: [None; N], oldest: 0, next: 0, started: false, refs: [0; MAX_SLOTS], held: 0, hold }
+        RepairWindow {
+            entries: [None; N],
+            oldest: 0,
+            next: 0,
+            started: false,
+            refs: [0; MAX_SLOTS],
+            held: 0,
+            hold,
+            spans: heapless::Deque::new(),
+        }
     }
 
     /// Empty the window (a new stream) and keep packets for `hold` from now
@@ -754,6 +781,7 @@ impl<const N: usize> RepairWindow<N> {
         self.refs = [0; MAX_SLOTS];
         self.held = 0;
         self.hold = hold;
+        self.spans.clear();
     }
 
     /// The slots the window holds (bit `i`: slot `i`).
@@ -799,10 +827,16 @@ impl<const N: usize> RepairWindow<N> {
             }
             self.oldest = keep_from;
         }
-        self.entries[s as usize % N] = Some(Entry { packet, slot: slot8, at: now });
+        if !Self::before(self.oldest, self.next) {
+            // Nothing older is left (the first packet, or a jump past the
+            // window): no span covers anything.
+            self.spans.clear();
+        }
+        self.entries[s as usize % N] = Some(Entry { packet, slot: slot8 });
         self.refs[usize::from(slot8)] += 1;
         self.held |= 1 << slot8;
         self.next = s.wrapping_add(1);
+        self.hold_from(s, now);
         Ok(SlotChanges { held: self.held & !before, released: before & !self.held })
     }
 
@@ -822,21 +856,34 @@ impl<const N: usize> RepairWindow<N> {
         let before = self.held;
         self.record(now, slot, first)?;
         // `slot` passed the check; each later number is newer than the
-        // one before: the checks in `record` hold for the rest.
+        // one before: the checks in `record` hold for the rest, and the
+        // span `record` opened at `first` covers them.
         let slot8 = slot as u8;
+        // Counted first: a run longer than the window pushes out its own.
+        self.refs[usize::from(slot8)] += u32::from(n - 1);
+        let mut oldest = self.oldest;
         for k in 1..n {
             let s = first.seq.wrapping_add(u32::from(k));
-            if s.wrapping_sub(self.oldest) >= N as u32 {
+            let entry = &mut self.entries[s as usize % N];
+            if s.wrapping_sub(oldest) >= N as u32 {
                 // The window is full (it always is past the first N): the
-                // oldest leaves, as `record` would.
-                self.remove(self.oldest);
-                self.oldest = self.oldest.wrapping_add(1);
+                // oldest leaves, as `record` would; numbers run on, so
+                // its entry is the one this packet takes.
+                if let Some(old) = entry {
+                    let old = usize::from(old.slot);
+                    self.refs[old] -= 1;
+                    if self.refs[old] == 0 {
+                        self.held &= !(1 << old);
+                    }
+                }
+                oldest = oldest.wrapping_add(1);
             }
-            self.entries[s as usize % N] = Some(Entry { packet: first.nth(k), slot: slot8, at: now });
-            self.refs[usize::from(slot8)] += 1;
-            self.next = s.wrapping_add(1);
+            *entry = Some(Entry { packet: first.nth(k), slot: slot8 });
         }
+        self.oldest = oldest;
+        self.next = first.seq.wrapping_add(u32::from(n));
         self.held |= 1 << slot8;
+        self.drop_passed_spans();
         Ok(SlotChanges { held: self.held & !before, released: before & !self.held })
     }
 
@@ -851,38 +898,66 @@ impl<const N: usize> RepairWindow<N> {
         }
     }
 
+    /// Whether `a` comes before `b` (sequence numbers a window apart at
+    /// most, so the signed difference orders them across the wrap).
+    const fn before(a: u32, b: u32) -> bool {
+        (a.wrapping_sub(b) as i32) < 0
+    }
+
+    /// The packets from `from` (in the window) on count their hold from
+    /// `at`.
+    fn hold_from(&mut self, from: u32, at: Instant) {
+        while self.spans.back().is_some_and(|b| !Self::before(b.first, from)) {
+            self.spans.pop_back();
+        }
+        if self.spans.back().is_some_and(|b| b.at == at) {
+            return;
+        }
+        if self.spans.is_full() {
+            // Merge the two oldest into the later time (held longer).
+            if let (Some(a), Some(b)) = (self.spans.pop_front(), self.spans.pop_front()) {
+                let _ = self.spans.push_front(Span { first: a.first, at: b.at });
+            }
+        }
+        let _ = self.spans.push_back(Span { first: from, at });
+    }
+
+    /// Forget the spans whose packets all left (the next span starts at or
+    /// before `oldest`).
+    fn drop_passed_spans(&mut self) {
+        while self.spans.get(1).is_some_and(|b| !Self::before(self.oldest, b.first)) {
+            self.spans.pop_front();
+        }
+    }
+
     /// Count the hold of the packets from `first` (an extended sequence
     /// number) to the newest from `now`: a frame's packets are repairable
     /// for the hold after its last row went, however long its rows took to
     /// render (a receiver asks only once the frame's marker arrived).
-    /// Bounded: at most `N` entries.
     pub fn restart_hold(&mut self, first: u32, now: Instant) {
+        if self.next == self.oldest {
+            return;
+        }
         let from =
             if self.next.wrapping_sub(first) <= self.next.wrapping_sub(self.oldest) { first } else { self.oldest };
-        let mut s = from;
-        while s != self.next {
-            if let Some(e) = self.entries[s as usize % N].as_mut() {
-                if e.packet.seq == s {
-                    e.at = now;
-                }
-            }
-            s = s.wrapping_add(1);
-        }
+        self.hold_from(from, now);
     }
 
     /// Drop the packets recorded longer than the hold time before `now`;
     /// returns the slots released (bounded: at most `N` entries).
     pub fn expire(&mut self, now: Instant) -> SlotChanges {
         let before = self.held;
-        while self.oldest != self.next {
-            let idx = self.oldest as usize % N;
-            if let Some(e) = self.entries[idx] {
-                if now.saturating_duration_since(e.at) < self.hold {
-                    break;
-                }
+        self.drop_passed_spans();
+        while let Some(&span) = self.spans.front() {
+            if now.saturating_duration_since(span.at) < self.hold {
+                break;
             }
-            self.remove(self.oldest);
-            self.oldest = self.oldest.wrapping_add(1);
+            let end = self.spans.get(1).map_or(self.next, |b| b.first);
+            while self.oldest != end {
+                self.remove(self.oldest);
+                self.oldest = self.oldest.wrapping_add(1);
+            }
+            self.spans.pop_front();
         }
         SlotChanges { held: 0, released: before & !self.held }
     }
@@ -1447,6 +1522,158 @@ mod tests {
                 for back in 0..70u32 {
                     let s = seq.wrapping_sub(back);
                     proptest::prop_assert_eq!(a.lookup(s), b.lookup(s), "seq {}", s);
+                }
+            }
+        }
+    }
+
+    /// The window as it was before hold spans: a time per packet, every
+    /// packet of a frame touched to restart its hold. The reference the
+    /// span-keeping window must agree with while its spans never merge.
+    #[derive(Clone, Copy, Debug)]
+    struct OldEntry {
+        packet: RowPacket,
+        slot: u8,
+        at: Instant,
+    }
+
+    #[derive(Clone, Debug)]
+    struct PerPacket<const N: usize> {
+        entries: [Option<OldEntry>; N],
+        oldest: u32,
+        next: u32,
+        started: bool,
+        refs: [u32; MAX_SLOTS],
+        held: u32,
+        hold: Duration,
+    }
+
+    impl<const N: usize> PerPacket<N> {
+        pub const fn new(hold: Duration) -> PerPacket<N> {
+            const { assert!(N.is_power_of_two() && N <= 1 << 16, "N indexes a ring by sequence number") };
+            PerPacket { entries: [None; N], oldest: 0, next: 0, started: false, refs: [0; MAX_SLOTS], held: 0, hold }
+        }
+
+        pub const fn held(&self) -> u32 {
+            self.held
+        }
+
+        pub fn record(&mut self, now: Instant, slot: usize, packet: RowPacket) -> Result<SlotChanges, RecordError> {
+            let slot8 =
+                u8::try_from(slot).ok().filter(|&s| usize::from(s) < MAX_SLOTS).ok_or(RecordError::BadSlot(slot))?;
+            let s = packet.seq;
+            if !self.started {
+                (self.oldest, self.next, self.started) = (s, s, true);
+            } else if s.wrapping_sub(self.next) >= 1 << 31 {
+                return Err(RecordError::NotNewer(s));
+            }
+            let before = self.held;
+            let n = N as u32;
+            if s.wrapping_sub(self.oldest) >= n {
+                // Keep s - N + 1 ..= s: drop what is older.
+                let keep_from = s.wrapping_sub(n - 1);
+                let drop = self.next.wrapping_sub(self.oldest).min(keep_from.wrapping_sub(self.oldest));
+                for i in 0..drop {
+                    self.remove(self.oldest.wrapping_add(i));
+                }
+                self.oldest = keep_from;
+            }
+            self.entries[s as usize % N] = Some(OldEntry { packet, slot: slot8, at: now });
+            self.refs[usize::from(slot8)] += 1;
+            self.held |= 1 << slot8;
+            self.next = s.wrapping_add(1);
+            Ok(SlotChanges { held: self.held & !before, released: before & !self.held })
+        }
+
+        fn remove(&mut self, seq: u32) {
+            if let Some(e) = self.entries[seq as usize % N].take() {
+                let slot = usize::from(e.slot);
+                self.refs[slot] -= 1;
+                if self.refs[slot] == 0 {
+                    self.held &= !(1 << slot);
+                }
+            }
+        }
+
+        pub fn restart_hold(&mut self, first: u32, now: Instant) {
+            let from =
+                if self.next.wrapping_sub(first) <= self.next.wrapping_sub(self.oldest) { first } else { self.oldest };
+            let mut s = from;
+            while s != self.next {
+                if let Some(e) = self.entries[s as usize % N].as_mut() {
+                    if e.packet.seq == s {
+                        e.at = now;
+                    }
+                }
+                s = s.wrapping_add(1);
+            }
+        }
+
+        pub fn expire(&mut self, now: Instant) -> SlotChanges {
+            let before = self.held;
+            while self.oldest != self.next {
+                let idx = self.oldest as usize % N;
+                if let Some(e) = self.entries[idx] {
+                    if now.saturating_duration_since(e.at) < self.hold {
+                        break;
+                    }
+                }
+                self.remove(self.oldest);
+                self.oldest = self.oldest.wrapping_add(1);
+            }
+            SlotChanges { held: 0, released: before & !self.held }
+        }
+
+        pub fn lookup(&self, seq: u32) -> Option<Repair> {
+            match self.entries[seq as usize % N] {
+                Some(e) if e.packet.seq == seq => Some(Repair { packet: e.packet, slot: usize::from(e.slot) }),
+                _ => None,
+            }
+        }
+    }
+
+    proptest::proptest! {
+        /// Runs, restarted holds and expiry against the per-packet window,
+        /// with at most seven distinct times (so no two spans merge):
+        /// the same packets, slots and releases after every step.
+        #[test]
+        fn the_span_window_agrees_with_a_time_per_packet(
+            steps in proptest::collection::vec((0u8..3, 0usize..5, 0u16..90, 0u64..7), 1..30),
+            start in proptest::num::u32::ANY,
+        ) {
+            let hold = Duration::from_millis(250);
+            let (mut new, mut old) = (RepairWindow::<64>::new(hold), PerPacket::<64>::new(hold));
+            let (mut seq, mut frame_first) = (start, start);
+            let mut times: Vec<u64> = steps.iter().map(|s| s.3 * 100).collect();
+            times.sort_unstable();
+            for ((kind, slot, n, _), ms) in steps.into_iter().zip(times) {
+                let now = Instant::from_millis(ms);
+                match kind {
+                    0 => {
+                        let first = RowPacket { seq, timestamp: ms as u32, row: 0 };
+                        let c = new.record_run(now, slot, first, n).unwrap();
+                        let mut want = SlotChanges::default();
+                        let before = old.held();
+                        for k in 0..n {
+                            old.record(now, slot, first.nth(k)).unwrap();
+                        }
+                        if n > 0 {
+                            want = SlotChanges { held: old.held() & !before, released: before & !old.held() };
+                        }
+                        proptest::prop_assert_eq!(c, want);
+                        seq = seq.wrapping_add(u32::from(n));
+                    }
+                    1 => {
+                        new.restart_hold(frame_first, now);
+                        old.restart_hold(frame_first, now);
+                        frame_first = seq;
+                    }
+                    _ => proptest::prop_assert_eq!(new.expire(now), old.expire(now)),
+                }
+                proptest::prop_assert_eq!(new.held(), old.held());
+                for back in 0..80u32 {
+                    let s = seq.wrapping_sub(back);
+                    proptest::prop_assert_eq!(new.lookup(s), old.lookup(s), "seq {}", s);
                 }
             }
         }

@@ -153,6 +153,7 @@ impl L2c310 {
 
     /// Drain the store buffer: every earlier write has reached memory once
     /// this register write completes.
+    #[inline]
     pub fn cache_sync(&self) {
         // SAFETY: a cache sync only drains buffers.
         unsafe { self.regs().cache_sync.write(0) }
