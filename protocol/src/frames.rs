@@ -689,18 +689,22 @@ impl<E: fmt::Display> fmt::Display for WatchdogError<E> {
 
 /// An engine whose frames must keep landing rows: no new row for `limit`
 /// of `clock` time fails the frame instead of leaving its client waiting.
+/// The clock is read only when a poll finds no new row (the stall is timed
+/// from the first such poll, at most one poll interval after the last
+/// row): a frame that keeps landing rows costs no clock reads.
 pub struct Watchdog<E, C> {
     engine: E,
     clock: C,
     limit: core::time::Duration,
     rows: u16,
-    since: crate::time::Instant,
+    /// When the rows stopped moving (`None`: they moved at the last poll).
+    since: Option<crate::time::Instant>,
 }
 
 impl<E, C: FnMut() -> crate::time::Instant> Watchdog<E, C> {
     /// Watch `engine` with `clock`, allowing `limit` between rows.
     pub fn new(engine: E, mut clock: C, limit: core::time::Duration) -> Watchdog<E, C> {
-        let since = clock();
+        let since = Some(clock());
         Watchdog { engine, clock, limit, rows: 0, since }
     }
 
@@ -715,18 +719,24 @@ impl<M: FrameMemory, E: FrameEngine<M>, C: FnMut() -> crate::time::Instant> Fram
 
     fn start(&mut self, mem: &mut M, slot: usize, light: &Light) -> Result<(), Self::Error> {
         self.rows = 0;
-        self.since = (self.clock)();
+        self.since = Some((self.clock)());
         self.engine.start(mem, slot, light).map_err(WatchdogError::Engine)
     }
 
     fn progress(&mut self, mem: &mut M) -> Result<u16, Self::Error> {
         let rows = self.engine.progress(mem).map_err(WatchdogError::Engine)?;
-        let now = (self.clock)();
         if rows != self.rows {
             self.rows = rows;
-            self.since = now;
-        } else if rows < ROWS && now.saturating_duration_since(self.since) > self.limit {
-            return Err(WatchdogError::Stalled { rows });
+            self.since = None;
+        } else if rows < ROWS {
+            let now = (self.clock)();
+            match self.since {
+                None => self.since = Some(now),
+                Some(t) if now.saturating_duration_since(t) > self.limit => {
+                    return Err(WatchdogError::Stalled { rows });
+                }
+                Some(_) => {}
+            }
         }
         Ok(rows)
     }
@@ -902,6 +912,35 @@ mod tests {
         assert_eq!(ring.rows_ready(f), Ok(0), "within the limit");
         now.set(501);
         assert_eq!(ring.rows_ready(f), Err(WatchdogError::Stalled { rows: 0 }));
+    }
+
+    #[test]
+    fn the_watchdog_reads_its_clock_only_when_no_row_landed_and_times_a_stall_from_then() {
+        use core::cell::Cell;
+        let (now, reads) = (Cell::new(0u64), Cell::new(0u32));
+        let clock = || {
+            reads.set(reads.get() + 1);
+            crate::time::Instant::from_millis(now.get())
+        };
+        let dma = Dma { started: vec![], rows: 0, step: 4, fail_light: None, current: None };
+        let mut engine = Watchdog::new(dma, clock, core::time::Duration::from_millis(500));
+        let mut mem = vec![0u8; FRAME_BYTES];
+        let mut mem = SliceMemory::new(0, &mut mem);
+        engine.start(&mut mem, 0, &light(2.0)).unwrap();
+        let at_start = reads.get();
+        for i in 1..=10 {
+            assert_eq!(engine.progress(&mut mem), Ok(4 * i));
+        }
+        assert_eq!(reads.get(), at_start, "rows kept landing: no clock read");
+        // The rows stop at 40: the stall counts from the first poll that
+        // saw none, not from the start 10 s earlier.
+        engine.engine().step = 0;
+        now.set(10_000);
+        assert_eq!(engine.progress(&mut mem), Ok(40));
+        now.set(10_500);
+        assert_eq!(engine.progress(&mut mem), Ok(40), "500 ms: within the limit");
+        now.set(10_501);
+        assert_eq!(engine.progress(&mut mem), Err(WatchdogError::Stalled { rows: 40 }));
     }
 
     /// An engine whose frames never land a row; it stops writing on an

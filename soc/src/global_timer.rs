@@ -107,6 +107,13 @@ impl GlobalTimer {
         }
     }
 
+    /// The counter's low 32 bits (one register read): for intervals
+    /// shorter than its wrap (42.9 s at 100 MHz), as `wrapping_sub`.
+    #[inline]
+    pub fn ticks_low(&self) -> u32 {
+        self.regs().counter_lo.read()
+    }
+
     /// Microseconds since the counter started.
     pub fn now_us(&self) -> u64 {
         ticks_to_us(self.ticks(), self.hz())

@@ -117,19 +117,27 @@ impl ClockedSim {
     }
 }
 
+// The simulated device's work is the FPGA's on the board: the bench
+// counts it as rendering, not as the CPU's (`bench::device`).
 impl RegisterPort for ClockedSim {
     fn read(&mut self, csr: Csr) -> u32 {
-        self.catch_up();
-        self.sim.read(csr)
+        crate::bench::device(|| {
+            self.catch_up();
+            self.sim.read(csr)
+        })
     }
 
     fn write(&mut self, csr: Csr, value: u32) {
-        self.catch_up();
-        self.sim.write(csr, value)
+        crate::bench::device(|| {
+            self.catch_up();
+            self.sim.write(csr, value)
+        })
     }
 
     fn read_line(&mut self, out: &mut [u32; LINE_WORDS]) {
-        self.catch_up();
-        self.sim.read_line(out)
+        crate::bench::device(|| {
+            self.catch_up();
+            self.sim.read_line(out)
+        })
     }
 }
