@@ -130,6 +130,7 @@ pub(crate) struct Shared<'a, S> {
 impl<S: DmaSync> Shared<'_, S> {
     /// After a descriptor word with OWN set: make it visible to the DMA
     /// before the poll demand that follows (docs in [`crate::sync`]).
+    #[inline]
     pub(crate) fn publish(&self) {
         self.sync.dsb();
         self.sync.outer_sync();
