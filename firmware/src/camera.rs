@@ -2,7 +2,7 @@
 //! TCP port 8554, RTP/RTCP on UDP 5004/5005) over the frame ring, its rows
 //! leaving zero-copy: each packet is one two-buffer descriptor of the
 //! DesignWare MAC, buffer 1 the 62-byte header, buffer 2 the row where the
-//! FPGA wrote it in the ring (`dwmac::Dwmac::send_split`). The CPU never
+//! FPGA wrote it in the ring (`dwmac::Dwmac::send_split_words`). The CPU never
 //! reads a pixel on this path.
 //!
 //! Coherence: the ring's rows are in DRAM when a packet points at them:

@@ -32,16 +32,15 @@ use crate::time;
 /// TCP sockets listening for RTSP: two clients setting up at once.
 pub const RTSP_SOCKETS: usize = 2;
 
-/// Most [`Camera::poll`] rounds per [`CameraService::poll`], a bound of
-/// last resort: a poll also ends when a round moves nothing, when a frame
-/// completes, and as soon as the transmitter says a frame was received
-/// ([`RowTransmitter::receive_waiting`]), so that NACKs, which arrive only
-/// through `Interface::poll`, wait no longer than one round. (Four rounds
-/// a poll, the earlier bound, cost a main-loop iteration per eight rows
-/// on the emulated board; 64 without the receive check let NACKs wait a
-/// frame time and lossy-link repairs come too late.) A productive round
-/// sends a row or begins a frame, so a frame takes at most about
-/// [`ROWS`](crate::frames::ROWS) of them.
+/// Most [`Camera::poll`] calls per [`CameraService::poll`], a bound of
+/// last resort. One call already sends what a frame has landed, in runs,
+/// returning early when the transmitter says a frame was received
+/// ([`RowTransmitter::receive_waiting`]: NACKs arrive only through
+/// `Interface::poll`); more calls follow only while they move something
+/// and no frame has completed. (Four short rounds a poll, the earlier
+/// design, cost a main-loop iteration per eight rows on the emulated
+/// board; 64 without the receive check let NACKs wait a frame time and
+/// lossy-link repairs come too late.)
 pub const MAX_POLLS: usize = 2 * crate::frames::ROWS as usize;
 
 /// Peers remembered by [`PeerMacs`].
