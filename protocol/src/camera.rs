@@ -92,7 +92,7 @@ pub trait RtpSink {
 
     /// Whether the camera should return to its caller now rather than
     /// ask the source for more rows: something arrived that the caller
-    /// must take in (a NACK, on the board). Asked after each batch of rows.
+    /// must take in (a NACK, on the board). Asked after each run of rows.
     fn should_yield(&mut self) -> bool {
         false
     }
@@ -445,11 +445,12 @@ impl<const N: usize> Camera<N> {
                     s.stats.packets += u32::from(sent);
                     c.next_row += sent;
                     progress |= sent > 0;
-                    if sent < waiting {
+                    // Between runs: something received (a NACK) goes first.
+                    if sent < waiting || sink.should_yield() {
                         break;
                     }
                 }
-                if c.next_row == ROWS || !landing || sink.should_yield() {
+                if c.next_row == ROWS || !landing {
                     break;
                 }
             }
@@ -751,12 +752,12 @@ mod tests {
     #[test]
     fn one_poll_sends_the_rows_as_they_land_until_the_sink_asks_to_yield() {
         // Two rows land per look at the source: one poll still sends the
-        // whole frame, asking the sink between batches.
+        // whole frame, in runs, asking the sink after each.
         let (mut camera, mut ring, mut sink) = rig(2);
         camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(30)), t(0), &mut ring);
         assert!(camera.poll(t(0), 0, &mut ring, &mut sink));
         assert_eq!(sink.rows.len(), usize::from(ROWS), "the frame in one poll");
-        assert_eq!(sink.yield_asked, usize::from(ROWS) / 2 - 1, "asked after each batch but the last");
+        assert_eq!(sink.yield_asked, usize::from(ROWS.div_ceil(MIN_RUN)), "asked after each run of MIN_RUN");
         // The sink asks to yield once 100 rows went: the poll returns at
         // the end of that run (runs of MIN_RUN while rows keep landing),
         // the next one goes on where it stopped.
