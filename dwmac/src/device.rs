@@ -111,7 +111,7 @@ impl TxState {
     ///
     /// [`Dwmac::split_completed`]: crate::Dwmac::split_completed
     /// [`Dwmac::tx_reclaim`]: crate::Dwmac::tx_reclaim
-    #[inline]
+    #[inline(always)]
     pub(crate) fn free<S: DmaSync>(&mut self, shared: &Shared<'_, S>) -> bool {
         if self.pending < TX_RING {
             return true;
@@ -144,7 +144,7 @@ impl TxState {
     /// Write the descriptor at `next` (`control` = TDES0 without OWN and
     /// TDES1, buffer addresses `buf1` and `buf2`), give it to the DMA and
     /// demand a poll. The caller has filled the buffers the CPU writes.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn hand_over<S: DmaSync>(
         &mut self,
         shared: &Shared<'_, S>,

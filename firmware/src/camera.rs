@@ -15,7 +15,7 @@ use dwmac::{DmaSync, Dwmac, SplitError, SplitSeq};
 use embedded_hal::delay::DelayNs;
 use model::ROW_BYTES;
 use rt_protocol::camera_service::RowTransmitter;
-use rt_protocol::rtp::{HeaderWords, HEADER_PAD};
+use rt_protocol::rtp::{HeaderTemplate, HeaderWords, Packetiser, RowPacket, HEADER_PAD};
 
 use crate::render::RING_SLOTS;
 
@@ -59,6 +59,40 @@ impl<S: DmaSync, D: DelayNs> RowTransmitter for ZeroCopy<'_, '_, S, D> {
                 true
             }
         }
+    }
+
+    #[inline]
+    fn send_run(
+        &mut self,
+        template: &mut HeaderTemplate,
+        session: &Packetiser,
+        first: &RowPacket,
+        count: u16,
+        slot: usize,
+    ) -> u16 {
+        // The first row as `send` does it (the slot checked, the checksum
+        // insertion worked out); the rest with both hoisted and the slot's
+        // newest descriptor noted once.
+        if count == 0 || !self.send(template.words(session, first), slot, first.row) {
+            return 0;
+        }
+        let (Some(&base), Some(cic)) = (self.slots.get(slot), self.cic) else { return count };
+        let mut newest = None;
+        let mut sent = 1;
+        while sent < count {
+            let packet = first.nth(sent);
+            let payload = base + u32::from(packet.row) * ROW_BYTES as u32;
+            match self.mac.send_split_words(&template.words(session, &packet).0, cic, payload, ROW_BYTES) {
+                Ok(seq) => newest = Some(seq),
+                Err(SplitError::Full) => break,
+                Err(SplitError::Length) => *self.refused += 1,
+            }
+            sent += 1;
+        }
+        if newest.is_some() {
+            self.in_flight[slot] = newest;
+        }
+        sent
     }
 
     fn checksum_offload(&self) -> bool {

@@ -54,6 +54,28 @@ pub trait RowTransmitter {
     /// there is no room now (nothing sent).
     fn send(&mut self, header: &HeaderWords, slot: usize, row: u16) -> bool;
 
+    /// Send a run of `count` row packets of slot `slot`: `first` and the
+    /// ones after it ([`RowPacket::nth`]), each header
+    /// [`HeaderTemplate::words`] of `template`. Returns how many went,
+    /// from the front. The default sends them one by one; a transmitter
+    /// can do its per-run work (the slot's address, its bookkeeping) once.
+    fn send_run(
+        &mut self,
+        template: &mut HeaderTemplate,
+        session: &Packetiser,
+        first: &RowPacket,
+        count: u16,
+        slot: usize,
+    ) -> u16 {
+        for k in 0..count {
+            let packet = first.nth(k);
+            if !self.send(template.words(session, &packet), slot, packet.row) {
+                return k;
+            }
+        }
+        count
+    }
+
     /// Whether the MAC computes the IPv4 and UDP checksums (else the UDP
     /// checksum is left zero, "none", as RFC 768 allows over IPv4).
     fn checksum_offload(&self) -> bool;
@@ -507,14 +529,7 @@ impl<T: RowTransmitter> RtpSink for Sink<'_, '_, T> {
             Err(NoRoute::Full) => return 0,
         };
         let Some(r) = self.routes[route].as_mut() else { return 0 };
-        let mut sent = 0;
-        while sent < count {
-            let packet = first.nth(sent);
-            if !self.tx.send(r.template.words(packetiser, &packet), slot, packet.row) {
-                break;
-            }
-            sent += 1;
-        }
+        let sent = self.tx.send_run(&mut r.template, packetiser, first, count, slot);
         *self.rows_sent = self.rows_sent.wrapping_add(u32::from(sent));
         sent
     }

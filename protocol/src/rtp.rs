@@ -1129,7 +1129,7 @@ impl HeaderTemplate {
     /// the IPv4 header checksum, which the MAC may insert again. The RTP
     /// and RFC 4175 fields are [`Packetiser::emit`]'s. Seven word stores:
     /// the rest of the header stays from the packets before.
-    #[inline]
+    #[inline(always)]
     pub fn words(&mut self, session: &Packetiser, packet: &RowPacket) -> &HeaderWords {
         let ident = self.ident;
         self.ident = ident.wrapping_add(1);
