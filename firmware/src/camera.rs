@@ -76,7 +76,11 @@ impl<S: DmaSync, D: DelayNs> RowTransmitter for ZeroCopy<'_, '_, S, D> {
         if count == 0 || !self.send(template.words(session, first), slot, first.row) {
             return 0;
         }
-        let (Some(&base), Some(cic)) = (self.slots.get(slot), self.cic) else { return count };
+        let (Some(&base), Some(cic)) = (self.slots.get(slot), self.cic) else {
+            // No such slot: `send` refused the first; the rest go the same way.
+            *self.refused += u32::from(count - 1);
+            return count;
+        };
         let mut newest = None;
         let mut sent = 1;
         while sent < count {
