@@ -1,11 +1,14 @@
-//! The frame service on smoltcp, tested over an in-memory Ethernet link
-//! between two smoltcp interfaces: one runs the service, the other clients.
+//! The frame service and the network camera on smoltcp, tested over an
+//! in-memory Ethernet link between two smoltcp interfaces: one runs the
+//! service, the other clients.
 
 use std::cell::RefCell;
 use std::collections::VecDeque;
 use std::rc::Rc;
 
 use model::{render_frame, Light, FRAME_BYTES};
+use rt_protocol::camera_service::RowTransmitter;
+use rt_protocol::rtp;
 use rt_protocol::service::{FrameService, SocketBuffers};
 use rt_protocol::{
     encode_raw_request, encode_request, FrameRing, FrameSource, RowEngine, RowFrames, SliceMemory, SoftwareRenderer,
@@ -385,4 +388,186 @@ fn frames_stay_byte_exact_over_a_lossy_link() {
         assert!(clients[0].received == [frame(&a), frame(&b)].concat(), "{name}: persistent client; log: {log}");
         assert!(clients[1].received == frame(&b), "{name}: seed client; log: {log}");
     }
+}
+
+// ---- The network camera over the same cable ------------------------------------------
+
+/// Row packets as the board's MAC would get them: the header's bytes, the
+/// slot and the row.
+#[derive(Default)]
+struct Recorder {
+    sent: Vec<([u8; rtp::FRAME_HEADER_BYTES], usize, u16)>,
+}
+
+impl RowTransmitter for Recorder {
+    fn send(&mut self, header: &rtp::HeaderWords, slot: usize, row: u16) -> bool {
+        self.sent.push((header.bytes(), slot, row));
+        true
+    }
+
+    fn checksum_offload(&self) -> bool {
+        false
+    }
+
+    fn receive_waiting(&self) -> bool {
+        false
+    }
+}
+
+/// An RTSP client on the client's end: one request at a time, each
+/// answered before the next goes.
+struct RtspClient {
+    handle: SocketHandle,
+    requests: VecDeque<String>,
+    waiting: bool,
+    received: Vec<u8>,
+    responses: Vec<String>,
+}
+
+impl RtspClient {
+    /// Send the next request once the previous one is answered; collect
+    /// whole responses (no body follows a response here but DESCRIBE's,
+    /// whose Content-Length is honoured).
+    fn step(&mut self, sockets: &mut SocketSet<'static>, session: &mut Option<String>) {
+        let s = sockets.get_mut::<tcp::Socket>(self.handle);
+        while s.can_recv() {
+            s.recv(|b| {
+                self.received.extend_from_slice(b);
+                (b.len(), ())
+            })
+            .expect("recv");
+        }
+        let text = String::from_utf8_lossy(&self.received).into_owned();
+        if let Some(end) = text.find("\r\n\r\n") {
+            let body = text
+                .lines()
+                .find_map(|l| l.strip_prefix("Content-Length: "))
+                .map_or(0, |n| n.trim().parse().unwrap_or(0));
+            if text.len() >= end + 4 + body {
+                let response = text[..end + 4 + body].to_string();
+                if let Some(id) = response.lines().find_map(|l| l.strip_prefix("Session: ")) {
+                    *session = Some(id.split(';').next().unwrap_or(id).trim().to_string());
+                }
+                self.received.drain(..end + 4 + body);
+                self.responses.push(response);
+                self.waiting = false;
+            }
+        }
+        if !self.waiting && s.can_send() {
+            if let Some(r) = self.requests.pop_front() {
+                let r = r.replace("{session}", session.as_deref().unwrap_or(""));
+                s.send_slice(r.as_bytes()).expect("send");
+                self.waiting = true;
+            }
+        }
+    }
+}
+
+#[test]
+fn the_camera_streams_a_frame_over_smoltcp_and_answers_a_nack_from_the_client() {
+    use rt_protocol::camera::Camera;
+    use rt_protocol::camera_service::{CameraBuffers, CameraService, PeerMacs, Snoop};
+    use rt_protocol::rtsp::{self, MAX_SESSIONS, RTSP_PORT, SERVER_RTP_PORT};
+    use smoltcp::socket::udp;
+    use smoltcp::wire::{EthernetFrame, Ipv4Packet, UdpPacket};
+
+    let (mut server_dev, mut client_dev) = cable_with(Faults::default(), 0);
+    let mut server_if = interface(&mut server_dev, 1);
+    let mut client_if = interface(&mut client_dev, 2);
+    let light = Light::from_world(3.0, 4.0, -2.0).unwrap();
+
+    let mut buffers = Box::new(CameraBuffers::new());
+    let mut camera: Box<Camera<MAX_SESSIONS>> = Box::new(Camera::new());
+    let mut server_sockets = SocketSet::new(vec![]);
+    let config = rtsp::Config { server_ip: SERVER, rtp_port: SERVER_RTP_PORT, live_light: light };
+    let server_mac = EthernetAddress([0x02, 0, 0, 0, 0, 1]);
+    let mut service =
+        CameraService::new(&mut server_sockets, &mut buffers, &mut camera, config, server_mac, 7).expect("RTCP binds");
+    let mut memory = vec![0u8; 4 * FRAME_BYTES];
+    let mut ring = FrameRing::<_, _, 4>::new(SliceMemory::new(0, &mut memory), RowEngine::new(SoftwareRenderer));
+    let (mut peers, mut tx, mut log) = (PeerMacs::new(), Recorder::default(), String::new());
+
+    let mut clients = SocketSet::new(vec![]);
+    let tcp = tcp::Socket::new(tcp::SocketBuffer::new(vec![0; 8192]), tcp::SocketBuffer::new(vec![0; 4096]));
+    let url = format!("rtsp://{SERVER}:{RTSP_PORT}/light/3,4,-2?fps=10");
+    let mut rtsp = RtspClient {
+        handle: clients.add(tcp),
+        requests: [
+            format!("OPTIONS {url} RTSP/1.0\r\nCSeq: 1\r\n\r\n"),
+            format!("DESCRIBE {url} RTSP/1.0\r\nCSeq: 2\r\nAccept: application/sdp\r\n\r\n"),
+            format!("SETUP {url} RTSP/1.0\r\nCSeq: 3\r\nTransport: RTP/AVP;unicast;client_port=6000-6001\r\n\r\n"),
+            format!("PLAY {url} RTSP/1.0\r\nCSeq: 4\r\nSession: {{session}}\r\n\r\n"),
+        ]
+        .into(),
+        waiting: false,
+        received: vec![],
+        responses: vec![],
+    };
+    let mut rtcp = udp::Socket::new(
+        udp::PacketBuffer::new(vec![udp::PacketMetadata::EMPTY; 4], vec![0; 2048]),
+        udp::PacketBuffer::new(vec![udp::PacketMetadata::EMPTY; 4], vec![0; 2048]),
+    );
+    rtcp.bind(6001).expect("bind");
+    let rtcp = clients.add(rtcp);
+    clients
+        .get_mut::<tcp::Socket>(rtsp.handle)
+        .connect(client_if.context(), (IpAddress::Ipv4(SERVER), RTSP_PORT), 40_000)
+        .expect("connect");
+
+    let mut session = None;
+    let mut nacked = None;
+    for step in 0..20_000i64 {
+        let now = Instant::from_millis(step);
+        server_if.poll(now, &mut Snoop { inner: &mut server_dev, peers: &mut peers }, &mut server_sockets);
+        service.poll(now, &mut server_sockets, &peers, &mut ring, &mut tx, 0, &mut log);
+        server_if.poll(now, &mut Snoop { inner: &mut server_dev, peers: &mut peers }, &mut server_sockets);
+        client_if.poll(now, &mut client_dev, &mut clients);
+        rtsp.step(&mut clients, &mut session);
+        // Once the first frame went: NACK its row 100 (RFC 4585 generic
+        // NACK, PID and no further bits) from the client's RTCP port.
+        if nacked.is_none() && tx.sent.len() >= 360 {
+            let (h, _, row) = tx.sent[100];
+            assert_eq!(row, 100);
+            let seq = u16::from_be_bytes([h[44], h[45]]);
+            let mut nack = vec![0x81, 205, 0, 3, 0xde, 0xad, 0xbe, 0xef];
+            nack.extend_from_slice(&h[50..54]); // the media SSRC
+            nack.extend_from_slice(&seq.to_be_bytes());
+            nack.extend_from_slice(&[0, 0]);
+            let to = (IpAddress::Ipv4(SERVER), SERVER_RTP_PORT + 1);
+            clients.get_mut::<udp::Socket>(rtcp).send_slice(&nack, to).expect("NACK");
+            nacked = Some(tx.sent.len());
+        }
+        if nacked.is_some_and(|n| tx.sent.len() > n && tx.sent[n..].iter().any(|s| s.2 == 100)) {
+            break;
+        }
+    }
+    let statuses: Vec<&str> = rtsp.responses.iter().filter_map(|r| r.lines().next()).collect();
+    assert_eq!(statuses, ["RTSP/1.0 200 OK"; 4], "log:\n{log}");
+    assert!(rtsp.responses[2].contains("server_port=5004-5005"), "{}", rtsp.responses[2]);
+
+    // The first frame: 360 packets in order, each a valid Ethernet + IPv4
+    // + UDP header to the client's next hop (learnt from its frames).
+    assert!(tx.sent.len() >= 360, "{} rows sent; log:\n{log}", tx.sent.len());
+    let first = &tx.sent[..360];
+    let (seq0, stamp) = (u16::from_be_bytes([first[0].0[44], first[0].0[45]]), &first[0].0[46..50]);
+    for (y, (h, slot, row)) in first.iter().enumerate() {
+        assert_eq!((usize::from(*row), *slot), (y, first[0].1), "rows of one slot, in order");
+        let eth = EthernetFrame::new_checked(&h[..]).expect("Ethernet");
+        assert_eq!((eth.src_addr(), eth.dst_addr()), (server_mac, EthernetAddress([0x02, 0, 0, 0, 0, 2])));
+        let ip = Ipv4Packet::new_unchecked(&h[14..34]);
+        assert!(ip.verify_checksum(), "row {y}: IPv4 checksum (no engine: the software's)");
+        assert_eq!((ip.src_addr(), ip.dst_addr()), (SERVER, Ipv4Address::new(10, 0, 0, 2)));
+        let udp = UdpPacket::new_unchecked(&h[34..42]);
+        assert_eq!((udp.src_port(), udp.dst_port(), udp.checksum()), (5004, 6000, 0));
+        assert_eq!(u16::from_be_bytes([h[44], h[45]]), seq0.wrapping_add(y as u16), "consecutive numbers");
+        assert_eq!(&h[46..50], stamp, "one timestamp a frame");
+        assert_eq!(h[43] & 0x80 != 0, y == 359, "the marker on the last row only");
+        assert_eq!(u16::from_be_bytes([h[58], h[59]]), y as u16, "RFC 4175 line number");
+    }
+    // The NACKed packet again: the same RTP packet, a new IPv4 datagram.
+    let n = nacked.expect("a NACK went");
+    let again = tx.sent[n..].iter().find(|s| s.2 == 100).unwrap_or_else(|| panic!("row 100 not resent; log:\n{log}"));
+    assert_eq!(again.0[42..], tx.sent[100].0[42..], "RTP and RFC 4175 headers unchanged");
+    assert_ne!(again.0[18..20], tx.sent[100].0[18..20], "a new IPv4 identification");
+    assert_eq!(service.rows_sent as usize, tx.sent.len());
 }
