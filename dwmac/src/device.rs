@@ -148,6 +148,22 @@ impl TxState {
     pub(crate) fn hand_over<S: DmaSync>(
         &mut self,
         shared: &Shared<'_, S>,
+        control: [u32; 2],
+        buf1: u32,
+        buf2: u32,
+        split: bool,
+    ) {
+        self.hand_over_descriptor(shared, control, buf1, buf2, split);
+        self.pending += 1;
+        self.frames = self.frames.wrapping_add(1);
+    }
+
+    /// [`hand_over`](Self::hand_over) without the counts (`pending`,
+    /// `frames`): a caller handing over a run counts it once.
+    #[inline(always)]
+    pub(crate) fn hand_over_descriptor<S: DmaSync>(
+        &mut self,
+        shared: &Shared<'_, S>,
         [tdes0, tdes1]: [u32; 2],
         buf1: u32,
         buf2: u32,
@@ -164,9 +180,7 @@ impl TxState {
         shared.publish();
         shared.regs.tx_poll_demand();
         self.split[i] = split;
-        self.pending += 1;
         self.next = (i + 1) % TX_RING;
-        self.frames = self.frames.wrapping_add(1);
     }
 }
 

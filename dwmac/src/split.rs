@@ -110,6 +110,65 @@ impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
         Ok(self.split_hand_over(i, header_len, cic, payload, payload_len))
     }
 
+    /// Send a run of up to `count` split frames with one header layout:
+    /// frame `k`'s header is what `fill(k, words)` writes into its header
+    /// slot (the transmit buffer's first `header_words` words: [`TX_SKEW`]
+    /// bytes of padding, then the header), its payload the `payload_len`
+    /// bytes at `payload + k * stride`. One descriptor and one poll demand
+    /// a frame, as [`send_split_words`](Self::send_split_words); the
+    /// lengths are checked, the control words made and the counters kept
+    /// once a run. Stops where the ring is full; returns how many went and
+    /// the last one's sequence number.
+    #[allow(clippy::too_many_arguments)] // one run, every part of it
+    pub fn send_split_run(
+        &mut self,
+        count: usize,
+        header_words: usize,
+        cic: ChecksumInsertion,
+        payload: u32,
+        stride: u32,
+        payload_len: usize,
+        mut fill: impl FnMut(usize, &mut [u32]),
+    ) -> Result<(usize, Option<SplitSeq>), SplitError> {
+        let header_len = (header_words * 4).checked_sub(TX_SKEW).ok_or(SplitError::Length)?;
+        let len = header_len.checked_add(payload_len).ok_or(SplitError::Length)?;
+        if header_len < MIN_HEADER || len > MAX_FRAME {
+            return Err(SplitError::Length);
+        }
+        let (shared, tx) = (&self.shared, &mut self.tx);
+        if tx.pending + count > TX_RING {
+            tx.reclaim(shared);
+        }
+        let n = count.min(TX_RING - tx.pending);
+        if n == 0 {
+            if count > 0 {
+                tx.split_full = tx.split_full.wrapping_add(1);
+            }
+            return Ok((0, None));
+        }
+        let control = desc::tx_control_split(shared.format, header_len, payload_len, false, cic);
+        let last = desc::tx_control_split(shared.format, header_len, payload_len, true, cic);
+        for k in 0..n {
+            let i = tx.next;
+            let slot = shared.area.tx_buffer(i);
+            // SAFETY: descriptor `i` is outside the pending ones (at most
+            // `TX_RING - pending` are taken here), so the CPU owns it and
+            // its buffer (OWN seen clear, then a dmb, when it was
+            // reclaimed) until the hand-over below; this is the only slice.
+            fill(k, unsafe { slot.words_mut(header_words) });
+            let control = if i == TX_RING - 1 { last } else { control };
+            let buf2 = payload.wrapping_add((k as u32).wrapping_mul(stride));
+            tx.hand_over_descriptor(shared, control, slot.bus_address() + TX_SKEW as u32, buf2, true);
+        }
+        tx.pending += n;
+        tx.frames = tx.frames.wrapping_add(n as u32);
+        tx.split_sent += n as u64;
+        tx.split_frames = tx.split_frames.wrapping_add(n as u32);
+        tx.split_payload_bytes = tx.split_payload_bytes.wrapping_add((n * payload_len) as u64);
+        tx.bytes = tx.bytes.wrapping_add((n * len) as u64);
+        Ok((n, Some(SplitSeq(tx.split_sent - 1))))
+    }
+
     /// The checksum insertion a frame with this header takes ([`csum`]):
     /// what [`send_split`](Self::send_split) asks for, and what
     /// [`send_split_words`](Self::send_split_words) is told.

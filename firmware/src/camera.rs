@@ -15,7 +15,7 @@ use dwmac::{DmaSync, Dwmac, SplitError, SplitSeq};
 use embedded_hal::delay::DelayNs;
 use model::ROW_BYTES;
 use rt_protocol::camera_service::RowTransmitter;
-use rt_protocol::rtp::{HeaderTemplate, HeaderWords, Packetiser, RowPacket, HEADER_PAD};
+use rt_protocol::rtp::{HeaderTemplate, HeaderWords, Packetiser, RowPacket, HEADER_PAD, HEADER_WORDS};
 
 use crate::render::RING_SLOTS;
 
@@ -61,7 +61,6 @@ impl<S: DmaSync, D: DelayNs> RowTransmitter for ZeroCopy<'_, '_, S, D> {
         }
     }
 
-    #[inline]
     fn send_run(
         &mut self,
         template: &mut HeaderTemplate,
@@ -70,33 +69,36 @@ impl<S: DmaSync, D: DelayNs> RowTransmitter for ZeroCopy<'_, '_, S, D> {
         count: u16,
         slot: usize,
     ) -> u16 {
-        // The first row as `send` does it (the slot checked, the checksum
-        // insertion worked out); the rest with both hoisted and the slot's
-        // newest descriptor noted once.
-        if count == 0 || !self.send(template.words(session, first), slot, first.row) {
-            return 0;
-        }
-        let (Some(&base), Some(cic)) = (self.slots.get(slot), self.cic) else {
-            // No such slot: `send` refused the first; the rest go the same way.
-            *self.refused += u32::from(count - 1);
+        let Some(&base) = self.slots.get(slot) else {
+            *self.refused += u32::from(count);
             return count;
         };
-        let mut newest = None;
-        let mut sent = 1;
-        while sent < count {
-            let packet = first.nth(sent);
-            let payload = base + u32::from(packet.row) * ROW_BYTES as u32;
-            match self.mac.send_split_words(&template.words(session, &packet).0, cic, payload, ROW_BYTES) {
-                Ok(seq) => newest = Some(seq),
-                Err(SplitError::Full) => break,
-                Err(SplitError::Length) => *self.refused += 1,
+        let mac = &mut *self.mac;
+        let cic = *self.cic.get_or_insert_with(|| mac.checksum_for(&template.current().bytes()));
+        let payload = base + u32::from(first.row) * ROW_BYTES as u32;
+        let run = self.mac.send_split_run(
+            usize::from(count),
+            HEADER_WORDS,
+            cic,
+            payload,
+            ROW_BYTES as u32,
+            ROW_BYTES,
+            |k, out| out.copy_from_slice(&template.words(session, &first.nth(k as u16)).0),
+        );
+        match run {
+            Ok((n, newest)) => {
+                if newest.is_some() {
+                    self.in_flight[slot] = newest;
+                }
+                // At most `count`: the run takes no more than it is given.
+                n as u16
             }
-            sent += 1;
+            Err(_) => {
+                // Never expected: every header is 62 bytes.
+                *self.refused += u32::from(count);
+                count
+            }
         }
-        if newest.is_some() {
-            self.in_flight[slot] = newest;
-        }
-        sent
     }
 
     fn checksum_offload(&self) -> bool {

@@ -1152,6 +1152,14 @@ impl HeaderTemplate {
         &self.words
     }
 
+    /// The header words as they stand: the newest packet's, or before any
+    /// packet the fixed fields with the per-packet ones zero. Enough to
+    /// tell the header's layout (EtherType, IPv4 flags, protocol), which
+    /// every packet of the template shares.
+    pub const fn current(&self) -> &HeaderWords {
+        &self.words
+    }
+
     /// Write the 62-byte header of `packet` into the front of `out`: the
     /// bytes of [`words`](Self::words) without the padding.
     pub fn write(&mut self, session: &Packetiser, packet: &RowPacket, out: &mut [u8]) -> Result<(), BufferTooShort> {

@@ -307,6 +307,77 @@ fn a_header_given_as_words_leaves_as_the_same_header_given_as_bytes() {
 }
 
 #[test]
+fn a_run_leaves_as_its_frames_sent_one_by_one_and_stops_where_the_ring_is_full() {
+    // 40 frames, row k % ROWS of the ring each: in two runs (the first
+    // stops at the ring's 32), or one by one with the DMA keeping up.
+    let header = |k: usize| padded_words(&rtp_header(k as u16));
+    for hw in [QEMU_HW_FEATURE, CYCLONE_V_HW_FEATURE, NO_ENGINE_HW_FEATURE] {
+        let pixels = PixelMemory::new();
+        let mut rig = Rig::new(hw);
+        let mut mac = rig.mac(true);
+        started(&mut mac);
+        let cic = mac.checksum_for(&rtp_header(0));
+        let mut dma = FakeDma { next: 0 };
+        let mut one_by_one = vec![];
+        for k in 0..40 {
+            mac.send_split_words(&header(k), cic, PixelMemory::row_bus(k % ROWS), ROW).expect("room");
+            if k % 16 == 15 {
+                one_by_one.extend(dma.run(&mac, &pixels, usize::MAX));
+            }
+        }
+        one_by_one.extend(dma.run(&mac, &pixels, usize::MAX));
+        let want_stats = mac.stats();
+
+        // Rows 0..ROWS repeat every ROWS frames: a run's payloads are
+        // consecutive, so the runs go ROWS frames at a time.
+        let mut rig = Rig::new(hw);
+        let mut mac = rig.mac(true);
+        started(&mut mac);
+        let mut dma = FakeDma { next: 0 };
+        let mut runs = vec![];
+        let mut sent = 0;
+        let mut results = vec![];
+        while sent < 40 {
+            let n = (40 - sent).min(ROWS);
+            let base = sent;
+            let r = mac
+                .send_split_run(n, header(0).len(), cic, PixelMemory::row_bus(0), ROW as u32, ROW, |k, out| {
+                    out.copy_from_slice(&header(base + k))
+                })
+                .expect("lengths");
+            results.push(r);
+            sent += r.0;
+            if r.0 < n || sent % 32 == 0 {
+                runs.extend(dma.run(&mac, &pixels, usize::MAX));
+            }
+        }
+        runs.extend(dma.run(&mac, &pixels, usize::MAX));
+        assert_eq!(results[0], (ROWS, Some(SplitSeq(ROWS as u64 - 1))), "{hw:#x}");
+        assert_eq!(results.last().map(|r| r.1), Some(Some(SplitSeq(39))));
+        let wire = |v: &[Sent]| v.iter().map(|s| (s.wire.clone(), s.csum, s.len2)).collect::<Vec<_>>();
+        assert_eq!(wire(&runs), wire(&one_by_one), "{hw:#x}: the same frames on the wire");
+        assert_eq!(mac.stats(), want_stats, "{hw:#x}: the same counts");
+        assert_eq!(pixels.bytes_read(Port::Cpu), 0);
+
+        // Two descriptors left: a run of three takes two; then the ring is
+        // full: nothing taken, counted as full; a bad length refused.
+        for k in 0..TX_RING - 2 {
+            mac.send_split_words(&header(k), cic, PixelMemory::row_bus(0), ROW).expect("room");
+        }
+        let r = mac.send_split_run(3, header(0).len(), cic, PixelMemory::row_bus(0), 0, ROW, |k, out| {
+            out.copy_from_slice(&header(k))
+        });
+        assert_eq!(r, Ok((2, Some(SplitSeq(40 + TX_RING as u64 - 1)))));
+        let full = mac.stats().tx_split_full;
+        let r = mac
+            .send_split_run(3, header(0).len(), cic, PixelMemory::row_bus(0), 0, ROW, |_, _| panic!("no slot to fill"));
+        assert_eq!((r, mac.stats().tx_split_full), (Ok((0, None)), full + 1));
+        let r = mac.send_split_run(1, 3, cic, 0, 0, ROW, |_, _| panic!("no slot to fill"));
+        assert_eq!(r, Err(SplitError::Length), "10 header bytes after the padding");
+    }
+}
+
+#[test]
 fn without_the_checksum_engine_a_split_frame_goes_out_as_the_caller_built_it() {
     let mut rig = Rig::new(NO_ENGINE_HW_FEATURE);
     let mut mac = rig.mac(true);
