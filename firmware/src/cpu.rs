@@ -38,29 +38,37 @@ pub struct Caches {
     pub l2: &'static L2c310,
 }
 
+// Inline: a cache line operation is one CP15 instruction or one L2C-310
+// register write, done for every line of every row the CPU reads or writes.
 impl CacheOps for Caches {
+    #[inline(always)]
     fn l1_invalidate(&self, addr: usize) {
         aarch32_cpu::cache::invalidate_data_cache_line_to_poc(addr as u32)
     }
 
+    #[inline(always)]
     fn l1_clean(&self, addr: usize) {
         aarch32_cpu::cache::clean_data_cache_line_to_poc(addr as u32)
     }
 
+    #[inline(always)]
     fn l2_invalidate(&self, addr: usize) {
         // SAFETY: `soc::cache::invalidate_for_cpu`'s contract: the line is
         // clean.
         unsafe { self.l2.invalidate_line(addr as u32) }
     }
 
+    #[inline(always)]
     fn l2_clean(&self, addr: usize) {
         self.l2.clean_line(addr as u32)
     }
 
+    #[inline(always)]
     fn l2_sync(&self) {
         self.l2.cache_sync()
     }
 
+    #[inline(always)]
     fn dsb(&self) {
         dsb()
     }

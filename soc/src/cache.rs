@@ -84,6 +84,7 @@ impl Lines {
 /// The lines hold nothing the CPU wrote that has not reached memory (they
 /// are clean: every CPU write to them went through [`clean_for_device`]),
 /// or losing it is intended.
+#[inline]
 pub unsafe fn invalidate_for_cpu(ops: &impl CacheOps, lines: &Lines) {
     for a in lines.addrs() {
         ops.l2_invalidate(a);
@@ -97,6 +98,7 @@ pub unsafe fn invalidate_for_cpu(ops: &impl CacheOps, lines: &Lines) {
 
 /// Write what the CPU wrote to `lines` back to memory, for a device to read
 /// (or before a device overwrites it).
+#[inline]
 pub fn clean_for_device(ops: &impl CacheOps, lines: &Lines) {
     for a in lines.addrs() {
         ops.l1_clean(a);

@@ -166,6 +166,7 @@ impl L2c310 {
     ///
     /// The line holds no data the program still needs that only the cache
     /// has (it is clean, or its memory is about to be overwritten).
+    #[inline]
     pub unsafe fn invalidate_line(&self, pa: u32) {
         // SAFETY: the caller's promise; the write only starts the operation.
         unsafe { self.regs().invalidate_line_pa.write(pa & !(LINE_BYTES as u32 - 1)) }
@@ -173,6 +174,7 @@ impl L2c310 {
 
     /// Write the line holding physical address `pa` back to memory if dirty
     /// (it stays valid).
+    #[inline]
     pub fn clean_line(&self, pa: u32) {
         // SAFETY: cleaning writes dirty data back; nothing is lost.
         unsafe { self.regs().clean_line_pa.write(pa & !(LINE_BYTES as u32 - 1)) }
