@@ -102,7 +102,10 @@ pub fn players_on_the_emulated_board(elf: &std::path::Path) -> Result<()> {
     let dir = crate::support::tools::root().join("target/players/emulated");
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let rtsp = std::net::SocketAddr::from(([127, 0, 0, 1], f.rtsp));
+    // On failure the board's side too: its UART says what its RTSP server
+    // and camera saw.
     crate::host::players::check_server("the emulated board", rtsp, &dir)
+        .map_err(|e| format!("{e}\nthe emulated board's UART:\n{}", g.uart()))
 }
 
 /// Build the QEMU firmware (warnings are errors) and run the end-to-end
