@@ -158,6 +158,19 @@ impl TxState {
         self.frames = self.frames.wrapping_add(1);
     }
 
+    /// Count `n` split frames just handed over
+    /// ([`hand_over_descriptor`](Self::hand_over_descriptor)), each of
+    /// `header_len` + `payload_len` bytes.
+    #[inline(always)]
+    pub(crate) fn count_split(&mut self, n: usize, header_len: usize, payload_len: usize) {
+        self.pending += n;
+        self.frames = self.frames.wrapping_add(n as u32);
+        self.split_sent += n as u64;
+        self.split_frames = self.split_frames.wrapping_add(n as u32);
+        self.split_payload_bytes = self.split_payload_bytes.wrapping_add((n * payload_len) as u64);
+        self.bytes = self.bytes.wrapping_add((n * (header_len + payload_len)) as u64);
+    }
+
     /// [`hand_over`](Self::hand_over) without the counts (`pending`,
     /// `frames`): a caller handing over a run counts it once.
     #[inline(always)]

@@ -53,6 +53,16 @@ pub enum SplitError {
 /// Shortest header: destination, source, EtherType (IEEE 802.3 3.1.1).
 const MIN_HEADER: usize = 14;
 
+/// The length of a split frame of these parts, if it has an Ethernet
+/// header and fits a frame.
+fn split_len(header_len: usize, payload_len: usize) -> Result<usize, SplitError> {
+    let len = header_len.checked_add(payload_len).ok_or(SplitError::Length)?;
+    if header_len < MIN_HEADER || len > MAX_FRAME {
+        return Err(SplitError::Length);
+    }
+    Ok(len)
+}
+
 // A header slot is the rest of a transmit buffer; it holds any header a
 // frame of MAX_FRAME bytes can have.
 const _: () = assert!(MAX_FRAME <= BUFFER_SIZE - TX_SKEW);
@@ -91,10 +101,6 @@ impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
     /// checksum insertion the frame takes, [`Dwmac::checksum_for`] its
     /// header: a sender of many frames of one header layout (an RTP
     /// stream's rows) works it out once instead of per frame.
-    // Always inline (and the helpers below): in a caller's loop over a
-    // run the ring state stays in registers; out of line the compiler
-    // chose a call, 120 instructions a packet on the emulated board.
-    #[inline(always)]
     pub fn send_split_words(
         &mut self,
         words: &[u32],
@@ -131,10 +137,7 @@ impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
         mut fill: impl FnMut(usize, &mut [u32]),
     ) -> Result<(usize, Option<SplitSeq>), SplitError> {
         let header_len = (header_words * 4).checked_sub(TX_SKEW).ok_or(SplitError::Length)?;
-        let len = header_len.checked_add(payload_len).ok_or(SplitError::Length)?;
-        if header_len < MIN_HEADER || len > MAX_FRAME {
-            return Err(SplitError::Length);
-        }
+        split_len(header_len, payload_len)?;
         let (shared, tx) = (&self.shared, &mut self.tx);
         if tx.pending + count > TX_RING {
             tx.reclaim(shared);
@@ -160,12 +163,7 @@ impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
             let buf2 = payload.wrapping_add((k as u32).wrapping_mul(stride));
             tx.hand_over_descriptor(shared, control, slot.bus_address() + TX_SKEW as u32, buf2, true);
         }
-        tx.pending += n;
-        tx.frames = tx.frames.wrapping_add(n as u32);
-        tx.split_sent += n as u64;
-        tx.split_frames = tx.split_frames.wrapping_add(n as u32);
-        tx.split_payload_bytes = tx.split_payload_bytes.wrapping_add((n * payload_len) as u64);
-        tx.bytes = tx.bytes.wrapping_add((n * len) as u64);
+        tx.count_split(n, header_len, payload_len);
         Ok((n, Some(SplitSeq(tx.split_sent - 1))))
     }
 
@@ -178,12 +176,8 @@ impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
 
     /// The descriptor a split frame of these lengths goes into, if the
     /// lengths are right and the CPU owns it (OWN seen clear, then a dmb).
-    #[inline(always)]
     fn split_slot(&mut self, header_len: usize, payload_len: usize) -> Result<usize, SplitError> {
-        let len = header_len.checked_add(payload_len).ok_or(SplitError::Length)?;
-        if header_len < MIN_HEADER || len > MAX_FRAME {
-            return Err(SplitError::Length);
-        }
+        split_len(header_len, payload_len)?;
         let (shared, tx) = (&self.shared, &mut self.tx);
         if !tx.free(shared) {
             tx.split_full = tx.split_full.wrapping_add(1);
@@ -194,7 +188,6 @@ impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
 
     /// Hand descriptor `i`, its header slot filled, to the DMA with the
     /// payload as buffer 2.
-    #[inline(always)]
     fn split_hand_over(
         &mut self,
         i: usize,
@@ -206,13 +199,9 @@ impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
         let (shared, tx) = (&self.shared, &mut self.tx);
         let control = desc::tx_control_split(shared.format, header_len, payload_len, i == TX_RING - 1, cic);
         let slot = shared.area.tx_buffer(i);
-        tx.hand_over(shared, control, slot.bus_address() + TX_SKEW as u32, payload, true);
-        let seq = SplitSeq(tx.split_sent);
-        tx.split_sent += 1;
-        tx.split_frames = tx.split_frames.wrapping_add(1);
-        tx.split_payload_bytes = tx.split_payload_bytes.wrapping_add(payload_len as u64);
-        tx.bytes = tx.bytes.wrapping_add((header_len + payload_len) as u64);
-        seq
+        tx.hand_over_descriptor(shared, control, slot.bus_address() + TX_SKEW as u32, payload, true);
+        tx.count_split(1, header_len, payload_len);
+        SplitSeq(tx.split_sent - 1)
     }
 
     /// Take back the descriptors the DMA has finished with; returns how

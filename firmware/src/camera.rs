@@ -2,7 +2,7 @@
 //! TCP port 8554, RTP/RTCP on UDP 5004/5005) over the frame ring, its rows
 //! leaving zero-copy: each packet is one two-buffer descriptor of the
 //! DesignWare MAC, buffer 1 the 62-byte header, buffer 2 the row where the
-//! FPGA wrote it in the ring (`dwmac::Dwmac::send_split_words`). The CPU never
+//! FPGA wrote it in the ring (`dwmac::Dwmac::send_split_run`). The CPU never
 //! reads a pixel on this path.
 //!
 //! Coherence: the ring's rows are in DRAM when a packet points at them:
@@ -11,11 +11,11 @@
 //! DRAM through the L3 interconnect, so no maintenance is needed here.
 
 use dwmac::desc::ChecksumInsertion;
-use dwmac::{DmaSync, Dwmac, SplitError, SplitSeq};
+use dwmac::{DmaSync, Dwmac, SplitSeq};
 use embedded_hal::delay::DelayNs;
 use model::ROW_BYTES;
 use rt_protocol::camera_service::RowTransmitter;
-use rt_protocol::rtp::{HeaderTemplate, HeaderWords, Packetiser, RowPacket, HEADER_PAD, HEADER_WORDS};
+use rt_protocol::rtp::{HeaderTemplate, Packetiser, RowPacket, HEADER_PAD, HEADER_WORDS};
 
 use crate::render::RING_SLOTS;
 
@@ -32,35 +32,13 @@ pub struct ZeroCopy<'m, 'a, S, D> {
     pub in_flight: &'m mut [Option<SplitSeq>; RING_SLOTS],
     /// Rows dropped as malformed (never expected: headers are 62 bytes).
     pub refused: &'m mut u32,
-    /// The checksum insertion of the first header sent, for all after it:
+    /// The checksum insertion of the first run's header, for all after it:
     /// every header is `rtp::HeaderTemplate`'s (Ethernet II, IPv4 without
     /// fragments, UDP), which takes the same insertion.
     pub cic: Option<ChecksumInsertion>,
 }
 
 impl<S: DmaSync, D: DelayNs> RowTransmitter for ZeroCopy<'_, '_, S, D> {
-    #[inline]
-    fn send(&mut self, header: &HeaderWords, slot: usize, row: u16) -> bool {
-        let Some(&base) = self.slots.get(slot) else {
-            *self.refused += 1;
-            return true;
-        };
-        let mac = &mut *self.mac;
-        let cic = *self.cic.get_or_insert_with(|| mac.checksum_for(&header.bytes()));
-        let payload = base + u32::from(row) * ROW_BYTES as u32;
-        match self.mac.send_split_words(&header.0, cic, payload, ROW_BYTES) {
-            Ok(seq) => {
-                self.in_flight[slot] = Some(seq);
-                true
-            }
-            Err(SplitError::Full) => false,
-            Err(SplitError::Length) => {
-                *self.refused += 1;
-                true
-            }
-        }
-    }
-
     fn send_run(
         &mut self,
         template: &mut HeaderTemplate,

@@ -25,7 +25,7 @@ use smoltcp::time::Instant;
 use smoltcp::wire::{EthernetAddress, EthernetFrame, EthernetProtocol, IpEndpoint, Ipv4Packet};
 
 use crate::camera::{Camera, Destination, RtpSink, SlotSource};
-use crate::rtp::{Endpoints, HeaderTemplate, HeaderWords, Packetiser, RowPacket, UdpChecksum};
+use crate::rtp::{Endpoints, HeaderTemplate, Packetiser, RowPacket, UdpChecksum};
 use crate::rtsp::{self, Action, Connection, Server, MAX_REQUEST_BYTES, MAX_RESPONSE_BYTES, MAX_SESSIONS, RTSP_PORT};
 use crate::time;
 
@@ -48,17 +48,12 @@ pub const PEERS: usize = 8;
 
 /// The way rows leave: the board's zero-copy transmit path.
 pub trait RowTransmitter {
-    /// Send one Ethernet frame: `header` (the 62 bytes of Ethernet, IPv4,
-    /// UDP, RTP and RFC 4175 headers, as padded transmit-buffer words),
-    /// then row `row` of frame slot `slot` as it is in memory. `false` if
-    /// there is no room now (nothing sent).
-    fn send(&mut self, header: &HeaderWords, slot: usize, row: u16) -> bool;
-
-    /// Send a run of `count` row packets of slot `slot`: `first` and the
-    /// ones after it ([`RowPacket::nth`]), each header
-    /// [`HeaderTemplate::words`] of `template`. Returns how many went,
-    /// from the front. The default sends them one by one; a transmitter
-    /// can do its per-run work (the slot's address, its bookkeeping) once.
+    /// Send a run of `count` row packets of slot `slot`, one Ethernet
+    /// frame each: the header (62 bytes of Ethernet, IPv4, UDP, RTP and
+    /// RFC 4175 headers) [`HeaderTemplate::words`] of `template` for
+    /// `first` and the packets after it ([`RowPacket::nth`]), then the row
+    /// as it is in memory. Returns how many went, from the front (the
+    /// rest found no room).
     fn send_run(
         &mut self,
         template: &mut HeaderTemplate,
@@ -66,15 +61,7 @@ pub trait RowTransmitter {
         first: &RowPacket,
         count: u16,
         slot: usize,
-    ) -> u16 {
-        for k in 0..count {
-            let packet = first.nth(k);
-            if !self.send(template.words(session, &packet), slot, packet.row) {
-                return k;
-            }
-        }
-        count
-    }
+    ) -> u16;
 
     /// Whether the MAC computes the IPv4 and UDP checksums (else the UDP
     /// checksum is left zero, "none", as RFC 768 allows over IPv4).

@@ -400,9 +400,19 @@ struct Recorder {
 }
 
 impl RowTransmitter for Recorder {
-    fn send(&mut self, header: &rtp::HeaderWords, slot: usize, row: u16) -> bool {
-        self.sent.push((header.bytes(), slot, row));
-        true
+    fn send_run(
+        &mut self,
+        template: &mut rtp::HeaderTemplate,
+        session: &rtp::Packetiser,
+        first: &rtp::RowPacket,
+        count: u16,
+        slot: usize,
+    ) -> u16 {
+        for k in 0..count {
+            let packet = first.nth(k);
+            self.sent.push((template.words(session, &packet).bytes(), slot, packet.row));
+        }
+        count
     }
 
     fn checksum_offload(&self) -> bool {
