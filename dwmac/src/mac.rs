@@ -274,9 +274,24 @@ impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
     /// address and broadcast) with transmitter and receiver on, or turn
     /// both off while there is no link, as Linux's `stmmac_mac_link_up` /
     /// `stmmac_mac_link_down` do.
+    ///
+    /// With the receiver on, receive resumes as after a descriptor
+    /// shortage (RU cleared, poll demand; see `RxState::recycle`). On the
+    /// board that finds the DMA running and changes nothing. QEMU's model
+    /// (hw/net/npcm_gmac.c, up to 10.0.2) refuses frames while the receiver
+    /// is off and keeps them queued, its `-nic dgram` backend reading no
+    /// more until the model flushes; only a write that starts receive or
+    /// clears RU does, so without this one frame that came before the link
+    /// left the emulated board deaf (`cargo xtask qemu-test`, "frames while
+    /// the link comes up").
     pub fn set_link(&mut self, link: Option<Link>) {
-        self.shared.regs.set_frame_filter(0);
-        self.shared.regs.set_config(mac_config(link));
+        let regs = &self.shared.regs;
+        regs.set_frame_filter(0);
+        regs.set_config(mac_config(link));
+        if link.is_some() {
+            regs.clear_status(DmaStatus::DEFAULT.with_ru(true));
+            regs.rx_poll_demand();
+        }
     }
 
     /// The descriptor format in use.

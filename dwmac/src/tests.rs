@@ -14,7 +14,7 @@ use crate::mac::{
     mac_config, reset_phy_then_dma, Dwmac, Error, ResetTimeout, Resets, Stats, MAX_FRAME, RESET_ATTEMPTS,
 };
 use crate::phy::{Link, Mdio, MdioTimeout, PhyConfig, PhyId, Speed, BMCR, BMCR_RESET};
-use crate::regs::{RegisterBlock, Regs};
+use crate::regs::{DmaStatus, RegisterBlock, Regs};
 use crate::ring::{DmaArea, BUFFER_SIZE, RX_RING, TX_RING, TX_SKEW};
 use crate::sync::DmaSync;
 
@@ -23,6 +23,7 @@ mod split;
 const BLOCK_WORDS: usize = size_of::<RegisterBlock>() / 4;
 const BUS_MODE: usize = 0x1000 / 4;
 const TX_POLL: usize = 0x1004 / 4;
+const RX_POLL: usize = 0x1008 / 4;
 const RX_BASE: usize = 0x100c / 4;
 const TX_BASE: usize = 0x1010 / 4;
 const STATUS: usize = 0x1014 / 4;
@@ -240,6 +241,30 @@ fn link_changes_program_speed_and_duplex() {
     mac.set_link(Some(gig));
     drop(mac);
     assert_eq!(rig.regs.0[MAC_CONFIG], mac_config(Some(gig)).raw_value(), "the newest link wins");
+}
+
+#[test]
+fn link_up_resumes_receive_and_link_down_leaves_it() {
+    let mut rig = Rig::new(QEMU_HW_FEATURE);
+    let (status, rx_poll) = (rig.regs.word_ptr(STATUS), rig.regs.word_ptr(RX_POLL));
+    let mut mac = rig.mac(true);
+    started(&mut mac);
+    let mark = || {
+        // SAFETY: both point into the rig's live register block; the driver
+        // runs on this thread only between the calls.
+        unsafe {
+            status.write_volatile(UNTOUCHED);
+            rx_poll.write_volatile(UNTOUCHED);
+        }
+    };
+    // SAFETY: as above, read only.
+    let read = || unsafe { (status.read_volatile(), rx_poll.read_volatile()) };
+    mark();
+    mac.set_link(None);
+    assert_eq!(read(), (UNTOUCHED, UNTOUCHED), "no link: receive left alone");
+    mac.set_link(Some(Link { speed: Speed::M1000, full_duplex: true }));
+    let ru = DmaStatus::DEFAULT.with_ru(true).raw_value();
+    assert_eq!(read(), (ru, 0), "link up: RU alone written (cleared), then a receive poll demand");
 }
 
 #[test]

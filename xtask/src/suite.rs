@@ -115,6 +115,7 @@ pub fn qemu_tests() -> Result<()> {
     let elf = crate::images::firmware::build("qemu-npcm750", &[])?;
     println!("==> QEMU end-to-end tests ({})", elf.display());
     crate::emulated::qemu_e2e::run(&elf)?;
+    crate::emulated::early_frames::run(&elf)?;
     let elf = crate::images::firmware::build("qemu-npcm750", &["reentry-test"])?;
     crate::emulated::qemu_e2e::reentry(&elf)?;
     // The other renderers: row mode, and the FPGA's code paths (driver,
