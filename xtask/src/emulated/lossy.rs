@@ -44,8 +44,11 @@ pub struct Faults {
 /// What the relay did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Counts {
-    /// Frames that reached the relay.
+    /// Frames that reached the relay, both ways.
     pub frames: u64,
+    /// Of those, frames the board sent (a board that answers nothing shows
+    /// here as 0).
+    pub from_board: u64,
     /// Dropped.
     pub dropped: u64,
     /// Reordered.
@@ -157,6 +160,7 @@ impl Relay {
                     let Ok(n) = udp.recv(&mut buf) else { continue };
                     let frame = buf[..n].to_vec();
                     let Ok(mut c) = counts.lock() else { return };
+                    c.from_board += 1;
                     if let Some(key) = firmware_segment(&frame) {
                         if !seen.insert(key) {
                             c.retransmitted += 1;
