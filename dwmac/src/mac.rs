@@ -277,7 +277,9 @@ impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
     ///
     /// With the receiver on, receive resumes as after a descriptor
     /// shortage (RU cleared, poll demand; see `RxState::recycle`). On the
-    /// board that finds the DMA running and changes nothing. QEMU's model
+    /// board that changes nothing: a poll demand only wakes a receive DMA
+    /// suspended for want of descriptors (Cyclone V HPS register map, EMAC
+    /// `Receive_Poll_Demand`), and RU is write-one-to-clear. QEMU's model
     /// (hw/net/npcm_gmac.c, up to 10.0.2) refuses frames while the receiver
     /// is off and keeps them queued, its `-nic dgram` backend reading no
     /// more until the model flushes; only a write that starts receive or

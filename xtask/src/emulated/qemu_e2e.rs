@@ -142,7 +142,23 @@ fn served_or_refused(port: u16, light: [i32; 3]) -> Result<bool> {
     Ok(true)
 }
 
+/// Wait for the board's idle report after its last client (it comes a
+/// second after the last session ends) and check that every socket listens
+/// again: a burst then meets all 18 seed-port sockets, not some still
+/// closing from the test before.
+fn wait_until_every_socket_listens(g: &mut Guest) -> Result<()> {
+    // No client yet: every socket has listened since boot.
+    let Some(from) = g.uart().rfind("client") else { return Ok(()) };
+    let idle = g.wait_for_line(from, "net: idle:", Duration::from_secs(15))?;
+    // firmware/src/net.rs SOCKETS.
+    if !idle.contains("24 of 24 sockets listening") {
+        return Err(format!("the board's idle report is {idle:?}: not every socket listens"));
+    }
+    Ok(())
+}
+
 fn t_overload(g: &mut Guest) -> Result<()> {
+    wait_until_every_socket_listens(g)?;
     let port = g.port_single;
     let clients: Vec<_> = (0..OVERLOAD_CLIENTS)
         .map(|i| std::thread::spawn(move || served_or_refused(port, LIGHTS[i % LIGHTS.len()])))
