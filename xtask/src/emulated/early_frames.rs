@@ -21,40 +21,51 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use crate::images::firmware::Guest;
+use smoltcp::wire::{
+    ArpOperation, ArpPacket, ArpRepr, EthernetAddress, EthernetFrame, EthernetProtocol, EthernetRepr, Ipv4Address,
+};
+
+use crate::images::firmware::{free_udp_port, Guest};
 use crate::support::Result;
 
 /// The QEMU build's address and MAC (firmware/src/boards/qemu_npcm750.rs).
-const BOARD_IP: [u8; 4] = [10, 0, 2, 15];
-const BOARD_MAC: [u8; 6] = [0x52, 0x54, 0x00, 0x12, 0x34, 0x56];
+const BOARD_IP: Ipv4Address = Ipv4Address::new(10, 0, 2, 15);
+const BOARD_MAC: EthernetAddress = EthernetAddress([0x52, 0x54, 0x00, 0x12, 0x34, 0x56]);
 /// The asking peer (slirp's gateway address, on the board's subnet).
-const PEER_IP: [u8; 4] = [10, 0, 2, 2];
-const PEER_MAC: [u8; 6] = [0x02, 0, 0, 0, 0, 0x02];
+const PEER_IP: Ipv4Address = Ipv4Address::new(10, 0, 2, 2);
+const PEER_MAC: EthernetAddress = EthernetAddress([0x02, 0, 0, 0, 0, 0x02]);
 
 /// A broadcast ARP request (RFC 826) from the peer for `BOARD_IP`,
 /// padded to the Ethernet minimum.
 fn arp_request() -> Vec<u8> {
-    let mut f = Vec::with_capacity(60);
-    f.extend_from_slice(&[0xff; 6]);
-    f.extend_from_slice(&PEER_MAC);
-    f.extend_from_slice(&[0x08, 0x06]); // ARP
-    f.extend_from_slice(&[0, 1, 0x08, 0x00, 6, 4, 0, 1]); // Ethernet/IPv4, request
-    f.extend_from_slice(&PEER_MAC);
-    f.extend_from_slice(&PEER_IP);
-    f.extend_from_slice(&[0; 6]);
-    f.extend_from_slice(&BOARD_IP);
-    f.resize(60, 0);
+    let mut f = vec![0u8; 60];
+    let mut frame = EthernetFrame::new_unchecked(&mut f[..]);
+    EthernetRepr { src_addr: PEER_MAC, dst_addr: EthernetAddress::BROADCAST, ethertype: EthernetProtocol::Arp }
+        .emit(&mut frame);
+    ArpRepr::EthernetIpv4 {
+        operation: ArpOperation::Request,
+        source_hardware_addr: PEER_MAC,
+        source_protocol_addr: PEER_IP,
+        target_hardware_addr: EthernetAddress([0; 6]),
+        target_protocol_addr: BOARD_IP,
+    }
+    .emit(&mut ArpPacket::new_unchecked(frame.payload_mut()));
     f
 }
 
 /// Whether `f` is the board's ARP reply to the peer.
 fn is_board_arp_reply(f: &[u8]) -> bool {
-    f.len() >= 42
-        && f[0..6] == PEER_MAC
-        && f[12..14] == [0x08, 0x06]
-        && f[20..22] == [0, 2]
-        && f[22..28] == BOARD_MAC
-        && f[28..32] == BOARD_IP
+    let Ok(frame) = EthernetFrame::new_checked(f) else { return false };
+    if frame.dst_addr() != PEER_MAC || frame.ethertype() != EthernetProtocol::Arp {
+        return false;
+    }
+    let arp = ArpPacket::new_checked(frame.payload()).and_then(|p| ArpRepr::parse(&p));
+    matches!(arp, Ok(ArpRepr::EthernetIpv4 {
+        operation: ArpOperation::Reply,
+        source_hardware_addr,
+        source_protocol_addr,
+        ..
+    }) if source_hardware_addr == BOARD_MAC && source_protocol_addr == BOARD_IP)
 }
 
 /// Boot `elf` on a `-nic dgram` link whose other end sends ARP requests
@@ -63,10 +74,7 @@ fn is_board_arp_reply(f: &[u8]) -> bool {
 pub fn run(elf: &Path) -> Result<()> {
     const ANSWER_WITHIN: Duration = Duration::from_secs(5);
     let peer = UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
-    let qemu_port = {
-        let s = UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
-        s.local_addr().map_err(|e| e.to_string())?.port()
-    };
+    let qemu_port = free_udp_port()?;
     let peer_port = peer.local_addr().map_err(|e| e.to_string())?.port();
     let qemu = SocketAddr::from(([127, 0, 0, 1], qemu_port));
     let stop = Arc::new(AtomicBool::new(false));
@@ -131,15 +139,19 @@ mod tests {
     fn the_request_asks_for_the_board_and_only_its_reply_counts() {
         let req = arp_request();
         assert_eq!(req.len(), 60);
-        assert_eq!(&req[38..42], &BOARD_IP);
+        assert_eq!(&req[38..42], &BOARD_IP.octets());
         assert!(!is_board_arp_reply(&req), "a request is not a reply");
         let mut reply = vec![0u8; 60];
-        reply[0..6].copy_from_slice(&PEER_MAC);
-        reply[6..12].copy_from_slice(&BOARD_MAC);
-        reply[12..14].copy_from_slice(&[0x08, 0x06]);
-        reply[14..22].copy_from_slice(&[0, 1, 0x08, 0x00, 6, 4, 0, 2]);
-        reply[22..28].copy_from_slice(&BOARD_MAC);
-        reply[28..32].copy_from_slice(&BOARD_IP);
+        let mut frame = EthernetFrame::new_unchecked(&mut reply[..]);
+        EthernetRepr { src_addr: BOARD_MAC, dst_addr: PEER_MAC, ethertype: EthernetProtocol::Arp }.emit(&mut frame);
+        ArpRepr::EthernetIpv4 {
+            operation: ArpOperation::Reply,
+            source_hardware_addr: BOARD_MAC,
+            source_protocol_addr: BOARD_IP,
+            target_hardware_addr: PEER_MAC,
+            target_protocol_addr: PEER_IP,
+        }
+        .emit(&mut ArpPacket::new_unchecked(frame.payload_mut()));
         assert!(is_board_arp_reply(&reply));
         reply[31] = 16;
         assert!(!is_board_arp_reply(&reply), "another sender's address");
