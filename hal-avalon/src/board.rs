@@ -12,8 +12,7 @@
 //! use hal_avalon::sim::SimAccelerator;
 //! use model::display::Layout;
 //!
-//! // ok: a doc example on the simulated device, which reports map version 3.
-//! let mut io = BoardIo::open(SimAccelerator::new()).expect("map version 3");
+//! let mut io = BoardIo::open(SimAccelerator::new()).expect("map version 3"); // ok: the simulated device reports map version 3
 //! io.show(0x0410_0000);
 //! io.enable(Layout::FullScreen);
 //! io.set_text(*b" 60FPS");

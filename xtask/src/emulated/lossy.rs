@@ -25,7 +25,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 
 use super::qemu_e2e::{expected_frame, LIGHTS};
-use crate::images::firmware::{build, Guest};
+use crate::images::firmware::{build, free_udp_port, Guest};
 use crate::support::Result;
 
 /// Per-frame fault probabilities, the same both ways.
@@ -424,11 +424,6 @@ pub fn run_with_rtsp(
         ),
     };
     Ok(Outcome { elapsed: Duration::from_millis(ms), counts: relay.counts(), rtsp })
-}
-
-fn free_udp_port() -> Result<u16> {
-    let s = UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
-    Ok(s.local_addr().map_err(|e| e.to_string())?.port())
 }
 
 // ---- The client, run inside the namespace --------------------------------------------
