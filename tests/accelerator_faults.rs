@@ -20,9 +20,9 @@ use hal_avalon::sim::{CountingDelay, Fault, SimAccelerator};
 use hal_avalon::{Accelerator, PollTimeout};
 use hps_sim::{SharedMemory, FRAME_SLOTS};
 use model::{render_frame, Light, FRAME_BYTES, ROW_BYTES};
-use rt_protocol::fallback::WEDGED_AFTER;
-use rt_protocol::server::{drive, Action, Mode, Session};
-use rt_protocol::{FallbackEngine, FrameRing, FrameSource, Instant, RowEngine, SoftwareRenderer, Watchdog};
+use rt_services::frames::fallback::WEDGED_AFTER;
+use rt_services::seed::server::{drive, Action, Mode, Session};
+use rt_services::{FallbackEngine, FrameRing, FrameSource, Instant, RowEngine, SoftwareRenderer, Watchdog};
 
 type Clock = Rc<Cell<u64>>;
 
@@ -62,7 +62,7 @@ fn run(fault: Fault, fault_at_row: u16) -> (Vec<Client>, bool, usize) {
         .enumerate()
         .map(|(c, &n)| {
             let session = Session::new(Mode::Persistent, Instant::from_millis(0));
-            let input: Vec<u8> = (0..n).flat_map(|i| rt_protocol::encode_request(&light(i + c))).collect();
+            let input: Vec<u8> = (0..n).flat_map(|i| rt_services::encode_request(&light(i + c))).collect();
             Client { session, input, received: Vec::new(), closed: None }
         })
         .collect();

@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use hps_sim::{HpsSim, RenderMode};
 use model::{render_frame, Light, FRAME_BYTES};
-use rt_protocol::{encode_raw_request, encode_request};
+use rt_services::{encode_raw_request, encode_request};
 
 fn sim() -> HpsSim {
     HpsSim::start("127.0.0.1:0".parse().expect("address")).expect("hps-sim starts")

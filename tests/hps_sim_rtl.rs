@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use hps_sim::{Config, Device, HpsSim, RenderMode};
 use model::{render_frame, Light};
-use rt_protocol::encode_request;
+use rt_services::encode_request;
 
 fn rtl_sim(render: RenderMode) -> HpsSim {
     let config = Config { render, device: Device::Rtl };

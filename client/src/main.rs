@@ -180,8 +180,8 @@ enum Transport {
 fn parse_fps(s: &str) -> Result<String, String> {
     match s.parse::<u16>() {
         _ if s.eq_ignore_ascii_case("max") => Ok("max".into()),
-        Ok(n) if (1..=rt_protocol::rtsp::MAX_FPS).contains(&n) => Ok(n.to_string()),
-        _ => Err(format!("expected 1-{} or max", rt_protocol::rtsp::MAX_FPS)),
+        Ok(n) if (1..=rt_services::camera::rtsp::MAX_FPS).contains(&n) => Ok(n.to_string()),
+        _ => Err(format!("expected 1-{} or max", rt_services::camera::rtsp::MAX_FPS)),
     }
 }
 
@@ -250,9 +250,9 @@ fn url(server: &str) -> Result<(), String> {
     {
         server.to_string()
     } else if server.contains(':') && !server.starts_with('[') {
-        format!("[{server}]:{}", rt_protocol::rtsp::RTSP_PORT)
+        format!("[{server}]:{}", rt_services::camera::rtsp::RTSP_PORT)
     } else {
-        format!("{server}:{}", rt_protocol::rtsp::RTSP_PORT)
+        format!("{server}:{}", rt_services::camera::rtsp::RTSP_PORT)
     };
     let base = format!("rtsp://{with_port}");
     println!("{base}/light/3,4,-2?fps=30        fixed light at (3, 4, -2), 30 frames/s");

@@ -6,7 +6,7 @@ use std::net::{Shutdown, SocketAddr, TcpStream, ToSocketAddrs};
 use std::time::Duration;
 
 use model::{Light, FRAME_BYTES};
-use rt_protocol::{encode_request, persistent_port};
+use rt_services::{encode_request, persistent_port};
 
 /// How long a read may stall before the client gives up on the server.
 const READ_TIMEOUT: Duration = Duration::from_secs(30);

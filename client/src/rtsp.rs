@@ -1,6 +1,6 @@
 //! The board as a network camera, from the client's side: an RTSP/1.0
-//! client (RFC 2326) for `rt_protocol::rtsp`'s server, and the RTP/RTCP
-//! sockets feeding `rt_protocol::receiver`.
+//! client (RFC 2326) for `rt_services::camera::rtsp`'s server, and the RTP/RTCP
+//! sockets feeding `rt_services::camera::receiver`.
 //!
 //! [`Response::parse`] and the header helpers are pure (tested on canned
 //! answers); [`RtspClient`] adds the TCP connection, [`RtpStream`] the two
@@ -14,9 +14,9 @@ use std::net::{IpAddr, SocketAddr, TcpStream, UdpSocket};
 use std::time::{Duration, Instant};
 
 use model::Light;
-use rt_protocol::receiver::{ReceivedFrame, Receiver, ReceiverConfig, ReceiverCounts, MAX_NACK_BYTES};
-use rt_protocol::rtp::PACKET_BYTES;
-use rt_protocol::rtsp::RTSP_PORT;
+use rt_services::camera::receiver::{ReceivedFrame, Receiver, ReceiverConfig, ReceiverCounts, MAX_NACK_BYTES};
+use rt_services::camera::rtp::PACKET_BYTES;
+use rt_services::camera::rtsp::RTSP_PORT;
 
 /// How long the server may take to answer a request.
 const ANSWER_TIMEOUT: Duration = Duration::from_secs(10);
@@ -27,7 +27,7 @@ const MAX_HEADER_BYTES: usize = 16 * 1024;
 /// The longest body accepted from the server (an SDP is well under 1 KB).
 const MAX_BODY_BYTES: usize = 64 * 1024;
 /// A keep-alive this often: well inside the server's 60 s session timeout
-/// (`rt_protocol::rtsp::SESSION_TIMEOUT`), even if it announces less.
+/// (`rt_services::camera::rtsp::SESSION_TIMEOUT`), even if it announces less.
 const KEEPALIVE: Duration = Duration::from_secs(20);
 /// Our SSRC in NACKs; the server keys sessions on our address, not this.
 const CLIENT_SSRC: u32 = 0x7274_636c; // "rtcl"
@@ -464,8 +464,8 @@ impl RtpStream {
         self.receiver.counts()
     }
 
-    fn clock(&self) -> rt_protocol::Instant {
-        rt_protocol::Instant::from_millis(self.origin.elapsed().as_millis() as u64)
+    fn clock(&self) -> rt_services::Instant {
+        rt_services::Instant::from_millis(self.origin.elapsed().as_millis() as u64)
     }
 
     /// Receive until at least one frame was handed to `on_frame` (or
@@ -705,7 +705,8 @@ mod tests {
     /// out repaired and whole.
     #[test]
     fn a_stream_repairs_a_dropped_row_over_udp() {
-        use rt_protocol::rtp::{NackRequests, Packetiser};
+        use rt_services::camera::rtcp::NackRequests;
+        use rt_services::camera::rtp::Packetiser;
         let camera_rtp = UdpSocket::bind("127.0.0.1:0").unwrap();
         let camera_rtcp = UdpSocket::bind("127.0.0.1:0").unwrap();
         let rtcp_port = camera_rtcp.local_addr().unwrap().port();
@@ -764,7 +765,7 @@ mod tests {
                 .unwrap();
             assert!(n > 0, "no frame within 3 s");
         }
-        assert_eq!(got[0].0, rt_protocol::receiver::Quality::Repaired);
+        assert_eq!(got[0].0, rt_services::camera::receiver::Quality::Repaired);
         assert_eq!(got[0].1, 10, "row 10 came by NACK");
         for (k, (_, _, pixels)) in got.iter().enumerate() {
             for y in 0..360 {

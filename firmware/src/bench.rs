@@ -20,8 +20,8 @@ use core::fmt::Write;
 use core::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 
 use model::{Light, WIDTH};
-use rt_protocol::frames::ROWS;
-use rt_protocol::{FrameEngine, FrameMemory, RowSource};
+use rt_services::frames::ROWS;
+use rt_services::{FrameEngine, FrameMemory, RowSource};
 
 // Times are kept in timer ticks (no division on the measured path) and
 // converted to nanoseconds when printed.
@@ -111,7 +111,7 @@ pub fn cleaned(n: usize) {
 #[cfg(feature = "bench")]
 fn frame_started() {
     RENDER_AT_START.store(RENDER_TICKS.load(Ordering::Relaxed), Ordering::Relaxed);
-    STARTED_TICKS.store(crate::TIMER.ticks(), Ordering::Relaxed);
+    STARTED_TICKS.store(crate::platform::TIMER.ticks(), Ordering::Relaxed);
 }
 
 #[cfg(feature = "bench")]
@@ -123,7 +123,7 @@ fn frame_rendered() {
 
 #[cfg(feature = "bench")]
 fn ns(ticks: u64) -> u64 {
-    soc::global_timer::ticks_to_ns(ticks, crate::TIMER.hz())
+    soc::global_timer::ticks_to_ns(ticks, crate::platform::TIMER.hz())
 }
 
 /// Run `f` (the network camera's poll), adding its guest time to the
@@ -132,9 +132,9 @@ fn ns(ticks: u64) -> u64 {
 pub fn camera<R>(f: impl FnOnce() -> R) -> R {
     #[cfg(feature = "bench")]
     {
-        let t0 = crate::TIMER.ticks();
+        let t0 = crate::platform::TIMER.ticks();
         let r = f();
-        CAMERA_TICKS.fetch_add(crate::TIMER.ticks().wrapping_sub(t0), Ordering::Relaxed);
+        CAMERA_TICKS.fetch_add(crate::platform::TIMER.ticks().wrapping_sub(t0), Ordering::Relaxed);
         r
     }
     #[cfg(not(feature = "bench"))]
@@ -155,9 +155,9 @@ fn timed<R>(f: impl FnOnce() -> R) -> R {
             return f();
         }
         TIMING.store(true, Ordering::Relaxed);
-        let t0 = crate::TIMER.ticks_low();
+        let t0 = crate::platform::TIMER.ticks_low();
         let r = f();
-        let dt = crate::TIMER.ticks_low().wrapping_sub(t0);
+        let dt = crate::platform::TIMER.ticks_low().wrapping_sub(t0);
         RENDER_TICKS.store(RENDER_TICKS.load(Ordering::Relaxed).wrapping_add(dt), Ordering::Relaxed);
         TIMING.store(false, Ordering::Relaxed);
         r
@@ -196,7 +196,7 @@ impl Iteration {
         let _ = mac_frames;
         Iteration {
             #[cfg(feature = "bench")]
-            t0: crate::TIMER.ticks(),
+            t0: crate::platform::TIMER.ticks(),
             #[cfg(feature = "bench")]
             before: Self::marks(mac_frames),
         }
@@ -207,7 +207,7 @@ impl Iteration {
     pub fn end(self, mac_frames: u32) {
         #[cfg(feature = "bench")]
         if Self::marks(mac_frames) != self.before {
-            BUSY_TICKS.fetch_add(crate::TIMER.ticks().wrapping_sub(self.t0), Ordering::Relaxed);
+            BUSY_TICKS.fetch_add(crate::platform::TIMER.ticks().wrapping_sub(self.t0), Ordering::Relaxed);
             BUSY_LOOPS.fetch_add(1, Ordering::Relaxed);
         }
         let _ = mac_frames;

@@ -1,4 +1,4 @@
-//! The board as a network camera: `rt_protocol::camera_service` (RTSP on
+//! The board as a network camera: `rt_services::camera::service` (RTSP on
 //! TCP port 8554, RTP/RTCP on UDP 5004/5005) over the frame ring, its rows
 //! leaving zero-copy: each packet is one two-buffer descriptor of the
 //! DesignWare MAC, buffer 1 the 62-byte header, buffer 2 the row where the
@@ -14,10 +14,10 @@ use dwmac::desc::ChecksumInsertion;
 use dwmac::{DmaSync, Dwmac, SplitSeq};
 use embedded_hal::delay::DelayNs;
 use model::ROW_BYTES;
-use rt_protocol::camera_service::RowTransmitter;
-use rt_protocol::rtp::{HeaderTemplate, Packetiser, RowPacket, HEADER_PAD, HEADER_WORDS};
+use rt_services::camera::rtp::{HeaderTemplate, Packetiser, RowPacket, HEADER_PAD, HEADER_WORDS};
+use rt_services::camera::service::RowTransmitter;
 
-use crate::render::RING_SLOTS;
+use crate::limits::RING_SLOTS;
 
 // The header words' padding is the MAC's transmit skew.
 const _: () = assert!(HEADER_PAD == dwmac::ring::TX_SKEW);

@@ -18,7 +18,7 @@ use soc::l2c310::L2c310;
 use soc::mmu::{sections_of, MemType, MemoryMap, PageTable, PAGES, SECTIONS};
 use static_cell::ConstStaticCell;
 
-use crate::board::Board;
+use crate::platform::Board;
 
 /// Cortex-A9 L1 data cache geometry (both boards: 32 KiB, 4-way, 32-byte
 /// lines, 256 sets; ARM DDI 0388 Cortex-A9 TRM 7.1): log2 ways, line, sets
@@ -108,7 +108,7 @@ pub fn enable_mmu_and_caches<B: Board>(log: &mut impl Write) -> L2c310 {
     // SAFETY: the board's L2C-310 register block; with the MMU off every
     // access is Strongly-ordered, afterwards the block is mapped Device.
     // Only the value returned here uses it from now on.
-    let l2 = unsafe { L2c310::new(crate::register_block(B::L2C)) };
+    let l2 = unsafe { L2c310::new(crate::platform::register_block(B::L2C)) };
 
     unsafe extern "C" {
         static __sdma: u8;

@@ -1,6 +1,6 @@
 //! The board on its own (map version 3): the VGA monitor showing the newest
 //! frame, attract mode, keys, switches, LEDs and 7-segment displays. The
-//! policy is `rt_protocol::monitor` (host-tested); this module only puts
+//! policy is `rt_services::monitor` (host-tested); this module only puts
 //! the frame ring and the accelerator's board I/O block together as the
 //! device the policy works on, and logs its report once a second:
 //!
@@ -13,9 +13,9 @@ use hal_avalon::map::Csr;
 use hal_avalon::RegisterPort;
 use model::display::Layout;
 use model::Light;
-use rt_protocol::frames::Completed;
-use rt_protocol::monitor::{Inputs, Monitor, Panel, Refreshes, Screen, Status};
-use rt_protocol::{FrameSource, Instant};
+use rt_services::frames::Completed;
+use rt_services::monitor::{Inputs, Monitor, Panel, Refreshes, Screen, Status};
+use rt_services::{FrameSource, Instant};
 
 use crate::render::{Frames, Ring};
 

@@ -6,13 +6,10 @@
 
 use core::cell::UnsafeCell;
 use core::fmt;
-use core::sync::atomic::{AtomicBool, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use soc::log::LogRing;
 use soc::uart16550::Uart16550;
-
-use crate::board::Board;
-use crate::boards::Active;
 
 /// Bytes the ring holds (about a hundred log lines).
 const RING_BYTES: usize = 8192;
@@ -41,10 +38,17 @@ fn with_ring<R>(f: impl FnOnce(&mut LogRing<RING_BYTES>) -> R) -> Option<R> {
     Some(r)
 }
 
-fn uart() -> Uart16550 {
-    // SAFETY: the board's UART0, mapped Device (or the MMU is off); writers
-    // of the same UART only interleave bytes.
-    unsafe { Uart16550::new(crate::register_block(Active::UART0)) }
+/// The log UART's address, set once by [`init`] (0 until then: nothing is
+/// written). Handed in by the composition root (`main`), so the log
+/// depends on no board.
+static UART_BASE: AtomicUsize = AtomicUsize::new(0);
+
+fn uart() -> Option<Uart16550> {
+    let base = UART_BASE.load(Ordering::Relaxed);
+    let block = core::ptr::NonNull::new(base as *mut _)?;
+    // SAFETY: `init` was given the board's UART0, mapped Device (or the MMU
+    // is off); writers of the same UART only interleave bytes.
+    Some(unsafe { Uart16550::new(block) })
 }
 
 /// Queue text for the UART.
@@ -61,19 +65,24 @@ impl fmt::Write for Log {
 
 /// Move what the UART's FIFO takes now; never waits.
 pub fn drain() {
-    let mut u = uart();
-    let _ = with_ring(|r| r.drain(&mut u));
+    if let Some(mut u) = uart() {
+        let _ = with_ring(|r| r.drain(&mut u));
+    }
 }
 
-/// Switch the UART's FIFOs on, so that a drain moves 16 bytes at a time.
-/// First thing at start-up (it empties the transmit FIFO).
-pub fn init() {
-    uart().enable_fifos();
+/// Log to the 16550 at `uart_base` (the board's UART0) and switch its
+/// FIFOs on, so that a drain moves 16 bytes at a time. First thing at
+/// start-up (it empties the transmit FIFO).
+pub fn init(uart_base: usize) {
+    UART_BASE.store(uart_base, Ordering::Relaxed);
+    if let Some(mut u) = uart() {
+        u.enable_fifos();
+    }
 }
 
 /// Send everything queued, waiting for the UART (start-up only).
 pub fn flush() {
-    let mut u = uart();
+    let Some(mut u) = uart() else { return };
     let _ = with_ring(|r| {
         // Bounded: each round either moves bytes or finds the FIFO full;
         // a UART that never drains costs about 2 s, then the rest waits.
@@ -93,6 +102,9 @@ pub struct Fault;
 impl fmt::Write for Fault {
     fn write_str(&mut self, s: &str) -> fmt::Result {
         flush();
-        uart().write_str(s)
+        match uart() {
+            Some(mut u) => u.write_str(s),
+            None => Ok(()),
+        }
     }
 }

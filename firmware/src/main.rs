@@ -17,49 +17,30 @@
 #![no_main]
 
 mod bench;
-mod board;
 mod boards;
 mod camera;
 mod cpu;
 mod display;
+mod limits;
 mod log;
 mod mem;
 mod net;
+mod platform;
 mod render;
 mod selftest;
 mod start;
 
 use core::fmt::Write;
-use core::ptr::NonNull;
 
-use soc::abort::ProbeGuard;
-use soc::global_timer::{GlobalTimer, PERIPHBASE_OFFSET};
 use soc::l2c310::L2c310;
 use static_cell::StaticCell;
 
-use crate::board::Board;
-use crate::boards::{Active, Renderer};
-
-/// The MPCore global timer: the firmware's clock (smoltcp's `Instant`).
-pub static TIMER: GlobalTimer =
-    // SAFETY: PERIPHBASE + 0x200 is the board's MPCore global timer (ARM DDI
-    // 0407 4.3), mapped Device once the MMU is on; only this value writes it.
-    unsafe { GlobalTimer::new(register_block(Active::PERIPHBASE + PERIPHBASE_OFFSET), Active::TIMER_HZ) };
-
-/// The accelerator probe's guard, shared with the data-abort handler.
-pub static PROBE: ProbeGuard = ProbeGuard::new();
-
-/// A register block's address as the non-null pointer the handles take.
-pub const fn register_block<T>(addr: usize) -> NonNull<T> {
-    match NonNull::new(addr as *mut T) {
-        Some(p) => p,
-        None => panic!("register block at address 0"),
-    }
-}
+use crate::boards::Renderer;
+use crate::platform::{Active, Board, TIMER};
 
 #[aarch32_rt::entry]
 fn main() -> ! {
-    log::init();
+    log::init(Active::UART0);
     let mut log = log::Log;
     let _ = writeln!(log, "\n\nraytracer firmware {} on {}", env!("CARGO_PKG_VERSION"), Active::NAME);
     let _ = writeln!(log, "core 0 up; core 1 parked; vectors at VBAR");

@@ -12,32 +12,24 @@ use dwmac::phy::LinkMonitor;
 use dwmac::regs::Regs;
 use dwmac::{DmaArea, Dwmac};
 use hal_avalon::RegisterPort;
-use rt_protocol::camera::Camera;
-use rt_protocol::camera_service::{CameraBuffers, CameraService, PeerMacs, Snoop, RTSP_SOCKETS};
-use rt_protocol::rtsp::{self, MAX_SESSIONS, RTSP_PORT, SERVER_RTP_PORT};
-use rt_protocol::service::{FrameService, SocketBuffers};
-use rt_protocol::{FrameSource, FRAME_PORT, PERSISTENT_PORT};
+use rt_services::camera::rtsp::{self, MAX_SESSIONS, RTSP_PORT, SERVER_RTP_PORT};
+use rt_services::camera::sender::Camera;
+use rt_services::camera::service::{CameraBuffers, CameraService, PeerMacs, Snoop, RTSP_SOCKETS};
+use rt_services::seed::service::{FrameService, SocketBuffers};
+use rt_services::{FrameSource, FRAME_PORT, PERSISTENT_PORT};
 use smoltcp::iface::{Config, Interface, SocketSet, SocketStorage};
 use smoltcp::time::Instant;
 use smoltcp::wire::{EthernetAddress, HardwareAddress, IpCidr, Ipv4Cidr};
 use soc::global_timer::{GlobalTimer, TimerDelay};
 use static_cell::ConstStaticCell;
 
-use crate::board::Board;
 use crate::cpu::Caches;
 use crate::display::Display;
+use crate::limits::{FRAME_PORT_SOCKETS, RING_SLOTS, SOCKETS};
 use crate::log::{self, Log};
+use crate::platform::Board;
 use crate::render::Frames;
 
-/// TCP sockets of the frame service: [`FRAME_PORT_SOCKETS`] on the seed
-/// port, the rest on the persistent port. A socket holds one client; the
-/// frame ring renders four frames at a time for sessions (six without a
-/// VGA display, which keeps two slots), so up to 14 seed-port clients wait
-/// their turn beyond those four (docs/reliability.md#overload), and one
-/// more arriving while all are taken is refused.
-pub const SOCKETS: usize = 24;
-/// Sockets on the seed port.
-pub const FRAME_PORT_SOCKETS: usize = 18;
 /// Sockets of the network camera: RTSP listeners and the RTCP socket.
 const CAMERA_SOCKETS: usize = RTSP_SOCKETS + 1;
 
@@ -140,7 +132,7 @@ pub fn run<B: Board, P: RegisterPort>(
 
     // SAFETY: the board's DesignWare MAC, mapped Device; only this driver
     // uses it.
-    let regs = unsafe { Regs::new(crate::register_block(B::EMAC)) };
+    let regs = unsafe { Regs::new(crate::platform::register_block(B::EMAC)) };
     let mut mac = Dwmac::new(regs, dma, caches, TimerDelay(timer));
     let _ = writeln!(
         log,
@@ -219,7 +211,7 @@ pub fn run<B: Board, P: RegisterPort>(
         }
     };
     let mut peers = PeerMacs::new();
-    let mut in_flight = [None; crate::render::RING_SLOTS];
+    let mut in_flight = [None; RING_SLOTS];
     let mut refused = 0u32;
     log::flush();
 
@@ -266,13 +258,13 @@ pub fn run<B: Board, P: RegisterPort>(
         }
         frames.report(&mut log);
         if let Some(d) = &mut display {
-            let status = rt_protocol::monitor::Status {
+            let status = rt_services::monitor::Status {
                 link_up,
                 clients: service.active_sessions(),
                 address,
                 ..Default::default()
             };
-            d.poll(rt_protocol::Instant::from_millis(now_us / 1000), frames, requests, &status, &mut log);
+            d.poll(rt_services::Instant::from_millis(now_us / 1000), frames, requests, &status, &mut log);
         }
         // A second after the last client: say what is free, so a long run
         // can show nothing leaked (cargo xtask soak reads this line).
@@ -337,7 +329,7 @@ impl<F: FrameSource> FrameSource for Counting<'_, F> {
     }
 }
 
-impl<F: rt_protocol::camera::SlotSource> rt_protocol::camera::SlotSource for Counting<'_, F> {
+impl<F: rt_services::camera::sender::SlotSource> rt_services::camera::sender::SlotSource for Counting<'_, F> {
     fn set_held(&mut self, mask: u32) {
         self.frames.set_held(mask)
     }

@@ -19,8 +19,8 @@ use hal_avalon::sim::DmaTarget;
 use hal_avalon::sources::PipelinedRows;
 use hal_avalon::{Accelerator, Counted, RegisterPort};
 use model::{Light, FRAME_BYTES, ROW_BYTES};
-use rt_protocol::fallback::{Fallback, FallbackEvent, WEDGED_AFTER};
-use rt_protocol::{
+use rt_services::frames::fallback::{Fallback, FallbackEvent, WEDGED_AFTER};
+use rt_services::{
     EngineError, FallbackEngine, FrameMemory, FrameRing, FrameSource, RowEngine, RowFrames, SoftwareRenderer, Watchdog,
     WatchdogError,
 };
@@ -29,14 +29,7 @@ use soc::global_timer::TimerDelay;
 
 use crate::bench;
 use crate::cpu::Caches;
-use crate::net::SOCKETS;
-
-/// Frame slots of the ring: four for sessions (one being sent and three to
-/// render ahead, for up to four sessions at once) and two the VGA display
-/// keeps out of reuse (the frame on screen and the one waiting for vertical
-/// blanking, `rt_protocol::monitor`). Six frames, 3,110,400 bytes, fill the
-/// 3 MiB `.frames` region (memory.x).
-pub const RING_SLOTS: usize = 6;
+use crate::limits::{RING_SLOTS, ROW_FRAMES};
 
 /// How long a frame of the accelerator may go without a new row before it
 /// counts as failed (a frame takes about 3.5 ms at 50 MHz).
@@ -150,11 +143,11 @@ pub fn accelerator<P: RegisterPort>(port: P, timer: &'static soc::global_timer::
 }
 
 /// The firmware's clock for the watchdog.
-fn now() -> rt_protocol::Instant {
-    rt_protocol::Instant::from_millis(crate::TIMER.now_us() / 1000)
+fn now() -> rt_services::Instant {
+    rt_services::Instant::from_millis(crate::platform::TIMER.now_us() / 1000)
 }
 
-type Clock = fn() -> rt_protocol::Instant;
+type Clock = fn() -> rt_services::Instant;
 type Software = bench::TimedRows<SoftwareRenderer>;
 type RingEngine<P> = FallbackEngine<bench::TimedEngine<Watchdog<Accel<P>, Clock>>, RowEngine<Software>>;
 type RowSources<P> = Fallback<bench::TimedRows<PipelinedRows<Counted<P>, TimerDelay<'static>>>, Software>;
@@ -170,7 +163,7 @@ pub enum Frames<P: RegisterPort> {
     /// Frame mode: whole frames in the ring.
     Ring(Ring<P>),
     /// Row mode: a row per start.
-    Rows(RowFrames<RowSources<P>, SOCKETS>),
+    Rows(RowFrames<RowSources<P>, ROW_FRAMES>),
 }
 
 /// Why a frame could not be delivered.
@@ -303,7 +296,7 @@ impl<P: RegisterPort> FrameSource for Frames<P> {
 
 /// The network camera resends rows from ring slots; row mode has none (the
 /// camera runs in frame mode only, net.rs).
-impl<P: RegisterPort> rt_protocol::camera::SlotSource for Frames<P> {
+impl<P: RegisterPort> rt_services::camera::sender::SlotSource for Frames<P> {
     fn set_held(&mut self, mask: u32) {
         if let Frames::Ring(r) = self {
             r.set_held(mask)

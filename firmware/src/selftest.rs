@@ -18,7 +18,7 @@ use core::fmt::Write;
 
 use hal_avalon::selftest::{self, PLAN};
 use hal_avalon::RegisterPort;
-use rt_protocol::SoftwareRenderer;
+use rt_services::SoftwareRenderer;
 use soc::global_timer::TimerDelay;
 
 use crate::cpu::Caches;
@@ -40,15 +40,15 @@ pub fn gate<P: RegisterPort>(log: &mut impl Write, fpga: Option<Accel<P>>, cache
         );
         return None;
     };
-    let start = crate::TIMER.now_us();
+    let start = crate::platform::TIMER.now_us();
     let report = selftest::run(
         &mut accel,
         &mut RingMemory::frames(caches),
         &mut SoftwareRenderer,
-        &mut TimerDelay(&crate::TIMER),
+        &mut TimerDelay(&crate::platform::TIMER),
         &PLAN,
     );
-    let us = crate::TIMER.now_us().saturating_sub(start);
+    let us = crate::platform::TIMER.now_us().saturating_sub(start);
     let _ = writeln!(log, "{report} ({} ms)", us / 1000);
     if report.passed() {
         return Some(accel);

@@ -34,8 +34,8 @@ use aarch32_cpu::register::{Dfar, Dfsr, Ifar, Ifsr};
 use aarch32_rt::exception;
 use soc::l2c310::{RegisterBlock, WAY_OP_POLLS};
 
-use crate::board::Board;
-use crate::boards::Active;
+use crate::platform::Active;
+use crate::platform::Board;
 use crate::{cpu, log};
 
 core::arch::global_asm!(
@@ -206,7 +206,7 @@ fn prefetch_abort(addr: usize) -> ! {
 #[exception(DataAbort)]
 unsafe fn data_abort(addr: usize) -> usize {
     let dfsr = Dfsr::read().raw_value();
-    if let Some(resume) = crate::PROBE.on_data_abort(dfsr, addr) {
+    if let Some(resume) = crate::platform::PROBE.on_data_abort(dfsr, addr) {
         return resume;
     }
     let dfar = Dfar::read().0;

@@ -282,11 +282,11 @@ impl<P: RegisterPort> BoardIo<P> {
 }
 
 /// The block as the monitor policy's panel.
-#[cfg(feature = "protocol")]
-impl<P: RegisterPort> rt_protocol::monitor::Panel for BoardIo<P> {
-    fn refreshes(&mut self) -> rt_protocol::monitor::Refreshes {
+#[cfg(feature = "services")]
+impl<P: RegisterPort> rt_services::monitor::Panel for BoardIo<P> {
+    fn refreshes(&mut self) -> rt_services::monitor::Refreshes {
         let s = self.status();
-        rt_protocol::monitor::Refreshes { count: s.frames, underrun: s.underrun }
+        rt_services::monitor::Refreshes { count: s.frames, underrun: s.underrun }
     }
 
     fn show(&mut self, base: u32) {
@@ -297,9 +297,9 @@ impl<P: RegisterPort> rt_protocol::monitor::Panel for BoardIo<P> {
         self.enable(layout)
     }
 
-    fn inputs(&mut self) -> rt_protocol::monitor::Inputs {
+    fn inputs(&mut self) -> rt_services::monitor::Inputs {
         let keys = self.take_keys();
-        rt_protocol::monitor::Inputs { down: keys.down, pressed: keys.pressed, switches: self.switches() }
+        rt_services::monitor::Inputs { down: keys.down, pressed: keys.pressed, switches: self.switches() }
     }
 
     fn set_leds(&mut self, leds: u16) {

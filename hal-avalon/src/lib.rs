@@ -16,9 +16,9 @@
 //!   [`Error`]s instead of hangs or panics.
 //! * `sim` (feature `sim`): `SimAccelerator`, a simulated device built from
 //!   [`model`], bit-exact at the register level, with fault injection.
-//! * `sources` (feature `protocol`): the accelerator as the frame server's
+//! * `sources` (feature `services`): the accelerator as the frame server's
 //!   row source (row mode) and frame engine (frame mode).
-//! * `selftest` (feature `protocol`): the boot-time self-test, rows and a
+//! * `selftest` (feature `services`): the boot-time self-test, rows and a
 //!   frame compared with the model.
 //!
 //! ```
@@ -52,11 +52,11 @@ pub mod driver;
 pub mod map;
 pub mod mmio;
 pub mod port;
-#[cfg(feature = "protocol")]
+#[cfg(feature = "services")]
 pub mod selftest;
 #[cfg(feature = "sim")]
 pub mod sim;
-#[cfg(feature = "protocol")]
+#[cfg(feature = "services")]
 pub mod sources;
 
 pub use board::BoardIo;

@@ -1,4 +1,4 @@
-//! The boot-time self-test (feature `protocol`): does the accelerator
+//! The boot-time self-test (feature `services`): does the accelerator
 //! compute what the model says?
 //!
 //! [`run`] renders a few rows in row mode ([`Plan::rows`] at each of
@@ -40,7 +40,7 @@ use core::fmt;
 
 use embedded_hal::delay::DelayNs;
 use model::{row_to_rgb888, Light, ROW_BYTES, WIDTH};
-use rt_protocol::{FrameMemory, RowSource};
+use rt_services::{FrameMemory, RowSource};
 
 use crate::driver::{Accelerator, Error, PollTimeout};
 use crate::map::{LINE_WORDS, ROWS};

@@ -1,9 +1,9 @@
-//! The accelerator behind the frame server (feature `protocol`): a
+//! The accelerator behind the frame server (feature `services`): a
 //! [`RowSource`] in row mode, a [`FrameEngine`] in frame mode.
 
 use embedded_hal::delay::DelayNs;
 use model::{Light, WIDTH};
-use rt_protocol::{FrameEngine, FrameMemory, RowSource};
+use rt_services::{FrameEngine, FrameMemory, RowSource};
 
 use crate::driver::{Accelerator, Error};
 use crate::map::ROWS;

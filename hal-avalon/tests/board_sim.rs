@@ -7,7 +7,7 @@ use hal_avalon::map::{Csr, ID_VALUE, KEY_DEBOUNCE_CLOCKS, LINE_WORDS, VGA_FRAME_
 use hal_avalon::sim::SimAccelerator;
 use hal_avalon::RegisterPort;
 use model::display::Layout;
-use rt_protocol::monitor::{Inputs, Panel, Refreshes};
+use rt_services::monitor::{Inputs, Panel, Refreshes};
 
 /// A port whose ID register reads `id` and nothing else answers.
 struct IdOnly(u32);

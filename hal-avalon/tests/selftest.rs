@@ -14,7 +14,7 @@ use hal_avalon::selftest::{self, Mode, Outcome, Plan, Problem, PLAN};
 use hal_avalon::sim::{CountingDelay, DmaTarget, Fault, SimAccelerator};
 use hal_avalon::{Accelerator, Error, PollTimeout, RegisterPort};
 use model::{Light, FRAME_BYTES, ROW_BYTES, WIDTH};
-use rt_protocol::{FrameMemory, SoftwareRenderer};
+use rt_services::{FrameMemory, SoftwareRenderer};
 
 const BASE: u32 = 0x0410_0000;
 const SLOTS: usize = 2;

@@ -212,7 +212,7 @@ fn the_driver_aborts_a_frame_and_waits_for_idle_bounded() {
 #[test]
 fn pipelined_rows_start_the_next_row_before_returning_this_one() {
     use hal_avalon::sources::PipelinedRows;
-    use rt_protocol::RowSource;
+    use rt_services::RowSource;
     let accel = Accelerator::new(
         hal_avalon::Counted::new(SimAccelerator::new()),
         CountingDelay::default(),

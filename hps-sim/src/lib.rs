@@ -1,12 +1,12 @@
 //! `hps-sim`: the board simulated on the host. The firmware's frame server
-//! (`rt_protocol::server`) on std TCP, rendering through hal-avalon's driver
+//! (`rt_services::seed::server`) on std TCP, rendering through hal-avalon's driver
 //! and simulated accelerator, in either of the board's modes:
 //!
 //! * frame mode (the default): the accelerator's frame DMA writes whole
 //!   frames into a ring of two frame slots in host memory, and rows stream
-//!   out as its rows-done counter covers them (`rt_protocol::FrameRing`);
+//!   out as its rows-done counter covers them (`rt_services::FrameRing`);
 //! * row mode: one row per start through the line buffer
-//!   (`rt_protocol::RowFrames`).
+//!   (`rt_services::RowFrames`).
 //!
 //! The accelerator is hal-avalon's simulated one (the default) or the
 //! Verilated RTL (`rtl-port`, [`Device::Rtl`]): the same driver code either
@@ -38,8 +38,8 @@ use std::time::{Duration, Instant};
 use hal_avalon::sim::{CountingDelay, DmaTarget, SimAccelerator};
 use hal_avalon::{Accelerator, PollTimeout};
 use model::{FRAME_BYTES, ROW_BYTES};
-use rt_protocol::server::{drive, Action, Closed, Mode, Session};
-use rt_protocol::{
+use rt_services::seed::server::{drive, Action, Closed, Mode, Session};
+use rt_services::{
     persistent_port, FrameMemory, FrameRing, FrameSource, Instant as ProtocolInstant, RowFrames, SliceMemory,
 };
 
@@ -508,7 +508,7 @@ impl<S: FrameSource + Clocks> FrameSource for ClockLog<'_, S> {
             let clocks = now.saturating_sub(before);
             self.line = Some(format!(
                 "rtl: {clocks} clocks since the last frame, {} per row ({:.1} frames/s at 50 MHz)\n",
-                clocks / u64::from(rt_protocol::frames::ROWS),
+                clocks / u64::from(rt_services::frames::ROWS),
                 50e6 / clocks.max(1) as f64
             ));
             self.clocks_at_last = Some(now);

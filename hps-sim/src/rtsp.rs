@@ -1,5 +1,5 @@
-//! The simulated board as a network camera: `rt_protocol::rtsp`'s server
-//! and `rt_protocol::camera`'s RTP sender on std sockets, drawing frames
+//! The simulated board as a network camera: `rt_services::camera::rtsp`'s server
+//! and `rt_services::camera::sender`'s RTP sender on std sockets, drawing frames
 //! from one frame ring that the simulated accelerator (or the RTL) fills,
 //! as the board does.
 //!
@@ -21,10 +21,10 @@ use hal_avalon::sim::CountingDelay;
 use hal_avalon::sim::SimAccelerator;
 use hal_avalon::{Accelerator, PollTimeout};
 use model::{Light, ROW_BYTES};
-use rt_protocol::camera::{Camera, Destination, RtpSink};
-use rt_protocol::rtp::{self, Packetiser, RowPacket};
-use rt_protocol::rtsp::{self, Action, Connection, Server, MAX_RESPONSE_BYTES, MAX_SESSIONS};
-use rt_protocol::{FrameEngine, FrameMemory, FrameRing, Instant};
+use rt_services::camera::rtp::{self, Packetiser, RowPacket};
+use rt_services::camera::rtsp::{self, Action, Connection, Server, MAX_RESPONSE_BYTES, MAX_SESSIONS};
+use rt_services::camera::sender::{Camera, Destination, RtpSink};
+use rt_services::{FrameEngine, FrameMemory, FrameRing, Instant};
 
 use crate::{Device, Log, SharedMemory, SIM_BUSY_POLLS};
 
@@ -228,7 +228,7 @@ fn random_source() -> impl FnMut() -> u32 {
 }
 
 fn wall_ntp() -> u64 {
-    rtp::ntp_timestamp(SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default())
+    rt_services::camera::rtcp::ntp_timestamp(SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default())
 }
 
 fn run<E: FrameEngine<SharedMemory>>(

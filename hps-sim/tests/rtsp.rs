@@ -264,7 +264,7 @@ fn a_live_stream_follows_set_parameter_and_an_orbit_frame_is_the_light_of_its_ti
 
     // An orbit: the light of each frame is the orbit's at the frame's media
     // time, which its RTP timestamp tells (RTP-Info's rtptime at time 0).
-    let spec = rt_protocol::rtsp::StreamSpec::parse("rtsp://h/orbit?radius=3&height=4&period=2&fps=4").unwrap();
+    let spec = rt_services::camera::rtsp::StreamSpec::parse("rtsp://h/orbit?radius=3&height=4&period=2&fps=4").unwrap();
     let s = setup("/orbit?radius=3&height=4&period=2&fps=4");
     let (ts, rows, _, _) = whole_frame(&s, None);
     let (ts2, rows2, _, _) = whole_frame(&s, None);

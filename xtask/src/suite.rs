@@ -14,7 +14,7 @@ use crate::support::Result;
 /// Library crates that must build for the bare-metal target without `std`
 /// (with the features the firmware uses).
 const NO_STD_CRATES: &[(&str, &str)] =
-    &[("model", ""), ("rt-protocol", "smoltcp"), ("hal-avalon", ""), ("dwmac", ""), ("soc", "")];
+    &[("model", ""), ("rt-services", "smoltcp"), ("hal-avalon", ""), ("dwmac", ""), ("soc", "")];
 
 /// Run every step.
 pub fn run() -> Result<()> {
@@ -96,7 +96,7 @@ pub fn run() -> Result<()> {
 pub fn players_on_the_emulated_board(elf: &std::path::Path) -> Result<()> {
     let g = crate::images::firmware::Guest::boot(elf, &[])?;
     let f = g.forwards.ok_or("the guest has no forwarded ports")?;
-    if f.rtcp != rt_protocol::rtsp::SERVER_RTP_PORT + 1 {
+    if f.rtcp != rt_services::camera::rtsp::SERVER_RTP_PORT + 1 {
         println!("players: host UDP port 5005 is taken: GStreamer's RTCP will not reach the board (no repair)");
     }
     let dir = crate::support::tools::root().join("target/players/emulated");

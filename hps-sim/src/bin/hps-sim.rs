@@ -15,7 +15,7 @@ use hps_sim::{Config, Device, HpsSim, RenderMode};
 #[command(name = "hps-sim", about = "The ray tracer board simulated on the host")]
 struct Args {
     /// Address of the seed-protocol port; the persistent port is the next one.
-    #[arg(long, default_value_t = SocketAddr::from(([127, 0, 0, 1], rt_protocol::FRAME_PORT)))]
+    #[arg(long, default_value_t = SocketAddr::from(([127, 0, 0, 1], rt_services::FRAME_PORT)))]
     listen: SocketAddr,
     /// How the simulated accelerator renders: whole frames by DMA into
     /// memory (the board's main mode) or one row per start.
@@ -38,7 +38,7 @@ fn main() -> ExitCode {
     let (render, device) = (args.mode, args.accelerator);
     match HpsSim::start_config(args.listen, Config { render, device }, true) {
         Ok(mut sim) => {
-            let rtsp = args.rtsp.unwrap_or(SocketAddr::new(args.listen.ip(), rt_protocol::rtsp::RTSP_PORT));
+            let rtsp = args.rtsp.unwrap_or(SocketAddr::new(args.listen.ip(), rt_services::camera::rtsp::RTSP_PORT));
             let rtsp = match sim.start_rtsp(rtsp, device, true) {
                 Ok(addr) => addr,
                 Err(e) => {

@@ -162,7 +162,7 @@ fn measure(features: &[&str], frames: usize) -> Result<Measured> {
     let mut s = TcpStream::connect(("127.0.0.1", g.port_persistent)).map_err(|e| e.to_string())?;
     s.set_read_timeout(Some(Duration::from_secs(600))).map_err(|e| e.to_string())?;
     let light = super::qemu_e2e::LIGHTS[0];
-    s.write_all(&rt_protocol::encode_raw_request(light).repeat(frames)).map_err(|e| e.to_string())?;
+    s.write_all(&rt_services::encode_raw_request(light).repeat(frames)).map_err(|e| e.to_string())?;
     let mut frame = vec![0u8; model::FRAME_BYTES];
     let want = super::qemu_e2e::expected_frame(light)?;
     for i in 0..frames {

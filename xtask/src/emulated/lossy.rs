@@ -128,7 +128,7 @@ fn firmware_segment(frame: &[u8]) -> Option<(u16, u16, u32)> {
     let seq = u32::from_be_bytes([frame[tcp + 4], frame[tcp + 5], frame[tcp + 6], frame[tcp + 7]]);
     let data_off = usize::from(frame[tcp + 12] >> 4) * 4;
     let payload = total.saturating_sub(ihl + data_off);
-    ((sport == rt_protocol::FRAME_PORT || sport == rt_protocol::PERSISTENT_PORT) && payload > 0)
+    ((sport == rt_services::FRAME_PORT || sport == rt_services::PERSISTENT_PORT) && payload > 0)
         .then_some((sport, dport, seq))
 }
 
@@ -467,12 +467,12 @@ pub fn client(args: &ClientArgs) -> Result<()> {
     let expected: Vec<Vec<u8>> = LIGHTS.iter().map(|l| expected_frame(*l)).collect::<Result<_>>()?;
     // The first connection waits out the namespace's first ARP exchange
     // (its probes go through the lossy relay too); timing starts after it.
-    drop(connect_patiently(board, rt_protocol::PERSISTENT_PORT)?);
+    drop(connect_patiently(board, rt_services::PERSISTENT_PORT)?);
     let start = Instant::now();
     for i in 0..args.single {
-        let mut s = connect_patiently(board, rt_protocol::FRAME_PORT)?;
+        let mut s = connect_patiently(board, rt_services::FRAME_PORT)?;
         s.set_read_timeout(Some(timeout)).map_err(|e| e.to_string())?;
-        s.write_all(&rt_protocol::encode_raw_request(LIGHTS[i % LIGHTS.len()])).map_err(|e| e.to_string())?;
+        s.write_all(&rt_services::encode_raw_request(LIGHTS[i % LIGHTS.len()])).map_err(|e| e.to_string())?;
         let mut got = Vec::new();
         s.read_to_end(&mut got).map_err(|e| format!("seed frame {i}: {e}"))?;
         if got != expected[i % LIGHTS.len()] {
@@ -480,10 +480,10 @@ pub fn client(args: &ClientArgs) -> Result<()> {
         }
     }
     if args.persistent > 0 {
-        let mut s = connect_patiently(board, rt_protocol::PERSISTENT_PORT)?;
+        let mut s = connect_patiently(board, rt_services::PERSISTENT_PORT)?;
         s.set_read_timeout(Some(timeout)).map_err(|e| e.to_string())?;
         let requests: Vec<u8> =
-            (0..args.persistent).flat_map(|i| rt_protocol::encode_raw_request(LIGHTS[i % LIGHTS.len()])).collect();
+            (0..args.persistent).flat_map(|i| rt_services::encode_raw_request(LIGHTS[i % LIGHTS.len()])).collect();
         s.write_all(&requests).map_err(|e| e.to_string())?;
         let mut frame = vec![0u8; model::FRAME_BYTES];
         for i in 0..args.persistent {
@@ -503,10 +503,11 @@ pub fn client(args: &ClientArgs) -> Result<()> {
 /// `frames` frames of a fixed-light RTSP stream; every whole frame must be
 /// the model's. Prints what came, and how.
 fn rtsp_client(board: &str, frames: usize) -> Result<()> {
-    let addr = SocketAddr::new(board.parse().map_err(|e| format!("{board}: {e}"))?, rt_protocol::rtsp::RTSP_PORT);
+    let addr =
+        SocketAddr::new(board.parse().map_err(|e| format!("{board}: {e}"))?, rt_services::camera::rtsp::RTSP_PORT);
     // The namespace's first ARP exchange may be lost: the TCP connect
     // retries like the frame ports' (connect_patiently).
-    drop(connect_patiently(board, rt_protocol::rtsp::RTSP_PORT)?);
+    drop(connect_patiently(board, rt_services::camera::rtsp::RTSP_PORT)?);
     let mut s = crate::support::rtsp_client::Stream::open(addr, "/light/3,4,-2?fps=max", None)?;
     let want = expected_frame([3072, 4096, -2048])?;
     let mut exact = 0;
@@ -618,7 +619,7 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
 /// timing asserted).
 pub fn suite_test() -> Result<()> {
     if let Err(why) = available() {
-        println!("==> lossy link with the kernel's TCP: not on this machine ({why}); the in-memory fault test covers the loss (rt-protocol tests/lossy_link.rs)");
+        println!("==> lossy link with the kernel's TCP: not on this machine ({why}); the in-memory fault test covers the loss (rt-services tests/lossy_link.rs)");
         return Ok(());
     }
     let elf = build_copy(&[])?;

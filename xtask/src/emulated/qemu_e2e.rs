@@ -7,7 +7,7 @@ use std::net::TcpStream;
 use std::time::Duration;
 
 use model::{render_frame, Light, FRAME_BYTES, WIDTH};
-use rt_protocol::{encode_raw_request, FRAME_PORT, PERSISTENT_PORT};
+use rt_services::{encode_raw_request, FRAME_PORT, PERSISTENT_PORT};
 
 use crate::images::firmware::Guest;
 use crate::support::Result;
@@ -295,7 +295,8 @@ fn t_rtsp_fixed_light(g: &mut Guest) -> Result<()> {
 
 fn t_rtsp_orbit(g: &mut Guest) -> Result<()> {
     let path = "/orbit?radius=3&height=4&period=2&fps=4";
-    let spec = rt_protocol::rtsp::StreamSpec::parse(&format!("rtsp://h{path}")).map_err(|e| format!("{e:?}"))?;
+    let spec =
+        rt_services::camera::rtsp::StreamSpec::parse(&format!("rtsp://h{path}")).map_err(|e| format!("{e:?}"))?;
     let mut s = rtsp_stream(g, path)?;
     let live = model::Light::from_world(0.0, 4.0, 0.0).map_err(|e| format!("{e:?}"))?;
     for i in 0..2 {
@@ -351,7 +352,7 @@ pub fn selftest_fault_lines() -> Result<Vec<String>> {
 }
 
 /// The display's once-a-second line (firmware/src/display.rs,
-/// rt-protocol `monitor::Report`): frames shown, refreshes, layout,
+/// rt-services `monitor::Report`): frames shown, refreshes, layout,
 /// attract mode, and what is on screen.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct DisplayLine {

@@ -54,7 +54,7 @@ pub fn soak(frames: usize) -> Result<String> {
         let mut s = connect(g.port_persistent)?;
         connections += 1;
         let requests: Vec<u8> =
-            (0..count).flat_map(|i| rt_protocol::encode_raw_request(LIGHTS[(done + i) % LIGHTS.len()])).collect();
+            (0..count).flat_map(|i| rt_services::encode_raw_request(LIGHTS[(done + i) % LIGHTS.len()])).collect();
         s.write_all(&requests).map_err(|e| e.to_string())?;
         s.shutdown(std::net::Shutdown::Write).map_err(|e| e.to_string())?;
         for i in 0..count {
@@ -66,7 +66,7 @@ pub fn soak(frames: usize) -> Result<String> {
                 // A seed-port frame while the persistent one is open.
                 let l = (done + i + 3) % LIGHTS.len();
                 let mut t = connect(g.port_single)?;
-                t.write_all(&rt_protocol::encode_raw_request(LIGHTS[l])).map_err(|e| e.to_string())?;
+                t.write_all(&rt_services::encode_raw_request(LIGHTS[l])).map_err(|e| e.to_string())?;
                 let mut got = Vec::new();
                 t.read_to_end(&mut got).map_err(|e| format!("seed frame: {e}"))?;
                 if got.len() != model::FRAME_BYTES || crc32fast::hash(&got) != digests[l] {

@@ -1,6 +1,6 @@
 //! `cargo xtask fuzz`: the hostile-input property harnesses with many cases
-//! (release build): the sans-IO frame server (rt-protocol
-//! tests/fuzz_server.rs), the sans-IO RTSP server (rt-protocol
+//! (release build): the sans-IO frame server (rt-services
+//! tests/fuzz_server.rs), the sans-IO RTSP server (rt-services
 //! tests/fuzz_rtsp.rs) and the DesignWare MAC's receive path on random
 //! descriptors (dwmac's receive property test). The suite runs the same
 //! harnesses with proptest's default 256 cases.
@@ -27,11 +27,11 @@ pub struct FuzzArgs {
 /// Run the three harnesses.
 pub fn run(args: &FuzzArgs) -> Result<()> {
     let start = std::time::Instant::now();
-    let mut c = cargo(&["test", "--release", "-p", "rt-protocol", "--test", "fuzz_server", "--", "--nocapture"]);
+    let mut c = cargo(&["test", "--release", "-p", "rt-services", "--test", "fuzz_server", "--", "--nocapture"]);
     c.env("PROPTEST_CASES", args.cases.to_string());
     step(&format!("frame server: {} hostile clients", args.cases), c)?;
     let server = start.elapsed();
-    let mut r = cargo(&["test", "--release", "-p", "rt-protocol", "--test", "fuzz_rtsp", "--", "--nocapture"]);
+    let mut r = cargo(&["test", "--release", "-p", "rt-services", "--test", "fuzz_rtsp", "--", "--nocapture"]);
     r.env("PROPTEST_CASES", args.rtsp_cases.to_string());
     step(&format!("RTSP server: {} hostile clients", args.rtsp_cases), r)?;
     let rtsp = start.elapsed() - server;

@@ -23,7 +23,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use model::{Light, FRAME_BYTES, HEIGHT, ROW_BYTES, WIDTH};
-use rt_protocol::rtsp::StreamSpec;
+use rt_services::camera::rtsp::StreamSpec;
 
 use crate::support::tools::{cargo, ensure_apt_packages, root, step};
 use crate::support::Result;

@@ -9,8 +9,8 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use clap::Args;
-use rt_protocol::rtsp::{RTSP_PORT, SERVER_RTP_PORT};
-use rt_protocol::{persistent_port, FRAME_PORT, PERSISTENT_PORT};
+use rt_services::camera::rtsp::{RTSP_PORT, SERVER_RTP_PORT};
+use rt_services::{persistent_port, FRAME_PORT, PERSISTENT_PORT};
 
 use super::uimage;
 use crate::support::tools::{cargo, ensure_apt_packages, ensure_qemu, root, step, FIRMWARE_TARGET};

@@ -4,7 +4,7 @@
 //! for good, so a wedged accelerator costs its time-outs a few times, not on
 //! every row of every frame.
 
-use crate::rows::RowSource;
+use crate::frames::rows::RowSource;
 use model::{Light, WIDTH};
 
 /// Consecutive failed rows after which the primary source is switched off.
@@ -92,7 +92,7 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rows::SoftwareRenderer;
+    use crate::frames::rows::SoftwareRenderer;
 
     /// Fails the rows it is told to.
     struct Flaky {

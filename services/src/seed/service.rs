@@ -14,9 +14,9 @@ use smoltcp::socket::tcp;
 use smoltcp::time::Instant;
 
 use crate::frames::FrameSource;
-use crate::server::{drive, Action, Closed, Mode, Session};
+use crate::seed::server::{drive, Action, Closed, Mode, Session};
+use crate::seed::wire::{FRAME_PORT, PERSISTENT_PORT};
 use crate::time;
-use crate::wire::{FRAME_PORT, PERSISTENT_PORT};
 
 /// Receive buffer of one socket: room for 42 pipelined requests.
 pub const RX_BUFFER_BYTES: usize = 512;

@@ -1,4 +1,4 @@
-//! The receiving end of [`crate::rtp`]'s stream: RTP datagrams in, whole
+//! The receiving end of [`crate::camera::rtp`]'s stream: RTP datagrams in, whole
 //! frames and generic NACKs out.
 //!
 //! Sans-IO like the rest of the crate: the caller hands in each datagram
@@ -42,8 +42,9 @@ use core::time::Duration;
 
 use model::{FRAME_BYTES, ROW_BYTES};
 
+use crate::camera::rtcp::{FMT_GENERIC_NACK, RTCP_RTPFB};
+use crate::camera::rtp::{BufferTooShort, HEADER_BYTES, PACKET_BYTES, PAYLOAD_TYPE};
 use crate::frames::ROWS;
-use crate::rtp::{BufferTooShort, FMT_GENERIC_NACK, HEADER_BYTES, PACKET_BYTES, PAYLOAD_TYPE, RTCP_RTPFB};
 use crate::time::Instant;
 
 const ROW_COUNT: usize = ROWS as usize;
@@ -83,7 +84,7 @@ pub struct ReceiverConfig {
 impl ReceiverConfig {
     /// The defaults, NACKs sent as `ssrc`: three NACKs 15 ms apart and 50 ms
     /// of waiting, well inside the sender's repair hold of at least
-    /// [`crate::camera::MIN_REPAIR_HOLD`], and a few frame times at 60 fps.
+    /// [`crate::camera::sender::MIN_REPAIR_HOLD`], and a few frame times at 60 fps.
     pub const fn new(ssrc: u32) -> ReceiverConfig {
         ReceiverConfig {
             ssrc,
@@ -565,7 +566,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> Receiver<B> {
         });
     }
 
-    /// The fields of a row packet as [`crate::rtp`] writes it.
+    /// The fields of a row packet as [`crate::camera::rtp`] writes it.
     fn parse<'d>(&self, d: &'d [u8]) -> Result<RowIn<'d>, Ignored> {
         let (Some(h), Some(pixels)) = (d.first_chunk::<HEADER_BYTES>(), d.get(HEADER_BYTES..PACKET_BYTES)) else {
             return Err(Ignored::Short);
@@ -608,7 +609,8 @@ fn put_entry(out: &mut [u8; MAX_NACK_BYTES], at: usize, (pid, blp): (u32, u16)) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rtp::{NackRequests, Packetiser, RowPacket};
+    use crate::camera::rtcp::NackRequests;
+    use crate::camera::rtp::{Packetiser, RowPacket};
 
     const SSRC: u32 = 0x1234_5678;
     const OURS: u32 = 0xc11e_0001;

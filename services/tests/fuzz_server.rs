@@ -4,7 +4,7 @@
 //! request; frames only whole and in request order (a reset may cut the
 //! last); every session ends; every frame begun is given back.
 //!
-//! `cargo test -p rt-protocol --test fuzz_server` runs proptest's default
+//! `cargo test -p rt-services --test fuzz_server` runs proptest's default
 //! 256 cases per property (the suite's short run);
 //! `cargo xtask fuzz --cases 1000000` runs a million (release build).
 
@@ -12,8 +12,8 @@ use std::collections::HashMap;
 
 use model::{Light, FRAME_BYTES, ROW_BYTES};
 use proptest::prelude::*;
-use rt_protocol::server::{drive, Action, Mode, Session};
-use rt_protocol::{encode_raw_request, FrameSource, Instant};
+use rt_services::seed::server::{drive, Action, Mode, Session};
+use rt_services::{encode_raw_request, FrameSource, Instant};
 
 /// A frame source whose frames are cheap and recognisable: byte `i` of the
 /// frame for light `l` is a hash of both. Rows become ready a few at a
@@ -226,7 +226,7 @@ fn run(c: &Case) -> Result<(), TestCaseError> {
         );
         match action {
             Action::Close(reason) => {
-                closed = Some(if matches!(reason, rt_protocol::server::Closed::Done) { "done" } else { "error" });
+                closed = Some(if matches!(reason, rt_services::seed::server::Closed::Done) { "done" } else { "error" });
                 break;
             }
             Action::Wait { .. } | Action::Send { .. } => {}

@@ -7,10 +7,10 @@ use std::collections::VecDeque;
 use std::rc::Rc;
 
 use model::{render_frame, Light, FRAME_BYTES};
-use rt_protocol::camera_service::RowTransmitter;
-use rt_protocol::rtp;
-use rt_protocol::service::{FrameService, SocketBuffers};
-use rt_protocol::{
+use rt_services::camera::rtp;
+use rt_services::camera::service::RowTransmitter;
+use rt_services::seed::service::{FrameService, SocketBuffers};
+use rt_services::{
     encode_raw_request, encode_request, FrameRing, FrameSource, RowEngine, RowFrames, SliceMemory, SoftwareRenderer,
     FRAME_PORT, PERSISTENT_PORT,
 };
@@ -475,9 +475,9 @@ impl RtspClient {
 
 #[test]
 fn the_camera_streams_a_frame_over_smoltcp_and_answers_a_nack_from_the_client() {
-    use rt_protocol::camera::Camera;
-    use rt_protocol::camera_service::{CameraBuffers, CameraService, PeerMacs, Snoop};
-    use rt_protocol::rtsp::{self, MAX_SESSIONS, RTSP_PORT, SERVER_RTP_PORT};
+    use rt_services::camera::rtsp::{self, MAX_SESSIONS, RTSP_PORT, SERVER_RTP_PORT};
+    use rt_services::camera::sender::Camera;
+    use rt_services::camera::service::{CameraBuffers, CameraService, PeerMacs, Snoop};
     use smoltcp::socket::udp;
     use smoltcp::wire::{EthernetFrame, Ipv4Packet, UdpPacket};
 

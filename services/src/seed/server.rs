@@ -39,10 +39,10 @@ use heapless::Deque;
 use model::{Light, LightError, ROW_BYTES};
 
 use crate::frames::{FrameSource, ROWS};
-use crate::time::Instant;
-use crate::wire::{decode_request, REQUEST_BYTES};
+use crate::seed::wire::{decode_request, REQUEST_BYTES};
 #[cfg(doc)]
-use crate::wire::{FRAME_PORT, PERSISTENT_PORT};
+use crate::seed::wire::{FRAME_PORT, PERSISTENT_PORT};
+use crate::time::Instant;
 
 /// How long a partially received request may sit idle before it is dropped.
 pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(5);
@@ -476,14 +476,14 @@ pub fn drive<S: FrameSource>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::frames::rows::{RowSource, SoftwareRenderer};
     use crate::frames::RowFrames;
-    use crate::rows::{RowSource, SoftwareRenderer};
     use model::{FRAME_BYTES, WIDTH};
 
     type Source = RowFrames<SoftwareRenderer, 2>;
 
     fn request(x: i32, y: i32, z: i32) -> [u8; 12] {
-        crate::wire::encode_raw_request([x, y, z])
+        crate::seed::wire::encode_raw_request([x, y, z])
     }
 
     fn at(ms: u64) -> Instant {

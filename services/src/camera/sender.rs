@@ -1,4 +1,4 @@
-//! The network camera's RTP sender: what [`crate::rtsp`]'s actions set
+//! The network camera's RTP sender: what [`crate::camera::rtsp`]'s actions set
 //! going. One [`Stream`] per playing session draws frames from a
 //! [`SlotSource`] (the frame ring), paces them at the session's rate,
 //! numbers their rows with a [`Packetiser`], hands each row's packet to
@@ -31,12 +31,11 @@ use core::time::Duration;
 
 use model::Light;
 
+use crate::camera::repair::FrameRepairWindow;
+use crate::camera::rtcp::{self, write_sdes_cname, NackRequests, ReportTimer, SenderReport, SENDER_REPORT_BYTES};
+use crate::camera::rtp::{self, FrameStamp, Packetiser, RowPacket};
+use crate::camera::rtsp::{Action, SessionId, StreamSpec, MAX_SESSIONS};
 use crate::frames::{FrameEngine, FrameMemory, FrameRing, FrameSource, ROWS};
-use crate::rtp::{
-    self, write_sdes_cname, FrameRepairWindow, FrameStamp, NackRequests, Packetiser, ReportTimer, RowPacket,
-    SENDER_REPORT_BYTES,
-};
-use crate::rtsp::{Action, SessionId, StreamSpec, MAX_SESSIONS};
 use crate::time::Instant;
 
 /// Frames in numbered slots that stay readable after [`FrameSource::end`]
@@ -109,7 +108,7 @@ pub fn repair_hold(spec: &StreamSpec) -> Duration {
 /// The shortest repair hold: a second, for a NACK that crosses a slow or
 /// lossy path, or waits behind a long poll (the emulated board renders a
 /// frame on its CPU in one). It costs little: a window keeps at most
-/// [`rtp::REPAIR_ENTRIES`] packets (under three frames) whatever the hold.
+/// [`crate::camera::repair::REPAIR_ENTRIES`] packets (under three frames) whatever the hold.
 pub const MIN_REPAIR_HOLD: Duration = Duration::from_secs(1);
 
 /// The CNAME in the sender reports' SDES (RFC 3550 section 6.5.1).
@@ -230,7 +229,7 @@ pub struct Camera<const N: usize = MAX_SESSIONS> {
 }
 
 /// A sender report and an SDES CNAME chunk, the compound packet sent.
-const RTCP_BYTES: usize = SENDER_REPORT_BYTES + rtp::sdes_cname_bytes(CNAME.len());
+const RTCP_BYTES: usize = SENDER_REPORT_BYTES + rtcp::sdes_cname_bytes(CNAME.len());
 
 impl<const N: usize> Default for Camera<N> {
     fn default() -> Self {
@@ -277,7 +276,7 @@ impl<const N: usize> Camera<N> {
 
     /// Carry out an action of the RTSP server at `now`. Returns, for a
     /// [`Action::Pause`], the position to report back with
-    /// [`crate::rtsp::Server::set_position`]: the sequence number and
+    /// [`crate::camera::rtsp::Server::set_position`]: the sequence number and
     /// timestamp the next packet would have had.
     pub fn apply<S: SlotSource>(&mut self, action: Action, now: Instant, source: &mut S) -> Option<(u16, u32)> {
         match action {
@@ -357,7 +356,7 @@ impl<const N: usize> Camera<N> {
 
     /// Do what is due at `now`: begin frames, send the rows that landed,
     /// send reports, expire repair packets. `wall` is the sender reports'
-    /// clock (NTP format, [`rtp::ntp_timestamp`]): the wall clock where
+    /// clock (NTP format, [`rtcp::ntp_timestamp`]): the wall clock where
     /// there is one, else the time since start. Returns whether anything
     /// was sent or begun (poll again at once if so).
     pub fn poll<S: SlotSource, K: RtpSink>(&mut self, now: Instant, wall: u64, source: &mut S, sink: &mut K) -> bool {
@@ -372,7 +371,7 @@ impl<const N: usize> Camera<N> {
                 progress = true;
             }
             if s.playing && s.reports.poll(now) {
-                let sr = s.packetiser.sender_report(wall, s.media_ticks(now));
+                let sr = SenderReport::now(&s.packetiser, wall, s.media_ticks(now));
                 let n = sr.write(&mut self.rtcp).unwrap_or(0);
                 if let Ok(m) = write_sdes_cname(s.packetiser.ssrc(), CNAME, &mut self.rtcp[n..]) {
                     let _ = sink.send_rtcp(&s.to, &self.rtcp[..n + m]);
@@ -551,7 +550,7 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> SlotSource for Frame
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rtsp::{Fps, Stream as Kind};
+    use crate::camera::rtsp::{Fps, Stream as Kind};
     use model::{FRAME_BYTES, ROW_BYTES};
     use std::cell::RefCell;
     use std::rc::Rc;
@@ -967,10 +966,10 @@ mod tests {
         assert_eq!(sink.rtcp.len(), 1);
         let (to, d) = &sink.rtcp[0];
         assert_eq!(to.rtcp_port, 6001);
-        assert_eq!(d[1], rtp::RTCP_SR);
+        assert_eq!(d[1], rtcp::RTCP_SR);
         assert_eq!(u32::from_be_bytes(d[4..8].try_into().unwrap()), SSRC);
         assert_eq!(u32::from_be_bytes(d[20..24].try_into().unwrap()), 2 * u32::from(ROWS), "packets so far");
-        assert_eq!(d[SENDER_REPORT_BYTES + 1], rtp::RTCP_SDES);
+        assert_eq!(d[SENDER_REPORT_BYTES + 1], rtcp::RTCP_SDES);
     }
 
     #[test]
@@ -978,7 +977,7 @@ mod tests {
         let mut bytes = vec![0; FRAME_BYTES];
         let mut ring = FrameRing::<_, _, 1>::new(
             crate::frames::SliceMemory::new(0, &mut bytes),
-            crate::frames::RowEngine::new(crate::rows::SoftwareRenderer),
+            crate::frames::RowEngine::new(crate::frames::rows::SoftwareRenderer),
         );
         struct Copy(Vec<(RowPacket, usize)>);
         impl RtpSink for Copy {

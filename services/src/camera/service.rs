@@ -24,9 +24,11 @@ use smoltcp::socket::{tcp, udp};
 use smoltcp::time::Instant;
 use smoltcp::wire::{EthernetAddress, EthernetFrame, EthernetProtocol, IpEndpoint, Ipv4Packet};
 
-use crate::camera::{Camera, Destination, RtpSink, SlotSource};
-use crate::rtp::{Endpoints, HeaderTemplate, Packetiser, RowPacket, UdpChecksum};
-use crate::rtsp::{self, Action, Connection, Server, MAX_REQUEST_BYTES, MAX_RESPONSE_BYTES, MAX_SESSIONS, RTSP_PORT};
+use crate::camera::rtp::{Endpoints, HeaderTemplate, Packetiser, RowPacket, UdpChecksum};
+use crate::camera::rtsp::{
+    self, Action, Connection, Server, MAX_REQUEST_BYTES, MAX_RESPONSE_BYTES, MAX_SESSIONS, RTSP_PORT,
+};
+use crate::camera::sender::{Camera, Destination, RtpSink, SlotSource};
 use crate::time;
 
 /// TCP sockets listening for RTSP: two clients setting up at once.
@@ -319,7 +321,8 @@ impl<'c> CameraService<'c> {
         }
         // The wall clock of the sender reports: time since start (the board
         // has no other; receivers use it to pair RTP and NTP times only).
-        let wall = crate::rtp::ntp_timestamp(core::time::Duration::from_micros(now.total_micros().max(0) as u64));
+        let wall =
+            crate::camera::rtcp::ntp_timestamp(core::time::Duration::from_micros(now.total_micros().max(0) as u64));
         // Rounds until nothing moves, a frame is complete or a frame was
         // received: NACKs arrive only through the next `Interface::poll`.
         let frames = |c: &Camera<MAX_SESSIONS>| c.streams().map(|s| s.stats().frames).fold(0u32, u32::wrapping_add);

@@ -8,7 +8,7 @@
 //! and within their owners; every action names a session in the state it
 //! says; every session ends exactly once (TEARDOWN or timeout).
 //!
-//! `cargo test -p rt-protocol --test fuzz_rtsp` runs proptest's default 256
+//! `cargo test -p rt-services --test fuzz_rtsp` runs proptest's default 256
 //! cases (the suite's short run); `cargo xtask fuzz` runs a million
 //! (release build).
 
@@ -17,11 +17,11 @@ use std::net::{IpAddr, Ipv4Addr};
 
 use model::Light;
 use proptest::prelude::*;
-use rt_protocol::rtsp::{
+use rt_services::camera::rtsp::{
     Action, Config, Connection, Random, Server, SessionId, State, Status, Stream, MAX_REQUEST_BYTES,
     MAX_RESPONSE_BYTES, MAX_SESSIONS, SERVER_RTP_PORT, SESSION_TIMEOUT,
 };
-use rt_protocol::Instant;
+use rt_services::Instant;
 
 const PEERS: [IpAddr; 3] = [
     IpAddr::V4(Ipv4Addr::new(10, 0, 0, 1)),

@@ -1,0 +1,563 @@
+//! RTCP for the camera (RFC 3550 section 6, RFC 4585): sender reports,
+//! an SDES CNAME, when to send them, and the receivers' generic NACKs.
+
+use core::time::Duration;
+
+use super::repair::REPAIR_ENTRIES;
+use super::rtp::{front, BufferTooShort, Packetiser};
+use crate::time::Instant;
+
+/// RTCP packet type of a sender report (RFC 3550 section 6.4.1).
+pub const RTCP_SR: u8 = 200;
+/// RTCP packet type of a receiver report (RFC 3550 section 6.4.2).
+pub const RTCP_RR: u8 = 201;
+/// RTCP packet type of source description items (RFC 3550 section 6.5).
+pub const RTCP_SDES: u8 = 202;
+/// RTCP packet type of transport-layer feedback (RFC 4585 section 6.1).
+pub const RTCP_RTPFB: u8 = 205;
+/// The FMT of a generic NACK in transport-layer feedback (RFC 4585
+/// section 6.2.1).
+pub const FMT_GENERIC_NACK: u8 = 1;
+
+/// Bytes of a sender report without report blocks (RFC 3550 section
+/// 6.4.1): header 4, SSRC 4, sender info 20.
+pub const SENDER_REPORT_BYTES: usize = 28;
+
+/// The interval between RTCP reports: RFC 3550 section 6.2's recommended
+/// minimum of 5 seconds. One unicast sender has no one to synchronise with
+/// by accident, so the interval is not randomised (section 6.3.1 draws it
+/// from `[0.5, 1.5]` times this to keep many participants apart).
+pub const REPORT_INTERVAL: Duration = Duration::from_secs(5);
+
+/// Seconds from the NTP era 0 origin (1900-01-01) to the Unix epoch.
+const NTP_UNIX_OFFSET: u64 = 2_208_988_800;
+
+/// The 64-bit NTP timestamp (RFC 3550 section 4: seconds since 1900 in the
+/// high 32 bits, the fraction in the low 32; era 0 wraps in 2036) of a wall
+/// clock reading `since_unix_epoch`.
+pub const fn ntp_timestamp(since_unix_epoch: Duration) -> u64 {
+    let secs = since_unix_epoch.as_secs().wrapping_add(NTP_UNIX_OFFSET) & 0xffff_ffff;
+    let frac = ((since_unix_epoch.subsec_nanos() as u64) << 32) / 1_000_000_000;
+    secs << 32 | frac
+}
+
+/// The first word of an RTCP packet: V = 2, padding, the count (or FMT)
+/// field, the packet type, and the length in 32-bit words minus one (RFC
+/// 3550 section 6.4.1).
+fn rtcp_header(count: u8, pt: u8, bytes: usize) -> [u8; 4] {
+    let words = (bytes / 4 - 1) as u16;
+    let [hi, lo] = words.to_be_bytes();
+    [2 << 6 | (count & 0x1f), pt, hi, lo]
+}
+
+/// An RTCP sender report without reception report blocks (RFC 3550
+/// section 6.4.1): the stream's sender never receives RTP, so RC = 0.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SenderReport {
+    /// The sender's SSRC.
+    pub ssrc: u32,
+    /// The wall clock when the report was made, NTP format
+    /// ([`ntp_timestamp`]).
+    pub ntp_timestamp: u64,
+    /// The same instant on the RTP clock, with the data packets' offset.
+    pub rtp_timestamp: u32,
+    /// RTP data packets sent since the session started (wrapping).
+    pub packet_count: u32,
+    /// RTP payload octets sent since the session started (wrapping; the
+    /// RFC 4175 payload headers and the rows, not the RTP headers).
+    pub octet_count: u32,
+}
+
+impl SenderReport {
+    /// A sender report of `session` for now (RFC 3550 section 6.4.1):
+    /// `ntp` the wall clock in NTP format ([`ntp_timestamp`]), `ticks` the
+    /// same instant on the 90 kHz clock frames are stamped with (so the
+    /// report's RTP timestamp lines up with the frames'), and the packets
+    /// and payload octets numbered so far.
+    pub const fn now(session: &Packetiser, ntp: u64, ticks: u64) -> SenderReport {
+        SenderReport {
+            ssrc: session.ssrc(),
+            ntp_timestamp: ntp,
+            rtp_timestamp: session.timestamp_at(ticks),
+            packet_count: session.packet_count(),
+            octet_count: session.octet_count(),
+        }
+    }
+
+    /// Write the report, [`SENDER_REPORT_BYTES`] bytes, into the front of
+    /// `out`; returns the bytes written. An RTCP compound packet begins
+    /// with it (RFC 3550 section 6.1); [`write_sdes_cname`] writes the
+    /// CNAME that should follow.
+    pub fn write(&self, out: &mut [u8]) -> Result<usize, BufferTooShort> {
+        let out = front(out, SENDER_REPORT_BYTES)?;
+        out[0..4].copy_from_slice(&rtcp_header(0, RTCP_SR, SENDER_REPORT_BYTES));
+        out[4..8].copy_from_slice(&self.ssrc.to_be_bytes());
+        out[8..16].copy_from_slice(&self.ntp_timestamp.to_be_bytes());
+        out[16..20].copy_from_slice(&self.rtp_timestamp.to_be_bytes());
+        out[20..24].copy_from_slice(&self.packet_count.to_be_bytes());
+        out[24..28].copy_from_slice(&self.octet_count.to_be_bytes());
+        Ok(SENDER_REPORT_BYTES)
+    }
+}
+
+/// Bytes of an SDES packet with one chunk holding one CNAME of
+/// `cname_len` octets: header 4, SSRC 4, item type and length 2, the text,
+/// and 1 to 4 null octets ending the item list at a 32-bit boundary (RFC
+/// 3550 section 6.5).
+pub const fn sdes_cname_bytes(cname_len: usize) -> usize {
+    8 + ((2 + cname_len) / 4 + 1) * 4
+}
+
+/// Write an SDES packet with `ssrc`'s CNAME item (RFC 3550 section 6.5.1:
+/// every compound RTCP packet carries one, after the report) into the
+/// front of `out`; returns the bytes written ([`sdes_cname_bytes`]). A
+/// CNAME longer than 255 octets (the item's length field) is cut there.
+pub fn write_sdes_cname(ssrc: u32, cname: &[u8], out: &mut [u8]) -> Result<usize, BufferTooShort> {
+    let cname = cname.get(..255).unwrap_or(cname);
+    let n = sdes_cname_bytes(cname.len());
+    let out = front(out, n)?;
+    out[0..4].copy_from_slice(&rtcp_header(1, RTCP_SDES, n));
+    out[4..8].copy_from_slice(&ssrc.to_be_bytes());
+    out[8] = 1; // CNAME
+    out[9] = cname.len() as u8;
+    out[10..10 + cname.len()].copy_from_slice(cname);
+    out[10 + cname.len()..].fill(0);
+    Ok(n)
+}
+
+/// When to send the next RTCP report: the first [`REPORT_INTERVAL`] / 2
+/// after the stream starts (RFC 3550 section 6.2: "the initial delay ...
+/// MAY be set to half the minimum interval"), then every
+/// [`REPORT_INTERVAL`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReportTimer {
+    next: Instant,
+}
+
+impl ReportTimer {
+    /// A timer for a stream starting at `start`.
+    pub fn new(start: Instant) -> ReportTimer {
+        ReportTimer { next: start + REPORT_INTERVAL / 2 }
+    }
+
+    /// When the next report is due (a deadline for the caller's wait).
+    pub const fn deadline(&self) -> Instant {
+        self.next
+    }
+
+    /// Whether a report is due at `now`; when it is, the next one is
+    /// scheduled [`REPORT_INTERVAL`] from `now`.
+    pub fn poll(&mut self, now: Instant) -> bool {
+        if now < self.next {
+            return false;
+        }
+        self.next = now + REPORT_INTERVAL;
+        true
+    }
+}
+
+/// The extended sequence numbers a receiver reports lost in the generic
+/// NACKs (RFC 4585 section 6.2.1) of one RTCP datagram.
+///
+/// The datagram may be a compound packet (RFC 3550 section 6.1: receiver
+/// report first, SDES, then the feedback) or a reduced-size one holding
+/// the NACK alone (RFC 5506). It is first checked as a whole the way RFC
+/// 3550 appendix A.2 checks a compound packet: every packet's version 2,
+/// its length inside the datagram, padding only on the last one, and the
+/// lengths adding up to the datagram's; anything else yields nothing.
+/// Only packet type 205 with FMT 1 for media source `media_ssrc` counts;
+/// other packets and other feedback are skipped.
+///
+/// Each FCI entry (PID, BLP) yields PID, then PID + 1 + i for each set bit
+/// i of BLP, lowest first. The 16-bit numbers are resolved against the
+/// sender's newest extended sequence number: to the one at most 32,767
+/// packets back with those low 16 bits; numbers ahead of it (never sent)
+/// are dropped. Duplicates are not removed. At most
+/// [`MAX_NACKED_PER_DATAGRAM`] numbers come out of one datagram, however
+/// many it lists: a 1,500-byte NACK could otherwise ask for some 6,000
+/// resends of 1,502 bytes each.
+#[derive(Clone, Debug)]
+pub struct NackRequests<'a> {
+    /// The packets after the current one.
+    rest: &'a [u8],
+    /// The FCI entries of the current NACK not read yet.
+    fci: &'a [u8],
+    media_ssrc: u32,
+    highest: u32,
+    pid: u16,
+    /// Offsets from `pid` still to yield: bit 0 the PID, bit i + 1 BLP's
+    /// bit i.
+    pending: u32,
+    /// Numbers still allowed out.
+    budget: u16,
+}
+
+/// The most sequence numbers [`NackRequests`] yields for one datagram:
+/// two frames' packets ([`REPAIR_ENTRIES`]), all a [`FrameRepairWindow`]
+/// could resend.
+pub const MAX_NACKED_PER_DATAGRAM: u16 = REPAIR_ENTRIES as u16;
+
+/// Whether `data` is a well-formed run of RTCP packets (RFC 3550 appendix
+/// A.2, less the rule that the first be a report: RFC 5506 allows a
+/// feedback packet alone).
+fn valid_compound(mut data: &[u8]) -> bool {
+    if data.is_empty() {
+        return false;
+    }
+    while !data.is_empty() {
+        let Some(&[b0, _, hi, lo]) = data.first_chunk::<4>() else {
+            return false;
+        };
+        let len = (usize::from(u16::from_be_bytes([hi, lo])) + 1) * 4;
+        let Some(packet) = data.get(..len) else {
+            return false;
+        };
+        data = &data[len..];
+        if b0 >> 6 != 2 {
+            return false;
+        }
+        if b0 & 0x20 != 0 {
+            // Padding: only on the last packet, at least one octet, and no
+            // more than the packet's body.
+            let pad = usize::from(packet[len - 1]);
+            if !data.is_empty() || pad == 0 || pad > len - 4 {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+impl<'a> NackRequests<'a> {
+    /// The lost packets `datagram` asks `media_ssrc` to send again, the
+    /// sender's newest extended sequence number being `highest` (`None`
+    /// before the first packet: nothing to resend).
+    pub fn new(datagram: &'a [u8], media_ssrc: u32, highest: Option<u32>) -> NackRequests<'a> {
+        let rest = match highest {
+            Some(_) if valid_compound(datagram) => datagram,
+            _ => &[],
+        };
+        NackRequests {
+            rest,
+            fci: &[],
+            media_ssrc,
+            highest: highest.unwrap_or(0),
+            pid: 0,
+            pending: 0,
+            budget: MAX_NACKED_PER_DATAGRAM,
+        }
+    }
+
+    /// The extended sequence number with low 16 bits `seq16` at most 32,767
+    /// packets back from the newest, if there is one.
+    fn resolve(&self, seq16: u16) -> Option<u32> {
+        let back = (self.highest as u16).wrapping_sub(seq16);
+        (back < 0x8000).then(|| self.highest.wrapping_sub(u32::from(back)))
+    }
+
+    /// Move to the next NACK for our media source; false at the end.
+    fn next_nack(&mut self) -> bool {
+        while let Some(&[b0, pt, hi, lo]) = self.rest.first_chunk::<4>() {
+            // valid_compound checked every length and the padding.
+            let len = (usize::from(u16::from_be_bytes([hi, lo])) + 1) * 4;
+            let Some(packet) = self.rest.get(..len) else {
+                break;
+            };
+            self.rest = &self.rest[len..];
+            let pad = if b0 & 0x20 != 0 { usize::from(packet[len - 1]) } else { 0 };
+            let body = packet.get(..len.saturating_sub(pad)).unwrap_or(&[]);
+            if pt != RTCP_RTPFB || b0 & 0x1f != FMT_GENERIC_NACK {
+                continue;
+            }
+            let Some(&[s0, s1, s2, s3]) = body.get(8..12).and_then(|b| b.first_chunk::<4>()) else {
+                continue;
+            };
+            if u32::from_be_bytes([s0, s1, s2, s3]) == self.media_ssrc {
+                self.fci = &body[12..];
+                return true;
+            }
+        }
+        self.rest = &[];
+        false
+    }
+}
+
+impl Iterator for NackRequests<'_> {
+    type Item = u32;
+
+    fn next(&mut self) -> Option<u32> {
+        self.budget = self.budget.checked_sub(1)?;
+        loop {
+            if self.pending != 0 {
+                let offset = self.pending.trailing_zeros();
+                self.pending &= self.pending - 1;
+                if let Some(seq) = self.resolve(self.pid.wrapping_add(offset as u16)) {
+                    return Some(seq);
+                }
+            } else if let Some((&[p0, p1, b0, b1], rest)) = self.fci.split_first_chunk::<4>() {
+                self.fci = rest;
+                self.pid = u16::from_be_bytes([p0, p1]);
+                self.pending = 1 | u32::from(u16::from_be_bytes([b0, b1])) << 1;
+            } else if !self.next_nack() {
+                return None;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::repair::FrameRepairWindow;
+    use crate::camera::rtp::{ticks, HEADER_BYTES};
+    use crate::frames::ROWS;
+
+    fn session() -> Packetiser {
+        Packetiser::new(0x1234_5678, 0x0001_0203, 0xa000_0000)
+    }
+
+    #[test]
+    fn a_sender_report_counts_new_packets_and_lines_up_the_clocks() {
+        let mut p = session();
+        let f = p.begin_frame(ticks(Instant::from_millis(2_000)));
+        for y in 0..ROWS {
+            p.write_header(f, y, &mut [0; 20]).unwrap();
+        }
+        let ntp = ntp_timestamp(Duration::new(1_700_000_000, 500_000_000));
+        assert_eq!(ntp, (1_700_000_000 + 2_208_988_800) << 32 | 0x8000_0000);
+        let sr = SenderReport::now(&p, ntp, ticks(Instant::from_millis(2_500)));
+        assert_eq!(
+            sr,
+            SenderReport {
+                ssrc: 0x1234_5678,
+                ntp_timestamp: ntp,
+                rtp_timestamp: 0xa000_0000 + 225_000,
+                packet_count: 360,
+                octet_count: 360 * 1_448,
+            }
+        );
+        let mut out = [0u8; 32];
+        assert_eq!(sr.write(&mut out), Ok(28));
+        #[rustfmt::skip]
+        assert_eq!(out[..28], [
+            0x80, 200, 0x00, 0x06,                          // V=2, RC=0, SR, 7 words
+            0x12, 0x34, 0x56, 0x78,
+            0xe8, 0xfe, 0x6f, 0x80, 0x80, 0x00, 0x00, 0x00, // NTP: 3,908,988,800.5 s
+            0xa0, 0x03, 0x6e, 0xe8,                         // RTP timestamp
+            0x00, 0x00, 0x01, 0x68,                         // 360 packets
+            0x00, 0x07, 0xf4, 0x40,                         // 521,280 octets
+        ]);
+        assert_eq!(sr.write(&mut [0; 27]), Err(BufferTooShort { needed: 28 }));
+    }
+
+    #[test]
+    fn an_sdes_cname_ends_on_a_word_with_a_null() {
+        let mut out = [0xffu8; 24];
+        assert_eq!(write_sdes_cname(0x0102_0304, b"rt@board", &mut out), Ok(20));
+        #[rustfmt::skip]
+        assert_eq!(out[..20], [
+            0x81, 202, 0x00, 0x04, 1, 2, 3, 4,
+            1, 8, b'r', b't', b'@', b'b', b'o', b'a', b'r', b'd',
+            0, 0,
+        ]);
+        assert_eq!(sdes_cname_bytes(2), 16, "2 + 2 octets fill a word: a whole word of nulls after");
+        assert_eq!(write_sdes_cname(1, &[b'x'; 300], &mut [0; 300]), Ok(sdes_cname_bytes(255)));
+    }
+
+    #[test]
+    fn reports_go_out_half_an_interval_in_then_every_interval() {
+        let mut t = ReportTimer::new(Instant::from_millis(1_000));
+        assert_eq!(t.deadline(), Instant::from_millis(3_500));
+        assert!(!t.poll(Instant::from_millis(3_499)));
+        assert!(t.poll(Instant::from_millis(3_600)));
+        assert_eq!(t.deadline(), Instant::from_millis(8_600));
+        assert!(!t.poll(Instant::from_millis(8_000)));
+    }
+
+    /// An RTCP generic NACK (RFC 4585 section 6.2.1) from `sender` about
+    /// `media`, with FCI entries `(pid, blp)`.
+    fn nack(sender: u32, media: u32, entries: &[(u16, u16)]) -> Vec<u8> {
+        let words = 2 + entries.len();
+        let mut v = vec![0x81, 205];
+        v.extend_from_slice(&(words as u16).to_be_bytes());
+        v.extend_from_slice(&sender.to_be_bytes());
+        v.extend_from_slice(&media.to_be_bytes());
+        for (pid, blp) in entries {
+            v.extend_from_slice(&pid.to_be_bytes());
+            v.extend_from_slice(&blp.to_be_bytes());
+        }
+        v
+    }
+
+    /// An empty receiver report from `ssrc` (RFC 3550 section 6.4.2).
+    fn rr(ssrc: u32) -> Vec<u8> {
+        let mut v = vec![0x80, 201, 0, 1];
+        v.extend_from_slice(&ssrc.to_be_bytes());
+        v
+    }
+
+    fn nacked(datagram: &[u8], highest: u32) -> Vec<u32> {
+        NackRequests::new(datagram, 0x1234_5678, Some(highest)).collect()
+    }
+
+    #[test]
+    fn a_compound_nack_yields_the_pid_and_its_blp_bits() {
+        let mut d = rr(0xdead_beef);
+        d.extend(nack(0xdead_beef, 0x1234_5678, &[(0x1234, 0b1000_0000_0000_0101)]));
+        assert_eq!(nacked(&d, 0x0002_1300), [0x0002_1234, 0x0002_1235, 0x0002_1237, 0x0002_1244]);
+    }
+
+    #[test]
+    fn pids_resolve_into_the_last_32768_packets_across_the_wrap() {
+        let d = nack(1, 0x1234_5678, &[(0xfff0, 0), (0xffff, 0b11), (0x0010, 0), (0x8010, 0)]);
+        // Newest 0x0003_0010: 0xfff0 is in the previous high half, 0xffff
+        // + 1 wraps into this one, 0x0010 is the newest itself and 0x8010
+        // is 32,768 back: too far (it would as well be ahead).
+        assert_eq!(nacked(&d, 0x0003_0010), [0x0002_fff0, 0x0002_ffff, 0x0003_0000, 0x0003_0001, 0x0003_0010]);
+        assert_eq!(nacked(&nack(1, 0x1234_5678, &[(0x0011, 0)]), 0x0003_0010), [0; 0], "never sent");
+        assert_eq!(nacked(&nack(1, 0x1234_5678, &[(0x8011, 0)]), 0x0003_0010), [0x0002_8011], "32,767 back");
+        assert_eq!(NackRequests::new(&d, 0x1234_5678, None).count(), 0, "nothing sent yet");
+    }
+
+    #[test]
+    fn other_packets_and_other_sources_are_skipped() {
+        let mut d = rr(9);
+        d.extend([0x81, 202, 0, 2, 0, 0, 0, 9, 1, 1, b'x', 0]); // SDES CNAME
+        d.extend(nack(9, 0x0bad_0bad, &[(5, 0)])); // another stream
+        let mut pli = nack(9, 0x1234_5678, &[]);
+        pli[1] = 206; // PSFB, FMT 1: a picture loss indication
+        d.extend(pli);
+        let mut twcc = nack(9, 0x1234_5678, &[(6, 0)]);
+        twcc[0] = 0x8f; // RTPFB FMT 15
+        d.extend(twcc);
+        d.extend(nack(9, 0x1234_5678, &[(7, 0), (9, 0)]));
+        assert_eq!(nacked(&d, 100), [7, 9]);
+    }
+
+    #[test]
+    fn padding_on_the_last_packet_is_not_fci() {
+        let mut d = nack(9, 0x1234_5678, &[(7, 0), (0, 4)]);
+        d[0] |= 0x20; // the last entry's word is now padding: 00 00 00 04
+        assert_eq!(nacked(&d, 100), [7]);
+    }
+
+    #[test]
+    fn one_datagram_asks_for_a_bounded_number_of_resends() {
+        let d = nack(9, 0x1234_5678, &[(100, 0xffff); 300]);
+        assert_eq!(nacked(&d, 200).len(), usize::from(MAX_NACKED_PER_DATAGRAM), "not 300 x 17");
+        assert_eq!(nacked(&nack(9, 0x1234_5678, &[(100, 0xffff); 2]), 200).len(), 34);
+    }
+
+    #[test]
+    fn malformed_datagrams_yield_nothing() {
+        let good = nack(9, 0x1234_5678, &[(7, 0)]);
+        assert_eq!(nacked(&good, 100), [7]);
+        let mut cases: Vec<Vec<u8>> = vec![vec![], good[..good.len() - 1].to_vec()];
+        let mut v1 = good.clone();
+        v1[0] = 0x41; // version 1
+        cases.push(v1);
+        let mut long = good.clone();
+        long[3] = 9; // past the end
+        cases.push(long);
+        let mut trailing = good.clone();
+        trailing.extend([0x80, 201]); // half a header after
+        cases.push(trailing);
+        let mut pad_first = good.clone();
+        pad_first[0] |= 0x20;
+        pad_first.extend(rr(9));
+        cases.push(pad_first);
+        let mut pad_zero = good.clone();
+        pad_zero[0] |= 0x20;
+        *pad_zero.last_mut().unwrap() = 0;
+        cases.push(pad_zero);
+        let mut pad_huge = good.clone();
+        pad_huge[0] |= 0x20;
+        *pad_huge.last_mut().unwrap() = 200;
+        cases.push(pad_huge);
+        for (i, c) in cases.iter().enumerate() {
+            assert_eq!(nacked(c, 100), [0; 0], "case {i}");
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::test_runner::Config {
+            failure_persistence: None, ..proptest::test_runner::Config::default()
+        })]
+
+        #[test]
+        fn random_bytes_never_panic(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..600),
+                                    highest: u32) {
+            let n = NackRequests::new(&bytes, 0x1234_5678, Some(highest)).count();
+            proptest::prop_assert!(n <= 17 * (bytes.len() / 4));
+        }
+
+        #[test]
+        fn random_nacks_yield_their_bits(entries in proptest::collection::vec((0u16..2000, proptest::num::u16::ANY), 0..40),
+                                         pad in 0u8..8, tail in proptest::collection::vec(proptest::num::u8::ANY, 0..40)) {
+            // Well-formed NACKs, then random bytes (valid or not).
+            let mut d = nack(1, 0x1234_5678, &entries);
+            let plain = nack(1, 0x1234_5678, &entries);
+            if pad > 0 {
+                let pad = usize::from(pad) * 4;
+                d[0] |= 0x20;
+                d.resize(d.len() + pad, 0);
+                *d.last_mut().unwrap() = pad as u8;
+                let words = (d.len() / 4 - 1) as u16;
+                d[2..4].copy_from_slice(&words.to_be_bytes());
+            }
+            let expected: Vec<u32> = entries.iter().flat_map(|&(pid, blp)| {
+                core::iter::once(u32::from(pid))
+                    .chain((0..16).filter(move |i| blp & (1 << i) != 0).map(move |i| u32::from(pid) + 1 + i))
+            }).filter(|&s| s <= 3_000).collect();
+            proptest::prop_assert_eq!(nacked(&d, 3_000), expected.clone());
+            proptest::prop_assert_eq!(nacked(&plain, 3_000), expected);
+            let mut with_tail = d.clone();
+            with_tail.extend(&tail);
+            let _ = nacked(&with_tail, 3_000);
+        }
+
+        #[test]
+        fn mutated_compounds_never_panic(flips in proptest::collection::vec((0usize..64, proptest::num::u8::ANY), 1..6),
+                                         highest: u32) {
+            let mut d = rr(9);
+            d.extend(nack(9, 0x1234_5678, &[(7, 0xffff), (40_000, 1)]));
+            d.extend(nack(9, 0x1234_5678, &[(8, 3)]));
+            for (at, byte) in flips {
+                let i = at % d.len();
+                d[i] = byte;
+            }
+            let n = NackRequests::new(&d, 0x1234_5678, Some(highest)).count();
+            proptest::prop_assert!(n <= 3 * 17);
+        }
+    }
+
+    #[test]
+    fn a_nack_is_answered_with_the_original_packet() {
+        let mut p = session();
+        let mut w = FrameRepairWindow::new(Duration::from_secs(1));
+        let mut sent = vec![];
+        for slot in [0, 1] {
+            let f = p.begin_frame(u64::from(slot as u32) * 3_000);
+            for y in 0..ROWS {
+                let mut h = [0u8; HEADER_BYTES];
+                let packet = p.write_header(f, y, &mut h).unwrap();
+                w.record(Instant::from_millis(0), slot, packet).unwrap();
+                sent.push(h);
+            }
+        }
+        let highest = p.highest_seq().unwrap();
+        let lost = [5usize, 6, 359, 360, 500];
+        let pid = |i: usize| (0x0001_0203 + i as u32) as u16;
+        let d = nack(9, p.ssrc(), &[(pid(5), 0b1), (pid(359), 0b1), (pid(500), 0)]);
+        let resent: Vec<(usize, [u8; HEADER_BYTES])> = NackRequests::new(&d, p.ssrc(), Some(highest))
+            .filter_map(|seq| w.lookup(seq))
+            .map(|r| {
+                let mut h = [0u8; HEADER_BYTES];
+                p.emit(&r.packet, &mut h).unwrap();
+                (r.slot, h)
+            })
+            .collect();
+        let expected: Vec<_> = lost.iter().map(|&i| (i / 360, sent[i])).collect();
+        assert_eq!(resent, expected);
+    }
+}

@@ -1,0 +1,39 @@
+//! The board's application: the services it offers on the network and the
+//! frames they share, as sans-IO state machines that the firmware binds to
+//! smoltcp and `hps-sim` to std sockets; and the client ends of the same
+//! protocols.
+//!
+//! * [`frames`]: where every service's frames come from: the ring of frame
+//!   slots the FPGA (or the software renderer) fills, row mode, the engines'
+//!   fallback and watchdog, and the rules by which services share slots.
+//! * [`seed`]: the seed protocol's frame server (TCP 7878, and the
+//!   persistent port 7879): 12 bytes in, one frame out.
+//! * [`camera`]: the network camera: RTSP sessions (TCP 8554), their RTP
+//!   streams (RFC 4175, one row a packet) with NACK repair, and the
+//!   receiver clients use.
+//! * [`monitor`]: the board on its own: the VGA display following the
+//!   newest frame, attract mode, keys, switches, LEDs and 7-segment text.
+//! * [`orbit`]: the light orbiting the sphere, by frame or by time.
+//! * [`time`]: [`time::Instant`], the millisecond clock the services run on.
+//!
+//! A frame is 518,400 bytes: 480 x 360 RGB888, row-major, top row first
+//! ([`model::FRAME_BYTES`]).
+#![cfg_attr(not(test), no_std)]
+#![forbid(unsafe_code)]
+
+pub mod camera;
+pub mod frames;
+pub mod monitor;
+pub mod orbit;
+pub mod seed;
+pub mod time;
+
+pub use frames::{
+    Completed, EngineError, FallbackEngine, FrameEngine, FrameMemory, FrameRing, FrameSource, RowEngine, RowFrames,
+    RowSource, SliceMemory, SoftwareRenderer, Watchdog, WatchdogError,
+};
+pub use seed::server::{Action, Closed, Mode, Session};
+pub use seed::wire::{
+    decode_request, encode_raw_request, encode_request, persistent_port, FRAME_PORT, PERSISTENT_PORT, REQUEST_BYTES,
+};
+pub use time::Instant;
