@@ -26,3 +26,4 @@ pub mod rtsp;
 pub mod sender;
 #[cfg(feature = "smoltcp")]
 pub mod service;
+pub mod url;

@@ -20,10 +20,12 @@ pub mod engines;
 pub mod fallback;
 pub mod ring;
 pub mod rows;
+pub mod share;
 
 pub use engines::{EngineError, FallbackEngine, Watchdog, WatchdogError};
 pub use ring::{Completed, FrameEngine, FrameMemory, FrameRing, RowEngine, SliceMemory};
 pub use rows::{RowFrames, RowSource, SoftwareRenderer};
+pub use share::Quota;
 
 use core::fmt;
 

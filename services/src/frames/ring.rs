@@ -89,6 +89,10 @@ where
     /// windows, [`crate::camera::sender::SlotSource::set_held`]), apart from the
     /// display's pins.
     held: u32,
+    /// Slots `begin` also skips: a transmit descriptor still points into
+    /// them (the board's zero-copy rows, [`set_in_flight`](Self::set_in_flight)).
+    /// A mask of its own, so that no other owner's update can drop it.
+    in_flight: u32,
     /// The newest complete frame, while its slot still holds it.
     newest: Option<Completed>,
     /// Frames completed so far (wrapping).
@@ -121,6 +125,7 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
             rendering_light: None,
             pinned: 0,
             held: 0,
+            in_flight: 0,
             newest: None,
             completed: 0,
         }
@@ -169,6 +174,18 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
         self.held = mask;
     }
 
+    /// Keep the slots of `mask` out of reuse while a transmit descriptor
+    /// points into them, replacing the previous in-flight mask (and only
+    /// it: the pins and the repair windows' holds are masks of their own).
+    pub fn set_in_flight(&mut self, mask: u32) {
+        self.in_flight = mask;
+    }
+
+    /// Slots a transmit descriptor points into (bit `i`: slot `i`).
+    pub fn in_flight(&self) -> u32 {
+        self.in_flight
+    }
+
     /// Bus address of `slot` in the ring's memory.
     pub fn slot_address(&self, slot: usize) -> u32 {
         self.mem.slot_address(slot)
@@ -176,7 +193,7 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
 
     /// A free slot `begin` may take: not held by a frame, not pinned.
     fn takeable(&self, slot: usize) -> bool {
-        matches!(self.slots[slot], SlotState::Free) && !self.is_pinned(slot) && self.held & (1 << slot) == 0
+        matches!(self.slots[slot], SlotState::Free) && (self.pinned | self.held | self.in_flight) & (1 << slot) == 0
     }
 
     /// The engine.
@@ -576,5 +593,23 @@ pub(crate) mod tests {
         let b = ring.begin(&light(2.0)).unwrap().unwrap();
         while ring.rows_ready(b).unwrap() < ROWS {}
         assert_eq!(ring.newest_complete().map(|c| c.slot), Some(b));
+    }
+
+    #[test]
+    fn slots_under_a_descriptor_stay_out_of_use_whatever_the_holds_say() {
+        let mut mem = vec![0u8; 2 * FRAME_BYTES];
+        let mut ring = FrameRing::<_, _, 2>::new(SliceMemory::new(0, &mut mem), RowEngine::new(SoftwareRenderer));
+        let a = ring.begin(&light(1.0)).unwrap().unwrap();
+        while ring.rows_ready(a).unwrap() < ROWS {}
+        ring.end(a);
+        ring.set_in_flight(1 << a);
+        ring.set_held(1 << a);
+        ring.set_held(0); // the repair windows let go: the descriptors still point there
+        assert_eq!(ring.free_slots(), 1, "only the other slot");
+        let b = ring.begin(&light(2.0)).unwrap().unwrap();
+        assert_ne!(a, b);
+        assert_eq!(ring.begin(&light(3.0)).unwrap(), None, "a is still under a descriptor");
+        ring.set_in_flight(0);
+        assert_eq!(ring.begin(&light(3.0)).unwrap(), Some(a));
     }
 }
