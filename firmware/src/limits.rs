@@ -1,25 +1,44 @@
 //! The firmware's sizes in one place: sockets per service and frame slots
-//! of the ring they share. Below every other module (it imports nothing of
-//! the binary), so the services (`net`) and the frames (`render`) both take
+//! of the ring they share. Below every other module (it imports nothing
+//! of the binary), so the services (`net`) and the frames (`render`) both take
 //! their sizes from here rather than from one another.
+//!
+//! # The ring's slots
+//!
+//! Three kinds of user share the ring (`rt_services::frames::share`), each
+//! with a bound of its own, and the ring holds the sum, so none can starve
+//! another (docs/streaming.md, "Slot arithmetic"):
+//!
+//! | user | slots | why |
+//! |---|---|---|
+//! | VGA display | [`DISPLAY_SLOTS`] = 2 | the frame on screen and the one waiting for vertical blanking |
+//! | seed frame server | [`SEED_FRAMES`] = 4 | one being sent and three rendering ahead (its quota) |
+//! | network camera | [`CAMERA_SLOTS`] = 8 | per stream the frame being sent and the one before it, for repairs; up to four streams |
+//!
+//! 14 slots of 518,400 bytes, 7,257,600 bytes, in the 8 MiB `.frames`
+//! region (memory.x).
+
+pub use rt_services::camera::sender::CAMERA_SLOTS;
 
 /// TCP sockets of the frame service: [`FRAME_PORT_SOCKETS`] on the seed
 /// port, the rest on the persistent port. A socket holds one client; the
-/// frame ring renders four frames at a time for sessions (six without a
-/// VGA display, which keeps two slots), so up to 14 seed-port clients wait
-/// their turn beyond those four (docs/reliability.md#overload), and one
-/// more arriving while all are taken is refused.
+/// frame ring renders [`SEED_FRAMES`] frames at a time for them, so up to
+/// 14 seed-port clients wait their turn beyond those four
+/// (docs/reliability.md#overload), and one more arriving while all are
+/// taken is refused.
 pub const SOCKETS: usize = 24;
 
 /// Sockets on the seed port.
 pub const FRAME_PORT_SOCKETS: usize = 18;
 
-/// Frame slots of the ring: four for sessions (one being sent and three to
-/// render ahead, for up to four sessions at once) and two the VGA display
-/// keeps out of reuse (the frame on screen and the one waiting for vertical
-/// blanking, `rt_services::monitor`). Six frames, 3,110,400 bytes, fill the
-/// 3 MiB `.frames` region (memory.x).
-pub const RING_SLOTS: usize = 6;
+/// Slots the VGA display keeps out of reuse (`rt_services::monitor`).
+pub const DISPLAY_SLOTS: usize = 2;
+
+/// Frames the seed frame server holds at once (its quota).
+pub const SEED_FRAMES: usize = 4;
+
+/// Frame slots of the ring: the sum of its users' bounds (module docs).
+pub const RING_SLOTS: usize = DISPLAY_SLOTS + SEED_FRAMES + CAMERA_SLOTS;
 
 /// Row frames in row mode: one per seed-port socket.
 pub const ROW_FRAMES: usize = SOCKETS;

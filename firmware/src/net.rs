@@ -14,7 +14,9 @@ use dwmac::{DmaArea, Dwmac};
 use hal_avalon::RegisterPort;
 use rt_services::camera::rtsp::{self, MAX_SESSIONS, RTSP_PORT, SERVER_RTP_PORT};
 use rt_services::camera::sender::Camera;
-use rt_services::camera::service::{CameraBuffers, CameraService, PeerMacs, Snoop, RTSP_SOCKETS};
+use rt_services::camera::sender::{self, Multicast};
+use rt_services::camera::service::{CameraBuffers, CameraService, Snoop, Snooped, RTSP_SOCKETS};
+use rt_services::frames::Quota;
 use rt_services::seed::service::{FrameService, SocketBuffers};
 use rt_services::{FrameSource, FRAME_PORT, PERSISTENT_PORT};
 use smoltcp::iface::{Config, Interface, SocketSet, SocketStorage};
@@ -25,7 +27,7 @@ use static_cell::ConstStaticCell;
 
 use crate::cpu::Caches;
 use crate::display::Display;
-use crate::limits::{FRAME_PORT_SOCKETS, RING_SLOTS, SOCKETS};
+use crate::limits::{FRAME_PORT_SOCKETS, RING_SLOTS, SEED_FRAMES, SOCKETS};
 use crate::log::{self, Log};
 use crate::platform::Board;
 use crate::render::Frames;
@@ -53,6 +55,21 @@ impl fmt::Display for NetError {
 }
 
 impl core::error::Error for NetError {}
+
+/// Where the camera's multicast streams go: `FW_MULTICAST` at build time
+/// (`GROUP[:PORT[:TTL]]`, or `off`), else 239.255.42.1, port 5006, TTL 1
+/// (an administratively scoped group, RFC 2365, kept on the board's link).
+fn multicast_config() -> Option<Multicast> {
+    parse_multicast(option_env!("FW_MULTICAST").unwrap_or("239.255.42.1:5006:1"))
+}
+
+fn parse_multicast(text: &str) -> Option<Multicast> {
+    let mut parts = text.split(':');
+    let group: Ipv4Addr = parts.next()?.parse().ok().filter(Ipv4Addr::is_multicast)?;
+    let base_port = parts.next().map_or(Some(5006), |p| p.parse().ok())?;
+    let ttl = parts.next().map_or(Some(1), |t| t.parse().ok())?;
+    Some(Multicast { group, base_port, ttl })
+}
 
 /// The interface's address: `FW_IPV4` at build time, else the board's.
 fn ipv4<B: Board>() -> Ipv4Cidr {
@@ -182,21 +199,37 @@ pub fn run<B: Board, P: RegisterPort>(
     let live_light = model::Light::from_world(3.0, 4.0, -2.0).ok();
     let mut camera = match slot_addresses.zip(live_light) {
         Some((_, live_light)) => {
-            let config = rtsp::Config { server_ip: cidr.address(), rtp_port: SERVER_RTP_PORT, live_light };
+            let multicast = multicast_config();
+            camera_senders.configure(sender::Config { live_light, multicast });
+            let config = rtsp::Config { server_ip: cidr.address(), rtp_port: SERVER_RTP_PORT };
             let mac_addr = EthernetAddress(B::MAC_ADDR);
-            match CameraService::new(
-                &mut sockets,
-                camera_buffers,
-                camera_senders,
-                config,
-                mac_addr,
-                timer.ticks() as u32,
-            ) {
+            // What the board has to key its random numbers with: the time
+            // since reset on the 200 MHz global timer (boot loaders and DDR
+            // training vary it), its addresses (not secret, but its own);
+            // each RTSP connection's arrival time is stirred in later
+            // (docs/streaming.md, "Random numbers").
+            let mut entropy = [0u8; 18];
+            entropy[..8].copy_from_slice(&timer.ticks().to_le_bytes());
+            entropy[8..14].copy_from_slice(&B::MAC_ADDR);
+            entropy[14..].copy_from_slice(&cidr.address().octets());
+            match CameraService::new(&mut sockets, camera_buffers, camera_senders, config, mac_addr, &entropy) {
                 Ok(c) => {
                     let _ = writeln!(
                         log,
-                        "camera: RTSP on TCP {RTSP_PORT}, RTP from UDP {SERVER_RTP_PORT}, rows zero-copy from the ring"
+                        "camera: RTSP on TCP {RTSP_PORT} ({RTSP_SOCKETS} sockets), RTP from UDP {SERVER_RTP_PORT}, rows zero-copy from the ring"
                     );
+                    match multicast {
+                        Some(m) => {
+                            let _ = writeln!(
+                                log,
+                                "camera: multicast to {} from port {}, TTL {}",
+                                m.group, m.base_port, m.ttl
+                            );
+                        }
+                        None => {
+                            let _ = writeln!(log, "camera: no multicast (FW_MULTICAST=off)");
+                        }
+                    }
                     Some(c)
                 }
                 Err(e) => {
@@ -210,9 +243,11 @@ pub fn run<B: Board, P: RegisterPort>(
             None
         }
     };
-    let mut peers = PeerMacs::new();
+    let mut peers = Snooped::new(SERVER_RTP_PORT);
     let mut in_flight = [None; RING_SLOTS];
     let mut refused = 0u32;
+    // Frames the seed server holds (its quota's count).
+    let mut seed_frames = 0usize;
     log::flush();
 
     let mut display = Display::probe(frames, &mut log);
@@ -241,9 +276,13 @@ pub fn run<B: Board, P: RegisterPort>(
         }
         let now = Instant::from_micros(i64::try_from(now_us).unwrap_or(i64::MAX));
         iface.poll(now, &mut Snoop { inner: &mut mac, peers: &mut peers }, &mut sockets);
-        service.poll(now, &mut sockets, &mut Counting { frames: &mut *frames, begun: &mut requests }, &mut log);
+        // The seed server's frames count for the display (its attract
+        // mode waits while they come) and stay within its quota of slots.
+        let mut counted = Counting { frames: &mut *frames, begun: &mut requests };
+        service.poll(now, &mut sockets, &mut Quota::new(&mut counted, &mut seed_frames, SEED_FRAMES), &mut log);
         if let (Some(c), Some(slots)) = (&mut camera, &slot_addresses) {
-            let held = crate::camera::slots_in_flight(&mut mac, &mut in_flight);
+            let busy = crate::camera::slots_in_flight(&mut mac, &mut in_flight);
+            frames.set_in_flight(busy);
             let mut tx = crate::camera::ZeroCopy {
                 mac: &mut mac,
                 slots,
@@ -251,10 +290,10 @@ pub fn run<B: Board, P: RegisterPort>(
                 refused: &mut refused,
                 cic: None,
             };
-            // The camera's frames count as clients' for the display (its
-            // attract mode waits while they come).
+            // The camera's frames count as clients' for the display too.
             let mut counted = Counting { frames: &mut *frames, begun: &mut requests };
-            crate::bench::camera(|| c.poll(now, &mut sockets, &peers, &mut counted, &mut tx, held, &mut log));
+            let entropy = timer.ticks();
+            crate::bench::camera(|| c.poll(now, &mut sockets, &mut peers, &mut counted, &mut tx, entropy, &mut log));
         }
         frames.report(&mut log);
         if let Some(d) = &mut display {
@@ -273,9 +312,10 @@ pub fn run<B: Board, P: RegisterPort>(
         } else if idle_since.is_some_and(|t| now_us.saturating_sub(t) >= 1_000_000) {
             idle_since = None;
             let (tx, rx) = mac.free_descriptors();
+            let rtsp = camera.as_ref().map_or(0, |c| c.listening(&sockets));
             let _ = writeln!(
                 log,
-                "net: idle: {} of {SOCKETS} sockets listening, {tx} of {} TX and {rx} of {} RX descriptors free",
+                "net: idle: {} of {SOCKETS} sockets listening, {tx} of {} TX and {rx} of {} RX descriptors free, {rtsp} of {RTSP_SOCKETS} RTSP sockets listening",
                 service.listening(&sockets),
                 dwmac::TX_RING,
                 dwmac::RX_RING

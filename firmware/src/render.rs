@@ -294,6 +294,17 @@ impl<P: RegisterPort> FrameSource for Frames<P> {
     }
 }
 
+impl<P: RegisterPort> Frames<P> {
+    /// Keep the slots of `mask` out of reuse while a transmit descriptor
+    /// points into them (the camera's zero-copy rows); a mask of its own,
+    /// which no camera call replaces.
+    pub fn set_in_flight(&mut self, mask: u32) {
+        if let Frames::Ring(r) = self {
+            r.set_in_flight(mask)
+        }
+    }
+}
+
 /// The network camera resends rows from ring slots; row mode has none (the
 /// camera runs in frame mode only, net.rs).
 impl<P: RegisterPort> rt_services::camera::sender::SlotSource for Frames<P> {

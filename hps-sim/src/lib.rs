@@ -260,9 +260,14 @@ impl HpsSim {
     }
 
     /// Also serve RTSP/RTP ([`rtsp::RtspServer`]) on `addr` (port 0: any
-    /// free one) with `device`, logging if `verbose`.
+    /// free one) with `device`, logging if `verbose`, without multicast.
     pub fn start_rtsp(&mut self, addr: SocketAddr, device: Device, verbose: bool) -> io::Result<SocketAddr> {
-        let server = rtsp::RtspServer::start(addr, device, verbose)?;
+        self.start_rtsp_with(addr, rtsp::Options { device, verbose, multicast: None })
+    }
+
+    /// Also serve RTSP/RTP on `addr` as `options` say.
+    pub fn start_rtsp_with(&mut self, addr: SocketAddr, options: rtsp::Options) -> io::Result<SocketAddr> {
+        let server = rtsp::RtspServer::start(addr, options)?;
         let addr = server.addr();
         self.rtsp = Some(server);
         Ok(addr)

@@ -1,13 +1,21 @@
-//! The simulated board as a network camera: `rt_services::camera::rtsp`'s server
-//! and `rt_services::camera::sender`'s RTP sender on std sockets, drawing frames
-//! from one frame ring that the simulated accelerator (or the RTL) fills,
-//! as the board does.
+//! The simulated board as a network camera: `rt_services::camera::rtsp`'s
+//! server and `rt_services::camera::sender`'s RTP sender on std sockets,
+//! drawing frames from one frame ring that the simulated accelerator (or
+//! the RTL) fills, as the board does.
 //!
 //! One thread runs it all, polling non-blocking sockets: RTSP on TCP, RTP
 //! and RTCP on a pair of consecutive UDP ports. A row packet is its 20
 //! header bytes and the row read from the ring's memory, sent with one
 //! `send_to` (the host has no two-buffer DMA; the board's zero-copy path is
-//! the firmware's).
+//! the firmware's); an interleaved session's packets go into its
+//! connection's output buffer. The rules are the board's: at most
+//! [`rtsp::CONNECTIONS`] connections (more are closed at once), the
+//! server's deadlines, RTCP silence ends a crashed player's stream. No
+//! socket operation blocks: a client that does not read has its output
+//! buffer fill, its rows wait, and after [`OUTPUT_STALL`] it is cut from
+//! the frame, so the others never wait on it.
+//!
+//! [`OUTPUT_STALL`]: rt_services::camera::sender::OUTPUT_STALL
 
 use std::fmt::Write as _;
 use std::io::{self, Read, Write};
@@ -21,20 +29,33 @@ use hal_avalon::sim::CountingDelay;
 use hal_avalon::sim::SimAccelerator;
 use hal_avalon::{Accelerator, PollTimeout};
 use model::{Light, ROW_BYTES};
+use rt_services::camera::random::SessionRng;
+use rt_services::camera::rtcp::ntp_timestamp;
 use rt_services::camera::rtp::{self, Packetiser, RowPacket};
-use rt_services::camera::rtsp::{self, Action, Connection, Server, MAX_RESPONSE_BYTES, MAX_SESSIONS};
-use rt_services::camera::sender::{Camera, Destination, RtpSink};
-use rt_services::{FrameEngine, FrameMemory, FrameRing, Instant};
+use rt_services::camera::rtsp::{self, ConnId, Connection, Server, CONNECTIONS, MAX_RESPONSE_BYTES, MAX_SESSIONS};
+use rt_services::camera::sender::{self, Bound, Camera, Dest, Multicast, RtpSink, CAMERA_SLOTS};
+use rt_services::{FrameEngine, FrameMemory, FrameRing, FrameSource, Instant};
 
 use crate::{Device, Log, SharedMemory, SIM_BUSY_POLLS};
-
-/// Frame slots of the camera's ring: frames being rendered and sent, and
-/// those the repair windows hold for resends (the board keeps six too).
-pub const CAMERA_SLOTS: usize = 6;
 
 /// The light of a live stream before its first `SET_PARAMETER` (the one
 /// `rt-client` starts with).
 pub const LIVE_LIGHT: (f64, f64, f64) = (3.0, 4.0, -2.0);
+
+/// Bytes a connection's output buffer holds before its interleaved rows
+/// wait (responses always fit: a connection is closed rather than cut one).
+pub const CLIENT_OUT_BYTES: usize = 256 * 1024;
+
+/// How the RTSP server runs.
+#[derive(Clone, Copy, Debug)]
+pub struct Options {
+    /// What renders.
+    pub device: Device,
+    /// Log sessions to stderr.
+    pub verbose: bool,
+    /// Where multicast streams go (`None`: SETUP of multicast answers 461).
+    pub multicast: Option<Multicast>,
+}
 
 /// A running RTSP server; stops when dropped.
 pub struct RtspServer {
@@ -46,35 +67,39 @@ pub struct RtspServer {
 
 impl RtspServer {
     /// Listen for RTSP on `addr` (port 0: any free one) and send RTP from
-    /// a pair of free consecutive UDP ports on its address, rendering with
-    /// `device`; log sessions to stderr if `verbose`.
-    pub fn start(addr: SocketAddr, device: Device, verbose: bool) -> io::Result<RtspServer> {
-        if device == Device::Rtl && !rtl_port::available() {
+    /// a pair of free consecutive UDP ports on its address, as `options`
+    /// say.
+    pub fn start(addr: SocketAddr, options: Options) -> io::Result<RtspServer> {
+        if options.device == Device::Rtl && !rtl_port::available() {
             return Err(io::Error::new(io::ErrorKind::Unsupported, rtl_port::NotBuilt));
         }
         let listener = TcpListener::bind(addr)?;
         listener.set_nonblocking(true)?;
         let addr = listener.local_addr()?;
         let (rtp, rtcp) = udp_pair(addr.ip())?;
+        if let Some(m) = options.multicast {
+            rtp.set_multicast_ttl_v4(u32::from(m.ttl))?;
+            rtcp.set_multicast_ttl_v4(u32::from(m.ttl))?;
+        }
         let rtp_port = rtp.local_addr()?.port();
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
         let thread = thread::Builder::new().name("rtsp".into()).spawn(move || {
-            let mut log = Log::new(0, verbose);
+            let mut log = Log::new(0, options.verbose);
             let sockets = Sockets { listener, rtp, rtcp };
-            let result = match device {
+            let result = match options.device {
                 Device::Sim => {
                     let mem = SharedMemory::new(CAMERA_SLOTS);
                     let sim = SimAccelerator::with_memory(mem.clone(), SIM_BUSY_POLLS);
                     let engine = Accelerator::new(sim, CountingDelay::default(), PollTimeout::DEFAULT);
-                    run(sockets, FrameRing::new(mem.clone(), engine), mem, &flag, &mut log)
+                    run(sockets, FrameRing::new(mem.clone(), engine), mem, options, &flag, &mut log)
                 }
                 Device::Rtl => {
                     let mem = SharedMemory::new(CAMERA_SLOTS);
                     match rtl_port::RtlAccelerator::with_memory(mem.clone()) {
                         Ok(rtl) => {
                             let engine = Accelerator::new(rtl, CountingDelay::default(), PollTimeout::DEFAULT);
-                            run(sockets, FrameRing::new(mem.clone(), engine), mem, &flag, &mut log)
+                            run(sockets, FrameRing::new(mem.clone(), engine), mem, options, &flag, &mut log)
                         }
                         Err(e) => Err(io::Error::new(io::ErrorKind::Unsupported, e)),
                     }
@@ -142,7 +167,31 @@ struct Client {
     conn: Connection,
     /// Received bytes the connection could not take yet.
     pending: Vec<u8>,
+    /// Bytes to write: responses and interleaved packets, in order.
+    out: Vec<u8>,
     open: bool,
+}
+
+impl Client {
+    /// Write what the socket takes now; `false` if the peer is gone.
+    fn flush(&mut self) -> bool {
+        while !self.out.is_empty() {
+            match self.stream.write(&self.out) {
+                Ok(0) => return false,
+                Ok(n) => {
+                    self.out.drain(..n);
+                }
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return true,
+                Err(_) => return false,
+            }
+        }
+        true
+    }
+
+    /// Room left in the output buffer.
+    fn room(&self) -> usize {
+        CLIENT_OUT_BYTES.saturating_sub(self.out.len())
+    }
 }
 
 /// The time one row packet takes on the board's Gigabit link: 1,502 bytes
@@ -154,22 +203,24 @@ pub const PACKET_TIME: Duration = Duration::from_nanos((rtp::FRAME_HEADER_BYTES 
 /// transmit ring).
 pub const BURST: u32 = 32;
 
-/// Rows out of the ring's memory into UDP datagrams, no faster than the
-/// board's link would carry them. Unpaced, a frame's 360 packets land in
-/// the receiver's socket at once, and a socket buffer of the usual 208 KiB
-/// (Linux `net.core.rmem_max`) holds about a third of a frame: every frame
-/// would lose rows on the host that the board's link never sends that fast.
-struct UdpSink<'a> {
+/// Rows out of the ring's memory into UDP datagrams (no faster than the
+/// board's link would carry them) or into a connection's output buffer.
+/// Unpaced, a frame's 360 packets land in the receiver's socket at once,
+/// and a socket buffer of the usual 208 KiB (Linux `net.core.rmem_max`)
+/// holds about a third of a frame: every frame would lose rows on the host
+/// that the board's link never sends that fast.
+struct Sink<'a> {
     rtp: &'a UdpSocket,
     rtcp: &'a UdpSocket,
+    clients: &'a mut Vec<Client>,
     mem: SharedMemory,
-    packet: [u8; rtp::PACKET_BYTES],
+    packet: [u8; 4 + rtp::PACKET_BYTES],
     /// Token bucket: packets that may go now, as of `refilled`.
     tokens: u32,
     refilled: StdInstant,
 }
 
-impl UdpSink<'_> {
+impl Sink<'_> {
     /// Whether the link has room for one more packet now.
     fn take_token(&mut self) -> bool {
         let now = StdInstant::now();
@@ -187,59 +238,111 @@ impl UdpSink<'_> {
         self.tokens -= 1;
         true
     }
-}
 
-impl RtpSink for UdpSink<'_> {
-    fn send_row(&mut self, to: &Destination, p: &Packetiser, packet: &RowPacket, slot: usize) -> bool {
-        if !self.take_token() {
-            return false;
-        }
-        let (header, row) = self.packet.split_at_mut(rtp::HEADER_BYTES);
-        if p.emit(packet, header).is_err() {
-            return false;
-        }
-        self.mem.read_row(slot, packet.row, 0, &mut row[..ROW_BYTES]);
-        match self.rtp.send_to(&self.packet, SocketAddr::new(to.addr, to.rtp_port)) {
-            Ok(_) => true,
-            Err(e) if e.kind() == io::ErrorKind::WouldBlock => false,
-            // Unreachable client (ICMP port unreachable reported back):
-            // the packet is gone like a lost one; the session times out.
-            Err(_) => true,
-        }
-    }
-
-    fn send_rtcp(&mut self, to: &Destination, datagram: &[u8]) -> bool {
-        self.rtcp.send_to(datagram, SocketAddr::new(to.addr, to.rtcp_port)).is_ok()
+    fn client(&mut self, conn: ConnId) -> Option<&mut Client> {
+        self.clients.iter_mut().find(|c| c.open && c.conn.id() == conn)
     }
 }
 
-/// A small xorshift for session ids, SSRCs and initial sequence numbers
-/// (RFC 3550 asks for unpredictable ones; nothing here is a secret, and a
-/// random-number crate for three values would be more than they need).
-fn random_source() -> impl FnMut() -> u32 {
-    let seed = SystemTime::now().duration_since(UNIX_EPOCH).map_or(1, |d| d.as_nanos() as u64) | 1;
-    let mut x = seed ^ u64::from(std::process::id()) << 32;
-    move || {
-        x ^= x << 13;
-        x ^= x >> 7;
-        x ^= x << 17;
-        (x >> 16) as u32
+impl RtpSink for Sink<'_> {
+    fn send_rows<S: FrameSource<Frame = usize>>(
+        &mut self,
+        to: &Dest,
+        p: &Packetiser,
+        first: &RowPacket,
+        count: u16,
+        slot: usize,
+        source: &mut S,
+    ) -> u16 {
+        for k in 0..count {
+            let packet = first.nth(k);
+            match *to {
+                Dest::Interleaved { conn, rtp_channel, .. } => {
+                    let Some(c) = self.clients.iter().position(|c| c.open && c.conn.id() == conn) else {
+                        return count;
+                    };
+                    if self.clients[c].room() < self.packet.len() {
+                        return k;
+                    }
+                    self.packet[0] = b'$';
+                    self.packet[1] = rtp_channel;
+                    self.packet[2..4].copy_from_slice(&(rtp::PACKET_BYTES as u16).to_be_bytes());
+                    let (header, row) = self.packet[4..].split_at_mut(rtp::HEADER_BYTES);
+                    if p.emit(&packet, header).is_err() || source.copy_row(slot, packet.row, 0, row) < ROW_BYTES {
+                        continue;
+                    }
+                    self.clients[c].out.extend_from_slice(&self.packet);
+                }
+                Dest::Udp { .. } | Dest::Multicast(_) => {
+                    if !self.take_token() {
+                        return k;
+                    }
+                    let (header, row) = self.packet[4..].split_at_mut(rtp::HEADER_BYTES);
+                    if p.emit(&packet, header).is_err() {
+                        return k;
+                    }
+                    self.mem.read_row(slot, packet.row, 0, &mut row[..ROW_BYTES]);
+                    let to = match *to {
+                        Dest::Udp { addr, rtp_port, .. } => SocketAddr::new(addr, rtp_port),
+                        Dest::Multicast(g) => SocketAddr::new(IpAddr::V4(g.addr), g.port),
+                        Dest::Interleaved { .. } => unreachable!("handled above"),
+                    };
+                    match self.rtp.send_to(&self.packet[4..], to) {
+                        Ok(_) => {}
+                        Err(e) if e.kind() == io::ErrorKind::WouldBlock => return k,
+                        // An error of an earlier send (ICMP reported back
+                        // on Linux, unattributable to a client here): the
+                        // packet is gone like a lost one; the sender's RTCP
+                        // silence ends a crashed client's stream.
+                        Err(_) => {}
+                    }
+                }
+            }
+        }
+        count
+    }
+
+    fn send_rtcp(&mut self, to: &Dest, datagram: &[u8]) -> bool {
+        match *to {
+            Dest::Udp { addr, rtcp_port, .. } => self.rtcp.send_to(datagram, SocketAddr::new(addr, rtcp_port)).is_ok(),
+            Dest::Multicast(g) => {
+                self.rtcp.send_to(datagram, SocketAddr::new(IpAddr::V4(g.addr), g.port.wrapping_add(1))).is_ok()
+            }
+            Dest::Interleaved { conn, rtcp_channel, .. } => {
+                let Some(c) = self.client(conn) else { return false };
+                if c.room() < 4 + datagram.len() {
+                    return false;
+                }
+                let len = datagram.len() as u16;
+                c.out.extend_from_slice(&[b'$', rtcp_channel, (len >> 8) as u8, len as u8]);
+                c.out.extend_from_slice(datagram);
+                true
+            }
+        }
     }
 }
 
-fn wall_ntp() -> u64 {
-    rt_services::camera::rtcp::ntp_timestamp(SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default())
+/// Entropy for the session ids and SSRCs: the kernel's (`/dev/urandom`),
+/// with the time and process id in case it cannot be read.
+fn entropy() -> [u8; 48] {
+    let mut seed = [0u8; 48];
+    let _ = std::fs::File::open("/dev/urandom").and_then(|mut f| f.read_exact(&mut seed[..32]));
+    let nanos = SystemTime::now().duration_since(UNIX_EPOCH).map_or(0, |d| d.as_nanos());
+    seed[32..48].copy_from_slice(&(nanos ^ u128::from(std::process::id()) << 96).to_le_bytes());
+    seed
 }
 
 fn run<E: FrameEngine<SharedMemory>>(
     sockets: Sockets,
     mut ring: FrameRing<SharedMemory, E, CAMERA_SLOTS>,
     mem: SharedMemory,
+    options: Options,
     stop: &AtomicBool,
     log: &mut Log,
 ) -> io::Result<()> {
     let start = StdInstant::now();
     let now = || Instant::from_millis(start.elapsed().as_millis() as u64);
+    let wall = || ntp_timestamp(SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default());
     let server_ip = match sockets.listener.local_addr()?.ip() {
         IpAddr::V4(ip) if !ip.is_unspecified() => ip,
         _ => Ipv4Addr::LOCALHOST,
@@ -247,39 +350,41 @@ fn run<E: FrameEngine<SharedMemory>>(
     let (x, y, z) = LIVE_LIGHT;
     let live_light = Light::from_world(x, y, z).map_err(|e| io::Error::other(format!("{e:?}")))?;
     let rtp_port = sockets.rtp.local_addr()?.port();
-    let mut server: Server<MAX_SESSIONS> = Server::new(rtsp::Config { server_ip, rtp_port, live_light });
+    let mut server: Server<MAX_SESSIONS> = Server::new(rtsp::Config { server_ip, rtp_port });
     let mut camera: Box<Camera<MAX_SESSIONS>> = Box::new(Camera::new());
+    camera.configure(sender::Config { live_light, multicast: options.multicast });
     let mut clients: Vec<Client> = Vec::new();
-    let mut rng = random_source();
+    let mut rng = SessionRng::new(&entropy());
+    let mut next_conn = 0u32;
     let mut response = [0u8; MAX_RESPONSE_BYTES];
-    let mut sink = UdpSink {
-        rtp: &sockets.rtp,
-        rtcp: &sockets.rtcp,
-        mem,
-        packet: [0; rtp::PACKET_BYTES],
-        tokens: BURST,
-        refilled: StdInstant::now(),
-    };
     let mut datagram = [0u8; 2048];
     let mut input = [0u8; 4096];
+    let mut tokens = (BURST, StdInstant::now());
     while !stop.load(Ordering::SeqCst) {
         let mut busy = false;
-        // New connections.
+        // New connections, up to the board's number; more are closed at once.
         loop {
             match sockets.listener.accept() {
                 Ok((stream, peer)) => {
+                    busy = true;
+                    if clients.len() >= CONNECTIONS {
+                        let _ = writeln!(log, "rtsp: connection from {peer} refused: {CONNECTIONS} open");
+                        continue;
+                    }
                     stream.set_nonblocking(true)?;
                     let _ = stream.set_nodelay(true);
-                    let _ = writeln!(log, "rtsp: connection from {peer}");
-                    clients.push(Client { stream, conn: Connection::new(peer.ip()), pending: vec![], open: true });
-                    busy = true;
+                    next_conn = next_conn.wrapping_add(1);
+                    let id = ConnId(next_conn);
+                    let _ = writeln!(log, "rtsp: connection from {peer} ({id})");
+                    let conn = Connection::new(id, peer.ip(), now());
+                    clients.push(Client { stream, conn, pending: vec![], out: vec![], open: true });
                 }
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
                 Err(e) => return Err(e),
             }
         }
         // Requests.
-        for c in &mut clients {
+        for c in clients.iter_mut() {
             match c.stream.read(&mut input) {
                 Ok(0) => c.open = false,
                 Ok(n) => {
@@ -290,33 +395,59 @@ fn run<E: FrameEngine<SharedMemory>>(
                 Err(_) => c.open = false,
             }
             loop {
-                let taken = c.conn.receive(&c.pending);
+                let taken = c.conn.receive(now(), &c.pending);
                 c.pending.drain(..taken);
-                let Some(reply) = server.handle(&mut c.conn, now(), &mut rng, &mut response) else { break };
+                if c.out.len() + MAX_RESPONSE_BYTES > CLIENT_OUT_BYTES {
+                    break; // its responses wait until it reads
+                }
+                let mut streams = Bound { camera: &mut camera, source: &mut ring, now: now(), wall: wall() };
+                let Some(reply) = server.handle(&mut c.conn, now(), &mut rng, &mut streams, &mut response) else {
+                    break;
+                };
                 let _ = writeln!(log, "rtsp: {} -> {}", c.conn.peer(), reply.status.code());
-                if write_all_blocking(&c.stream, &response[..reply.len]).is_err() {
-                    c.open = false;
-                }
-                if let Some(action) = reply.action {
-                    apply(&mut server, &mut camera, action, now(), &mut ring, log);
-                }
+                c.out.extend_from_slice(&response[..reply.len]);
                 if reply.close {
-                    c.open = false;
                     break;
                 }
+            }
+            if !c.flush() {
+                c.open = false;
+            }
+            if c.open && server.connection_expired(&c.conn, now()) && c.out.is_empty() {
+                let _ = writeln!(log, "rtsp: connection {} closed at its deadline", c.conn.id());
+                c.open = false;
+            }
+        }
+        for c in clients.iter().filter(|c| !c.open) {
+            let mut streams = Bound { camera: &mut camera, source: &mut ring, now: now(), wall: wall() };
+            let ended = server.connection_closed(c.conn.id(), &mut streams);
+            if ended > 0 {
+                let _ = writeln!(log, "rtsp: connection {} gone: {ended} interleaved session(s) end", c.conn.id());
             }
         }
         clients.retain(|c| c.open);
         // Sessions gone quiet.
-        while let Some(action) = server.poll(now()) {
-            apply(&mut server, &mut camera, action, now(), &mut ring, log);
+        {
+            let mut streams = Bound { camera: &mut camera, source: &mut ring, now: now(), wall: wall() };
+            while let Some(session) = server.poll(now(), &mut streams) {
+                let _ = writeln!(log, "rtsp: session {session} timed out");
+            }
         }
-        // RTCP: keep-alive and NACKs, from session clients only.
+        let mut sink = Sink {
+            rtp: &sockets.rtp,
+            rtcp: &sockets.rtcp,
+            clients: &mut clients,
+            mem: mem.clone(),
+            packet: [0; 4 + rtp::PACKET_BYTES],
+            tokens: tokens.0,
+            refilled: tokens.1,
+        };
+        // RTCP: keep-alive, round trips and NACKs, from session clients only.
         loop {
             match sockets.rtcp.recv_from(&mut datagram) {
                 Ok((n, from)) => {
                     if server.rtcp_received(now(), from.ip(), from.port()).is_some() {
-                        camera.rtcp_received(from.ip(), from.port(), &datagram[..n], &mut sink);
+                        camera.rtcp_received(from, &datagram[..n], now(), wall(), &mut ring, &mut sink);
                     }
                     busy = true;
                 }
@@ -327,48 +458,25 @@ fn run<E: FrameEngine<SharedMemory>>(
         }
         // Frames.
         for _ in 0..64 {
-            if !camera.poll(now(), wall_ntp(), &mut ring, &mut sink) {
+            if !camera.poll(now(), wall(), &mut ring, &mut sink) {
                 break;
             }
             busy = true;
+        }
+        tokens = (sink.tokens, sink.refilled);
+        while let Some((session, why)) = camera.take_ended() {
+            server.remove(session);
+            let _ = writeln!(log, "rtsp: session {session} ends: {why}");
+        }
+        for c in clients.iter_mut() {
+            if !c.flush() {
+                c.open = false;
+            }
         }
         if !busy {
             // A stream waiting for the link or the renderer comes back soon.
             let wait = if camera.busy() { PACKET_TIME * 8 } else { Duration::from_millis(2) };
             thread::sleep(wait);
-        }
-    }
-    Ok(())
-}
-
-fn apply<E: FrameEngine<SharedMemory>>(
-    server: &mut Server<MAX_SESSIONS>,
-    camera: &mut Camera<MAX_SESSIONS>,
-    action: Action,
-    now: Instant,
-    ring: &mut FrameRing<SharedMemory, E, CAMERA_SLOTS>,
-    log: &mut Log,
-) {
-    let _ = writeln!(log, "rtsp: {action:?}");
-    if let Some((seq, rtptime)) = camera.apply(action, now, ring) {
-        if let Action::Pause { session } = action {
-            server.set_position(session, seq, rtptime);
-        }
-    }
-}
-
-/// Write a response on a non-blocking socket (responses are small: a
-/// short wait for room is enough; a peer that never reads is dropped).
-fn write_all_blocking(mut stream: &TcpStream, mut bytes: &[u8]) -> io::Result<()> {
-    let deadline = StdInstant::now() + Duration::from_secs(2);
-    while !bytes.is_empty() {
-        match stream.write(bytes) {
-            Ok(0) => return Err(io::ErrorKind::WriteZero.into()),
-            Ok(n) => bytes = &bytes[n..],
-            Err(e) if e.kind() == io::ErrorKind::WouldBlock && StdInstant::now() < deadline => {
-                thread::sleep(Duration::from_millis(1))
-            }
-            Err(e) => return Err(e),
         }
     }
     Ok(())

@@ -1,12 +1,19 @@
-//! Hostile input for the sans-IO RTSP server: well-formed requests of every
-//! method (naming real, foreign, stale and made-up sessions), the same
-//! requests mutated byte by byte, and junk, over three connections from two
-//! addresses, cut at random points, with random pauses (past the session
-//! timeout too) and RTCP packets. Checked: no panic; every response is
-//! well-formed and fits; a well-formed request on an idle connection gets
-//! exactly one response, echoing its CSeq; the sessions stay within the cap
-//! and within their owners; every action names a session in the state it
-//! says; every session ends exactly once (TEARDOWN or timeout).
+//! Hostile input for the network camera's connection lifecycle: the
+//! sans-IO RTSP server with the real RTP sender behind it (over a frame
+//! source that only counts slots), well-formed requests of every method
+//! (naming real, foreign, stale and made-up sessions; every transport),
+//! the same requests mutated byte by byte, junk and interleaved binary
+//! data, over three connections from two addresses, cut at random points,
+//! with random pauses (past the deadlines and the session timeout), RTCP
+//! packets, ICMP port unreachable, connections closing and the sender
+//! polled. Checked: no panic; every response is well-formed and fits; a
+//! well-formed request on an idle connection gets exactly one response,
+//! echoing its CSeq; the sessions stay within the cap and within their
+//! owners, and the sender's sessions are the server's; a connection with
+//! half a request past its deadline is expired; the frame source never
+//! holds more slots than the camera may; every session ends exactly once
+//! (TEARDOWN, timeout, its connection, or the sender), and at the end
+//! nothing is held.
 //!
 //! `cargo test -p rt-services --test fuzz_rtsp` runs proptest's default 256
 //! cases (the suite's short run); `cargo xtask fuzz` runs a million
@@ -17,11 +24,15 @@ use std::net::{IpAddr, Ipv4Addr};
 
 use model::Light;
 use proptest::prelude::*;
+use rt_services::camera::rtp::{Packetiser, RowPacket};
 use rt_services::camera::rtsp::{
-    Action, Config, Connection, Random, Server, SessionId, State, Status, Stream, MAX_REQUEST_BYTES,
-    MAX_RESPONSE_BYTES, MAX_SESSIONS, SERVER_RTP_PORT, SESSION_TIMEOUT,
+    Client, Config, ConnId, Connection, EndReason, Fresh, Group, Position, Profile, Random, Server, SessionId, SetUp,
+    State, Status, StreamSpec, Streams, Transport, MAX_REQUEST_BYTES, MAX_RESPONSE_BYTES, MAX_SESSIONS,
+    REQUEST_DEADLINE, SERVER_RTP_PORT, SESSION_TIMEOUT,
 };
-use rt_services::Instant;
+use rt_services::camera::sender::{self, Bound, Camera, Dest, Multicast, RtpSink, SlotSource, CAMERA_SLOTS};
+use rt_services::frames::ROWS;
+use rt_services::{FrameSource, Instant};
 
 const PEERS: [IpAddr; 3] = [
     IpAddr::V4(Ipv4Addr::new(10, 0, 0, 1)),
@@ -82,8 +93,15 @@ enum Piece {
     Mutated(usize, Req, Vec<Mutation>),
     /// Arbitrary bytes on a connection.
     Junk(usize, Vec<u8>),
-    /// An RTCP packet from peer `.0`, port `.1`.
-    Rtcp(usize, u16),
+    /// An RTCP packet from peer `.0`, port `.1` (a NACK for the stream's
+    /// SSRC or random bytes).
+    Rtcp(usize, u16, bool),
+    /// ICMP port unreachable about a packet to peer `.0`, port `.1`.
+    Unreachable(usize, u16),
+    /// Connection `.0` closes (its peer went away).
+    Close(usize),
+    /// The sender is polled this many times.
+    Send(u8),
     /// Time passes.
     Wait(u64),
 }
@@ -136,12 +154,13 @@ const TRANSPORTS: &[&str] = &[
     "RTP/AVP;unicast;client_port=6004-6005;mode=\"PLAY\"",
     "RTP/AVP/TCP;unicast;interleaved=0-1",
     "RTP/AVP;multicast;client_port=6000-6001",
+    "RTP/AVPF;unicast;client_port=6006-6007",
     "RTP/AVP;unicast",
     "RTP/AVP;unicast;client_port=0-1",
     "RTP/AVP/TCP;interleaved=0-1,RTP/AVP;unicast;client_port=7000-7001",
 ];
 
-const GOOD_TRANSPORTS: usize = 3;
+const GOOD_TRANSPORTS: usize = 6;
 
 const BODIES: &[&str] = &["", "light: 1,2,3", "light: 1.5, 6, -2.25\r\n", "light: 9000,0,0", "colour: red", "light"];
 
@@ -224,9 +243,14 @@ fn piece() -> impl Strategy<Value = Piece> {
     prop_oneof![
         10 => (conn.clone(), req()).prop_map(|(c, r)| Piece::Clean(c, r)),
         3 => (conn.clone(), req(), prop::collection::vec(mutation(), 1..4)).prop_map(|(c, r, m)| Piece::Mutated(c, r, m)),
-        1 => (conn, prop::collection::vec(any::<u8>(), 0..40)).prop_map(|(c, j)| Piece::Junk(c, j)),
-        1 => (0usize..PEERS.len(), prop_oneof![Just(6001u16), Just(7001u16), any::<u16>()]).prop_map(|(p, port)| Piece::Rtcp(p, port)),
-        2 => prop_oneof![0u64..5_000, Just(SESSION_TIMEOUT.as_millis() as u64 + 1_000)].prop_map(Piece::Wait),
+        1 => (conn.clone(), prop::collection::vec(any::<u8>(), 0..40)).prop_map(|(c, j)| Piece::Junk(c, j)),
+        1 => (conn.clone(), prop::collection::vec(any::<u8>(), 0..40)).prop_map(|(c, mut j)| { j.insert(0, b'$'); Piece::Junk(c, j) }),
+        1 => (0usize..PEERS.len(), prop_oneof![Just(6001u16), Just(7001u16), any::<u16>()], any::<bool>())
+            .prop_map(|(p, port, nack)| Piece::Rtcp(p, port, nack)),
+        1 => (0usize..PEERS.len(), prop_oneof![Just(6000u16), Just(6002u16), any::<u16>()]).prop_map(|(p, port)| Piece::Unreachable(p, port)),
+        1 => (0usize..PEERS.len()).prop_map(Piece::Close),
+        3 => (1u8..20).prop_map(Piece::Send),
+        2 => prop_oneof![0u64..5_000, Just(REQUEST_DEADLINE.as_millis() as u64), Just(SESSION_TIMEOUT.as_millis() as u64 + 1_000)].prop_map(Piece::Wait),
     ]
 }
 
@@ -320,66 +344,221 @@ fn check_response(bytes: &[u8], status: Status) -> Result<Option<String>, TestCa
     Ok(cseq)
 }
 
+/// Frames that take a slot each and land at once, counting what is held;
+/// no memory behind them (the lifecycle is what is fuzzed, not pixels).
+#[derive(Default)]
+struct Slots {
+    begun: u32,
+    held: u32,
+    high: u32,
+}
+
+impl FrameSource for Slots {
+    type Frame = usize;
+    type Error = &'static str;
+    fn begin(&mut self, _: &Light) -> Result<Option<usize>, &'static str> {
+        let Some(slot) = (0..32).find(|&s| (self.begun | self.held) & (1 << s) == 0) else { return Ok(None) };
+        self.begun |= 1 << slot;
+        self.high = self.high.max((self.begun | self.held).count_ones());
+        Ok(Some(slot))
+    }
+    fn rows_ready(&mut self, frame: usize) -> Result<u16, &'static str> {
+        Ok(if self.begun & (1 << frame) != 0 { ROWS } else { 0 })
+    }
+    fn copy_row(&mut self, frame: usize, _: u16, _: usize, out: &mut [u8]) -> usize {
+        if self.begun & (1 << frame) != 0 {
+            out.len()
+        } else {
+            0
+        }
+    }
+    fn end(&mut self, frame: usize) {
+        self.begun &= !(1 << frame);
+    }
+}
+
+impl SlotSource for Slots {
+    fn set_held(&mut self, mask: u32) {
+        self.held = mask;
+        self.high = self.high.max((self.begun | self.held).count_ones());
+    }
+}
+
+/// A sink that takes every packet and counts them.
+#[derive(Default)]
+struct Count {
+    rows: u64,
+    rtcp: u64,
+}
+
+impl RtpSink for Count {
+    fn send_rows<S: FrameSource<Frame = usize>>(
+        &mut self,
+        _: &Dest,
+        _: &Packetiser,
+        _: &RowPacket,
+        n: u16,
+        _: usize,
+        _: &mut S,
+    ) -> u16 {
+        self.rows += u64::from(n);
+        n
+    }
+    fn send_rtcp(&mut self, _: &Dest, _: &[u8]) -> bool {
+        self.rtcp += 1;
+        true
+    }
+}
+
+/// The sender as the server sees it, checking each call against the
+/// server's state and noting the sessions it ends.
+struct Checked<'a> {
+    inner: Bound<'a, Slots>,
+    ended: &'a mut Vec<SessionId>,
+    calls: &'a mut Vec<(&'static str, SessionId)>,
+}
+
+impl Streams for Checked<'_> {
+    fn setup(
+        &mut self,
+        s: SessionId,
+        spec: &StreamSpec,
+        t: Transport,
+        p: Profile,
+        c: Client,
+        f: Fresh,
+    ) -> Result<SetUp, Status> {
+        self.calls.push(("setup", s));
+        self.inner.setup(s, spec, t, p, c, f)
+    }
+    fn play(&mut self, s: SessionId) -> Result<Position, Status> {
+        self.calls.push(("play", s));
+        self.inner.play(s)
+    }
+    fn pause(&mut self, s: SessionId) {
+        self.calls.push(("pause", s));
+        self.inner.pause(s)
+    }
+    fn end(&mut self, s: SessionId, why: EndReason) {
+        self.calls.push(("end", s));
+        self.ended.push(s);
+        self.inner.end(s, why)
+    }
+    fn set_light(&mut self, s: SessionId, l: Light) {
+        self.calls.push(("light", s));
+        self.inner.set_light(s, l)
+    }
+    fn rtcp(&mut self, s: SessionId, d: &[u8]) {
+        self.calls.push(("rtcp", s));
+        self.inner.rtcp(s, d)
+    }
+    fn group(&self, spec: &StreamSpec) -> Option<Group> {
+        self.inner.group(spec)
+    }
+}
+
+/// A generic NACK for `ssrc`, packets `pid..pid + 17`.
+fn nack(ssrc: u32, pid: u16) -> Vec<u8> {
+    let mut d = vec![0x81, 205, 0, 3, 0, 0, 0, 9];
+    d.extend_from_slice(&ssrc.to_be_bytes());
+    d.extend_from_slice(&pid.to_be_bytes());
+    d.extend_from_slice(&[0xff, 0xff]);
+    d
+}
+
 fn run(c: &Case) -> Result<(), TestCaseError> {
+    let mut server: Server = Server::new(Config { server_ip: Ipv4Addr::new(10, 0, 0, 9), rtp_port: SERVER_RTP_PORT });
+    let mut camera: Box<Camera> = Box::new(Camera::new());
     let live = Light::from_world(3.0, 4.0, -2.0).unwrap();
-    let mut server: Server =
-        Server::new(Config { server_ip: Ipv4Addr::new(10, 0, 0, 9), rtp_port: SERVER_RTP_PORT, live_light: live });
-    let mut conns: Vec<Connection> = PEERS.iter().map(|&p| Connection::new(p)).collect();
+    let multicast = Some(Multicast { group: Ipv4Addr::new(239, 255, 42, 1), base_port: 5006, ttl: 1 });
+    camera.configure(sender::Config { live_light: live, multicast });
+    let mut source = Slots::default();
+    let mut sink = Count::default();
+    let mut next_conn = 0u32;
+    let mut conns: Vec<Connection> = PEERS
+        .iter()
+        .map(|&p| {
+            next_conn += 1;
+            Connection::new(ConnId(next_conn), p, Instant::from_millis(0))
+        })
+        .collect();
     let mut rng = Xorshift(c.seed);
     let mut out = [0u8; MAX_RESPONSE_BYTES];
     let mut now = 0u64;
     let mut seen: Vec<SessionId> = Vec::new();
-    let mut ended: HashSet<SessionId> = HashSet::new();
+    let mut ended: Vec<SessionId> = Vec::new();
+    let mut calls = Vec::new();
     let mut step = 0usize;
 
-    // Carry out an action: check it against the server's sessions.
-    let check_action =
-        |server: &Server, a: Action, peer: Option<IpAddr>, ended: &mut HashSet<SessionId>, seen: &[SessionId]| {
-            match a {
-                Action::Play { session, client_addr, rtp_port, rtcp_port, ssrc, seq, rtptime, spec, live: _ } => {
-                    let s = server.session(session).ok_or_else(|| TestCaseError::fail("PLAY of no session"))?;
-                    prop_assert_eq!(s.state(), State::Playing);
-                    prop_assert_eq!(Some(client_addr), peer, "the stream goes to the requester");
-                    prop_assert_eq!(client_addr, s.client_addr());
-                    prop_assert_eq!(
-                        (rtp_port, rtcp_port, ssrc, seq, rtptime),
-                        (s.rtp_port(), s.rtcp_port(), s.ssrc(), s.seq(), s.rtptime())
-                    );
-                    prop_assert_eq!(spec, *s.spec());
-                }
-                Action::Pause { session } => {
-                    let s = server.session(session).ok_or_else(|| TestCaseError::fail("PAUSE of no session"))?;
-                    prop_assert_eq!(s.state(), State::Ready);
-                }
-                Action::SetLight { session, light } => {
-                    let s = server.session(session).ok_or_else(|| TestCaseError::fail("light of no session"))?;
-                    prop_assert_eq!(s.spec().stream, Stream::Live);
-                    prop_assert_eq!(s.live_light(), light);
-                }
-                Action::Stop { session } | Action::Timeout { session } => {
-                    prop_assert!(server.session(session).is_none(), "ended session still open");
-                    prop_assert!(seen.contains(&session), "end of a session never opened");
-                    prop_assert!(ended.insert(session), "session {} ended twice", session);
-                }
+    macro_rules! streams {
+        () => {
+            Checked {
+                inner: Bound {
+                    camera: &mut camera,
+                    source: &mut source,
+                    now: Instant::from_millis(now),
+                    wall: now << 16,
+                },
+                ended: &mut ended,
+                calls: &mut calls,
             }
-            Ok(())
         };
+    }
 
     for p in &c.pieces {
-        // Sessions that time out meanwhile.
-        while let Some(a) = server.poll(Instant::from_millis(now)) {
-            prop_assert!(matches!(a, Action::Timeout { .. }), "poll ends sessions only");
-            check_action(&server, a, None, &mut ended, &seen)?;
+        // Sessions that time out meanwhile, and connections past a deadline.
+        while server.poll(Instant::from_millis(now), &mut streams!()).is_some() {}
+        for k in 0..conns.len() {
+            if server.connection_expired(&conns[k], Instant::from_millis(now)) {
+                server.connection_closed(conns[k].id(), &mut streams!());
+                next_conn += 1;
+                conns[k] = Connection::new(ConnId(next_conn), PEERS[k], Instant::from_millis(now));
+            }
         }
         let (conn, bytes, clean) = match p {
             Piece::Clean(k, r) => (*k, render(r, &seen), Some(r)),
             Piece::Mutated(k, r, ms) => (*k, mutate(render(r, &seen), ms), None),
             Piece::Junk(k, j) => (*k, j.clone(), None),
-            Piece::Rtcp(peer, port) => {
-                if let Some(id) = server.rtcp_received(Instant::from_millis(now), PEERS[*peer], *port) {
-                    let s = server.session(id).ok_or_else(|| TestCaseError::fail("RTCP session"))?;
-                    prop_assert_eq!((s.client_addr(), s.rtcp_port()), (PEERS[*peer], *port));
+            Piece::Rtcp(peer, port, is_nack) => {
+                let at = Instant::from_millis(now);
+                if server.rtcp_received(at, PEERS[*peer], *port).is_some() {
+                    let ssrc = server.sessions().first().map_or(0, |s| s.ssrc());
+                    let d =
+                        if *is_nack { nack(ssrc, (now % 65_536) as u16) } else { vec![0x80, 201, 0, 1, 0, 0, 0, 1] };
+                    camera.rtcp_received(
+                        std::net::SocketAddr::new(PEERS[*peer], *port),
+                        &d,
+                        at,
+                        now << 16,
+                        &mut source,
+                        &mut sink,
+                    );
                 }
+                continue;
+            }
+            Piece::Unreachable(peer, port) => {
+                camera.unreachable(PEERS[*peer], *port, Instant::from_millis(now), &mut source);
+                while let Some((s, _)) = camera.take_ended() {
+                    prop_assert!(server.remove(s), "the sender ended a session the server did not have");
+                    ended.push(s);
+                }
+                continue;
+            }
+            Piece::Close(k) => {
+                server.connection_closed(conns[*k].id(), &mut streams!());
+                next_conn += 1;
+                conns[*k] = Connection::new(ConnId(next_conn), PEERS[*k], Instant::from_millis(now));
+                continue;
+            }
+            Piece::Send(n) => {
+                for _ in 0..*n {
+                    camera.poll(Instant::from_millis(now), now << 16, &mut source, &mut sink);
+                }
+                while let Some((s, _)) = camera.take_ended() {
+                    prop_assert!(server.remove(s), "the sender ended a session the server did not have");
+                    ended.push(s);
+                }
+                prop_assert!(source.high <= CAMERA_SLOTS as u32 + MAX_SESSIONS as u32, "slots held: {}", source.high);
                 continue;
             }
             Piece::Wait(ms) => {
@@ -387,7 +566,7 @@ fn run(c: &Case) -> Result<(), TestCaseError> {
                 continue;
             }
         };
-        let idle = conns[conn].buffered() == 0 && !conns[conn].is_closed();
+        let idle = conns[conn].is_idle();
         let mut replies = Vec::new();
         let mut fed = 0;
         while fed < bytes.len() {
@@ -396,9 +575,12 @@ fn run(c: &Case) -> Result<(), TestCaseError> {
             let chunk = &bytes[fed..(fed + cut).min(bytes.len())];
             let mut taken = 0;
             loop {
-                taken += conns[conn].receive(&chunk[taken..]);
+                taken += conns[conn].receive(Instant::from_millis(now), &chunk[taken..]);
                 let mut answered = false;
-                while let Some(r) = server.handle(&mut conns[conn], Instant::from_millis(now), &mut rng, &mut out) {
+                loop {
+                    let reply =
+                        server.handle(&mut conns[conn], Instant::from_millis(now), &mut rng, &mut streams!(), &mut out);
+                    let Some(r) = reply else { break };
                     answered = true;
                     prop_assert!(r.status != Status::InternalServerError, "a response did not fit");
                     let cseq = check_response(&out[..r.len], r.status)?;
@@ -407,25 +589,33 @@ fn run(c: &Case) -> Result<(), TestCaseError> {
                             seen.push(s.id());
                         }
                     }
-                    if let Some(a) = r.action {
-                        check_action(&server, a, Some(PEERS[conn]), &mut ended, &seen)?;
-                    }
                     prop_assert!(!r.close || conns[conn].is_closed());
                     replies.push((r.status, cseq));
                 }
                 prop_assert!(conns[conn].buffered() <= MAX_REQUEST_BYTES);
-                if taken == chunk.len() {
+                if taken == chunk.len() || conns[conn].is_closed() {
                     break;
                 }
                 prop_assert!(answered, "input stuck: buffer full, nothing answered");
             }
             fed += chunk.len();
         }
-        // Bounded state: the cap, owners, distinct ids.
+        // The sender's calls match the server's states.
+        for (what, s) in calls.drain(..) {
+            let state = server.session(s).map(|s| s.state());
+            match what {
+                "play" => prop_assert!(matches!(state, Some(State::Playing) | Some(State::Ready))),
+                "end" => prop_assert!(state.is_none(), "ended session still open"),
+                _ => {}
+            }
+        }
+        // Bounded state: the cap, owners, distinct ids, the sender agrees.
         let ids: HashSet<SessionId> = server.sessions().iter().map(|s| s.id()).collect();
         prop_assert!(server.sessions().len() <= MAX_SESSIONS);
         prop_assert_eq!(ids.len(), server.sessions().len(), "duplicate session ids");
-        prop_assert!(server.sessions().iter().all(|s| PEERS.contains(&s.client_addr())));
+        prop_assert!(server.sessions().iter().all(|s| PEERS.contains(&s.client().addr)));
+        let sending: HashSet<SessionId> = camera.sessions().map(|(s, _)| s).collect();
+        prop_assert_eq!(&sending, &ids, "the sender's sessions are the server's");
         // A well-formed request on an idle connection: one response, its CSeq.
         if let (Some(r), true) = (clean, idle) {
             prop_assert_eq!(replies.len(), 1, "responses to {:?}", r);
@@ -439,14 +629,24 @@ fn run(c: &Case) -> Result<(), TestCaseError> {
                 prop_assert_eq!(replies[0].0, Status::Ok);
             }
         }
+        // Half a request is never kept past its deadline.
+        if !conns[conn].is_idle() && !conns[conn].is_closed() {
+            let late = Instant::from_millis(now + REQUEST_DEADLINE.as_millis() as u64);
+            prop_assert!(server.connection_expired(&conns[conn], late));
+        }
     }
-    // Every session ends: by TEARDOWN, or unheard of for the timeout.
+    // Every session ends: by TEARDOWN, its connection, the sender, or
+    // unheard of for the timeout; then nothing is held.
     now += SESSION_TIMEOUT.as_millis() as u64;
-    while let Some(a) = server.poll(Instant::from_millis(now)) {
-        check_action(&server, a, None, &mut ended, &seen)?;
-    }
+    while server.poll(Instant::from_millis(now), &mut streams!()).is_some() {}
     prop_assert!(server.sessions().is_empty(), "sessions left after the timeout");
-    prop_assert_eq!(seen.iter().copied().collect::<HashSet<_>>(), ended, "every session ended once");
+    let ends: HashSet<SessionId> = ended.iter().copied().collect();
+    prop_assert_eq!(ends.len(), ended.len(), "a session ended twice");
+    prop_assert_eq!(seen.iter().copied().collect::<HashSet<_>>(), ends, "every session ended once");
+    prop_assert_eq!((camera.streams(), camera.outputs()), (0, 0));
+    now += 2_000;
+    camera.poll(Instant::from_millis(now), now << 16, &mut source, &mut sink);
+    prop_assert_eq!((source.begun, source.held), (0, 0), "every slot let go");
     Ok(())
 }
 

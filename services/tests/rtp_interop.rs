@@ -25,6 +25,7 @@ fn endpoints() -> Endpoints {
         dst_mac: EthernetAddress([0x02, 0x00, 0x00, 0x00, 0x00, 0x02]),
         src: BOARD,
         dst: CLIENT,
+        ttl: 64,
     }
 }
 
@@ -209,6 +210,7 @@ proptest::proptest! {
             dst_mac: EthernetAddress(macs[6..].try_into().unwrap()),
             src: SocketAddrV4::new(Ipv4Addr::from(src), ports.0),
             dst: SocketAddrV4::new(Ipv4Addr::from(dst), ports.1),
+            ttl: (ports.0 % 255) as u8 + 1,
         };
         let checksum_mode = if offload { UdpChecksum::Offload } else { UdpChecksum::Zero };
         let mut t = HeaderTemplate::new(&e, checksum_mode, ident.wrapping_sub(1));
@@ -227,7 +229,7 @@ proptest::proptest! {
             dst_addr: *e.dst.ip(),
             next_header: IpProtocol::Udp,
             payload_len: 1_468,
-            hop_limit: 64,
+            hop_limit: e.ttl,
         };
         let mut ip = Ipv4Packet::new_unchecked(&mut want[14..34]);
         ip_repr.emit(&mut ip, &ChecksumCapabilities::ignored());

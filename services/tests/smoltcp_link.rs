@@ -477,7 +477,7 @@ impl RtspClient {
 fn the_camera_streams_a_frame_over_smoltcp_and_answers_a_nack_from_the_client() {
     use rt_services::camera::rtsp::{self, MAX_SESSIONS, RTSP_PORT, SERVER_RTP_PORT};
     use rt_services::camera::sender::Camera;
-    use rt_services::camera::service::{CameraBuffers, CameraService, PeerMacs, Snoop};
+    use rt_services::camera::service::{CameraBuffers, CameraService, Snoop, Snooped};
     use smoltcp::socket::udp;
     use smoltcp::wire::{EthernetFrame, Ipv4Packet, UdpPacket};
 
@@ -488,14 +488,15 @@ fn the_camera_streams_a_frame_over_smoltcp_and_answers_a_nack_from_the_client() 
 
     let mut buffers = Box::new(CameraBuffers::new());
     let mut camera: Box<Camera<MAX_SESSIONS>> = Box::new(Camera::new());
+    camera.configure(rt_services::camera::sender::Config { live_light: light, multicast: None });
     let mut server_sockets = SocketSet::new(vec![]);
-    let config = rtsp::Config { server_ip: SERVER, rtp_port: SERVER_RTP_PORT, live_light: light };
+    let config = rtsp::Config { server_ip: SERVER, rtp_port: SERVER_RTP_PORT };
     let server_mac = EthernetAddress([0x02, 0, 0, 0, 0, 1]);
-    let mut service =
-        CameraService::new(&mut server_sockets, &mut buffers, &mut camera, config, server_mac, 7).expect("RTCP binds");
+    let mut service = CameraService::new(&mut server_sockets, &mut buffers, &mut camera, config, server_mac, b"seed")
+        .expect("RTCP binds");
     let mut memory = vec![0u8; 4 * FRAME_BYTES];
     let mut ring = FrameRing::<_, _, 4>::new(SliceMemory::new(0, &mut memory), RowEngine::new(SoftwareRenderer));
-    let (mut peers, mut tx, mut log) = (PeerMacs::new(), Recorder::default(), String::new());
+    let (mut peers, mut tx, mut log) = (Snooped::new(SERVER_RTP_PORT), Recorder::default(), String::new());
 
     let mut clients = SocketSet::new(vec![]);
     let tcp = tcp::Socket::new(tcp::SocketBuffer::new(vec![0; 8192]), tcp::SocketBuffer::new(vec![0; 4096]));
@@ -529,7 +530,7 @@ fn the_camera_streams_a_frame_over_smoltcp_and_answers_a_nack_from_the_client() 
     for step in 0..20_000i64 {
         let now = Instant::from_millis(step);
         server_if.poll(now, &mut Snoop { inner: &mut server_dev, peers: &mut peers }, &mut server_sockets);
-        service.poll(now, &mut server_sockets, &peers, &mut ring, &mut tx, 0, &mut log);
+        service.poll(now, &mut server_sockets, &mut peers, &mut ring, &mut tx, step as u64, &mut log);
         server_if.poll(now, &mut Snoop { inner: &mut server_dev, peers: &mut peers }, &mut server_sockets);
         client_if.poll(now, &mut client_dev, &mut clients);
         rtsp.step(&mut clients, &mut session);
@@ -579,5 +580,5 @@ fn the_camera_streams_a_frame_over_smoltcp_and_answers_a_nack_from_the_client() 
     let again = tx.sent[n..].iter().find(|s| s.2 == 100).unwrap_or_else(|| panic!("row 100 not resent; log:\n{log}"));
     assert_eq!(again.0[42..], tx.sent[100].0[42..], "RTP and RFC 4175 headers unchanged");
     assert_ne!(again.0[18..20], tx.sent[100].0[18..20], "a new IPv4 identification");
-    assert_eq!(service.rows_sent as usize, tx.sent.len());
+    assert_eq!(service.stats.rows_sent as usize, tx.sent.len());
 }

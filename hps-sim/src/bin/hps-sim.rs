@@ -1,15 +1,18 @@
 //! `hps-sim`: the board simulated on the host.
 //!
 //!     cargo run --release --bin hps-sim -- --listen 127.0.0.1:7878 [--mode rows] [--accelerator rtl] [--rtsp 127.0.0.1:8554]
+//!         [--multicast-group 239.255.42.1 [--multicast-port 5006] [--multicast-ttl 1]]
 //!
 //! Seed protocol on the listen port, persistent protocol on the port + 1,
-//! RTSP on `--rtsp` (default: the listen address, port 8554).
+//! RTSP on `--rtsp` (default: the listen address, port 8554); multicast
+//! streams to `--multicast-group` when one is given.
 
-use std::net::SocketAddr;
+use std::net::{Ipv4Addr, SocketAddr};
 use std::process::ExitCode;
 
 use clap::Parser;
-use hps_sim::{Config, Device, HpsSim, RenderMode};
+use hps_sim::{rtsp::Options, Config, Device, HpsSim, RenderMode};
+use rt_services::camera::sender::Multicast;
 
 #[derive(Parser)]
 #[command(name = "hps-sim", about = "The ray tracer board simulated on the host")]
@@ -31,6 +34,17 @@ struct Args {
     /// with port 8554.
     #[arg(long)]
     rtsp: Option<SocketAddr>,
+    /// The multicast group streams set up with `Transport: RTP/AVP;multicast`
+    /// go to (without one, such a SETUP is answered 461). Stream `i` of
+    /// the camera uses port `--multicast-port + 2i`.
+    #[arg(long)]
+    multicast_group: Option<Ipv4Addr>,
+    /// The RTP port of the first multicast stream.
+    #[arg(long, default_value_t = 5006)]
+    multicast_port: u16,
+    /// The multicast packets' time to live (1: they stay on the link).
+    #[arg(long, default_value_t = 1)]
+    multicast_ttl: u8,
 }
 
 fn main() -> ExitCode {
@@ -39,7 +53,16 @@ fn main() -> ExitCode {
     match HpsSim::start_config(args.listen, Config { render, device }, true) {
         Ok(mut sim) => {
             let rtsp = args.rtsp.unwrap_or(SocketAddr::new(args.listen.ip(), rt_services::camera::rtsp::RTSP_PORT));
-            let rtsp = match sim.start_rtsp(rtsp, device, true) {
+            let multicast = args.multicast_group.map(|group| Multicast {
+                group,
+                base_port: args.multicast_port,
+                ttl: args.multicast_ttl,
+            });
+            if multicast.is_some_and(|m| !m.group.is_multicast()) {
+                eprintln!("hps-sim: --multicast-group must be a multicast address (224.0.0.0/4)");
+                return ExitCode::FAILURE;
+            }
+            let rtsp = match sim.start_rtsp_with(rtsp, Options { device, verbose: true, multicast }) {
                 Ok(addr) => addr,
                 Err(e) => {
                     eprintln!("hps-sim: cannot serve RTSP on {rtsp}: {e}");

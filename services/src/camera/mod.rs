@@ -18,11 +18,13 @@
 //!   through a zero-copy transmitter, as the firmware runs it.
 //! * [`receiver`]: the client's end: datagrams to whole frames, NACKs out.
 
+pub mod random;
 pub mod receiver;
 pub mod repair;
 pub mod rtcp;
 pub mod rtp;
 pub mod rtsp;
+pub mod sdp;
 pub mod sender;
 #[cfg(feature = "smoltcp")]
 pub mod service;

@@ -735,7 +735,7 @@ mod tests {
 
     /// The sequence numbers a NACK asks for, as the sender reads it.
     fn asked(nack: &[u8], highest: u32) -> Vec<u32> {
-        NackRequests::new(nack, SSRC, Some(highest)).collect()
+        NackRequests::new(nack, SSRC, Some(highest)).with_limit(u16::MAX).collect()
     }
 
     #[test]

@@ -301,6 +301,20 @@ impl<const N: usize> RepairWindow<N> {
         self.hold_from(from, now);
     }
 
+    /// Drop the packets numbered before `seq` (a new frame begins: the
+    /// window keeps the frame before it and no older one, so a stream
+    /// never holds more than two slots); returns the slots released.
+    /// Bounded: at most `N` entries.
+    pub fn forget_before(&mut self, seq: u32) -> SlotChanges {
+        let before = self.held;
+        while self.oldest != self.next && Self::before(self.oldest, seq) {
+            self.remove(self.oldest);
+            self.oldest = self.oldest.wrapping_add(1);
+        }
+        self.drop_passed_spans();
+        SlotChanges { held: 0, released: before & !self.held }
+    }
+
     /// Drop the packets recorded longer than the hold time before `now`;
     /// returns the slots released (bounded: at most `N` entries).
     pub fn expire(&mut self, now: Instant) -> SlotChanges {
@@ -328,6 +342,56 @@ impl<const N: usize> RepairWindow<N> {
             Some(e) if e.packet.seq == seq => Some(Repair { packet: e.packet, slot: usize::from(e.slot) }),
             _ => None,
         }
+    }
+}
+
+/// When each recent packet was last resent to one receiver, so that a
+/// packet goes again at most once per round trip however often it is
+/// NACKed (a receiver, or someone spoofing one, asking again before the
+/// resend can have arrived). Indexed like a [`RepairWindow`]: sequence
+/// number modulo `N`.
+#[derive(Clone, Debug)]
+pub struct ResendLog<const N: usize> {
+    /// `(seq, ms)`: packet `seq` went again at `ms` (low 32 bits of the
+    /// millisecond clock).
+    at: [Option<(u32, u32)>; N],
+}
+
+/// A [`ResendLog`] as long as a [`FrameRepairWindow`].
+pub type FrameResendLog = ResendLog<REPAIR_ENTRIES>;
+
+impl<const N: usize> ResendLog<N> {
+    /// Nothing resent.
+    pub const fn new() -> ResendLog<N> {
+        ResendLog { at: [None; N] }
+    }
+
+    /// Forget everything (a new receiver).
+    pub fn clear(&mut self) {
+        self.at.fill(None);
+    }
+
+    /// Whether packet `seq` may go again at `now`: not resent within
+    /// `round_trip` before.
+    pub fn may_resend(&self, seq: u32, now: Instant, round_trip: Duration) -> bool {
+        match self.at[seq as usize % N] {
+            Some((s, ms)) if s == seq => {
+                let since = (now.millis() as u32).wrapping_sub(ms);
+                u128::from(since) >= round_trip.as_millis()
+            }
+            _ => true,
+        }
+    }
+
+    /// Packet `seq` went again at `now`.
+    pub fn resent(&mut self, seq: u32, now: Instant) {
+        self.at[seq as usize % N] = Some((seq, now.millis() as u32));
+    }
+}
+
+impl<const N: usize> Default for ResendLog<N> {
+    fn default() -> Self {
+        ResendLog::new()
     }
 }
 
@@ -598,5 +662,30 @@ mod tests {
         let c = w.record(T0, 2, row(1_000_000, 0)).unwrap();
         assert_eq!(c, SlotChanges { held: 0b100, released: 0b010 });
         assert_eq!((w.lookup(100), w.lookup(102), w.len()), (None, None, 1));
+    }
+
+    #[test]
+    fn a_new_frame_leaves_the_window_the_one_before_it() {
+        let mut w = FrameRepairWindow::new(Duration::from_secs(1));
+        for (slot, first) in [(0usize, 100u32), (1, 460), (2, 820)] {
+            w.forget_before(first.wrapping_sub(360));
+            w.record_run(T0, slot, row(first, 0), ROWS).unwrap();
+        }
+        assert_eq!(w.held(), 0b110, "frames 2 and 3; frame 1 left when 3 began");
+        assert_eq!(w.lookup(459), None);
+        assert!(w.lookup(460).is_some() && w.lookup(1179).is_some());
+        assert_eq!(w.forget_before(1180).released, 0b110);
+        assert!(w.is_empty());
+    }
+
+    #[test]
+    fn a_packet_is_resent_at_most_once_a_round_trip() {
+        let mut log = FrameResendLog::new();
+        let rtt = Duration::from_millis(40);
+        assert!(log.may_resend(7, T0, rtt));
+        log.resent(7, T0);
+        assert!(!log.may_resend(7, Instant::from_millis(39), rtt));
+        assert!(log.may_resend(7, Instant::from_millis(40), rtt));
+        assert!(log.may_resend(7 + REPAIR_ENTRIES as u32, Instant::from_millis(1), rtt), "another packet");
     }
 }

@@ -3,7 +3,6 @@
 
 use core::time::Duration;
 
-use super::repair::REPAIR_ENTRIES;
 use super::rtp::{front, BufferTooShort, Packetiser};
 use crate::time::Instant;
 
@@ -125,6 +124,62 @@ pub fn write_sdes_cname(ssrc: u32, cname: &[u8], out: &mut [u8]) -> Result<usize
     Ok(n)
 }
 
+/// RTCP packet type of a goodbye (RFC 3550 section 6.6).
+pub const RTCP_BYE: u8 = 203;
+
+/// Bytes of a BYE for one SSRC, without a reason.
+pub const BYE_BYTES: usize = 8;
+
+/// Write a BYE for `ssrc` (RFC 3550 section 6.6: the source leaves; it
+/// goes last in a compound packet that begins with a report) into the
+/// front of `out`; returns the bytes written ([`BYE_BYTES`]).
+pub fn write_bye(ssrc: u32, out: &mut [u8]) -> Result<usize, BufferTooShort> {
+    let out = front(out, BYE_BYTES)?;
+    out[0..4].copy_from_slice(&rtcp_header(1, RTCP_BYE, BYE_BYTES));
+    out[4..8].copy_from_slice(&ssrc.to_be_bytes());
+    Ok(BYE_BYTES)
+}
+
+/// The round trip a receiver's report block shows (RFC 3550 section
+/// 6.4.1, "the source can compute the round-trip propagation delay"): the
+/// block's LSR and DLSR against `now_ntp`, the sender's wall clock when the
+/// report arrived, in the NTP format its sender reports used. `None` for a
+/// block of another source, or before the receiver had a sender report
+/// (LSR 0), or an answer from the future.
+pub fn round_trip(datagram: &[u8], media_ssrc: u32, now_ntp: u64) -> Option<Duration> {
+    if !valid_compound(datagram) {
+        return None;
+    }
+    let mut rest = datagram;
+    while let Some(&[b0, pt, hi, lo]) = rest.first_chunk::<4>() {
+        let len = (usize::from(u16::from_be_bytes([hi, lo])) + 1) * 4;
+        let packet = rest.get(..len)?;
+        rest = &rest[len..];
+        // Report blocks follow the sender info of an SR or the SSRC of an RR.
+        let blocks_at = match pt {
+            RTCP_SR => 28,
+            RTCP_RR => 8,
+            _ => continue,
+        };
+        for k in 0..usize::from(b0 & 0x1f) {
+            let Some(block) = packet.get(blocks_at + 24 * k..blocks_at + 24 * (k + 1)) else { break };
+            let word = |i: usize| u32::from_be_bytes([block[i], block[i + 1], block[i + 2], block[i + 3]]);
+            if word(0) != media_ssrc || word(16) == 0 {
+                continue;
+            }
+            let (lsr, dlsr) = (word(16), word(20));
+            // The middle 32 bits of the NTP timestamp: 1/65536 s units.
+            let arrival = (now_ntp >> 16) as u32;
+            let rtt = arrival.wrapping_sub(lsr).wrapping_sub(dlsr);
+            if rtt >= 1 << 31 {
+                return None;
+            }
+            return Some(Duration::from_micros(u64::from(rtt) * 1_000_000 / 65_536));
+        }
+    }
+    None
+}
+
 /// When to send the next RTCP report: the first [`REPORT_INTERVAL`] / 2
 /// after the stream starts (RFC 3550 section 6.2: "the initial delay ...
 /// MAY be set to half the minimum interval"), then every
@@ -193,9 +248,10 @@ pub struct NackRequests<'a> {
 }
 
 /// The most sequence numbers [`NackRequests`] yields for one datagram:
-/// two frames' packets ([`REPAIR_ENTRIES`]), all a [`FrameRepairWindow`]
-/// could resend.
-pub const MAX_NACKED_PER_DATAGRAM: u16 = REPAIR_ENTRIES as u16;
+/// 256, seven tenths of a frame (a receiver that lost more than that of a
+/// frame lost the stream, not a few rows; it asks again later). A
+/// 1,500-byte NACK could otherwise ask for some 6,000 resends.
+pub const MAX_NACKED_PER_DATAGRAM: u16 = 256;
 
 /// Whether `data` is a well-formed run of RTCP packets (RFC 3550 appendix
 /// A.2, less the rule that the first be a report: RFC 5506 allows a
@@ -253,6 +309,14 @@ impl<'a> NackRequests<'a> {
     fn resolve(&self, seq16: u16) -> Option<u32> {
         let back = (self.highest as u16).wrapping_sub(seq16);
         (back < 0x8000).then(|| self.highest.wrapping_sub(u32::from(back)))
+    }
+
+    /// The same, yielding at most `limit` numbers rather than
+    /// [`MAX_NACKED_PER_DATAGRAM`] (a receiver's own tests read back all
+    /// it asked for).
+    pub fn with_limit(mut self, limit: u16) -> NackRequests<'a> {
+        self.budget = limit;
+        self
     }
 
     /// Move to the next NACK for our media source; false at the end.
@@ -509,8 +573,11 @@ mod tests {
                 core::iter::once(u32::from(pid))
                     .chain((0..16).filter(move |i| blp & (1 << i) != 0).map(move |i| u32::from(pid) + 1 + i))
             }).filter(|&s| s <= 3_000).collect();
-            proptest::prop_assert_eq!(nacked(&d, 3_000), expected.clone());
-            proptest::prop_assert_eq!(nacked(&plain, 3_000), expected);
+            let all = |d: &[u8]| NackRequests::new(d, 0x1234_5678, Some(3_000)).with_limit(u16::MAX).collect::<Vec<_>>();
+            proptest::prop_assert_eq!(all(&d), expected.clone());
+            proptest::prop_assert_eq!(all(&plain), expected.clone());
+            let capped = nacked(&d, 3_000);
+            proptest::prop_assert_eq!(&capped[..], &expected[..expected.len().min(usize::from(MAX_NACKED_PER_DATAGRAM))]);
             let mut with_tail = d.clone();
             with_tail.extend(&tail);
             let _ = nacked(&with_tail, 3_000);

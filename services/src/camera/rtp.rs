@@ -250,6 +250,20 @@ impl Packetiser {
         }
     }
 
+    /// The extended sequence number the next new packet gets.
+    pub const fn next_seq(&self) -> u32 {
+        self.next_seq
+    }
+
+    /// Leave the numbers up to `seq` unused (a frame that failed part way
+    /// keeps its rows' numbers, so every frame spans exactly one number
+    /// per row and a receiver counts the rest as lost). Nothing is counted
+    /// for the sender reports.
+    pub fn skip_to(&mut self, seq: u32) {
+        self.next_seq = seq;
+        self.sent_any = true;
+    }
+
     /// The RTP timestamp of tick `ticks` (90 kHz since the caller's origin),
     /// with the session's random offset (wrapping, as RTP timestamps do).
     pub const fn timestamp_at(&self, ticks: u64) -> u32 {
@@ -365,9 +379,16 @@ pub struct Endpoints {
     pub dst_mac: smoltcp::wire::EthernetAddress,
     /// The board's address and the stream's source port.
     pub src: core::net::SocketAddrV4,
-    /// The client's address and RTP port.
+    /// The client's (or the multicast group's) address and RTP port.
     pub dst: core::net::SocketAddrV4,
+    /// The IPv4 time to live: [`UNICAST_TTL`], or a multicast group's.
+    pub ttl: u8,
 }
+
+/// The time to live of unicast packets (smoltcp's default, as the board's
+/// other packets have).
+#[cfg(feature = "smoltcp")]
+pub const UNICAST_TTL: u8 = 64;
 
 /// What goes into the UDP checksum field of a [`HeaderTemplate`]'s
 /// packets. The zero-copy path never reads the row, so the software cannot
@@ -392,7 +413,7 @@ pub enum UdpChecksum {
 /// the second the row in the frame ring).
 ///
 /// The Ethernet and IPv4 headers are smoltcp's (`EthernetRepr::emit`,
-/// `Ipv4Repr::emit`: don't fragment, TTL 64, DSCP 0), written once; each
+/// `Ipv4Repr::emit`: don't fragment, DSCP 0; the TTL [`Endpoints::ttl`]), written once; each
 /// packet gets the next IPv4 identification (RFC 6864 section 4.1 lets an
 /// atomic datagram's be anything; an incrementing one helps reading
 /// captures) and its header checksum, computed here whether or not the MAC
@@ -477,7 +498,7 @@ impl HeaderTemplate {
             dst_addr: dst,
             next_header: IpProtocol::Udp,
             payload_len: usize::from(UDP_LENGTH),
-            hop_limit: 64,
+            hop_limit: endpoints.ttl,
         };
         // Identification and checksum stay zero: they are per packet.
         ip.emit(&mut Ipv4Packet::new_unchecked(&mut padded[IP]), &ChecksumCapabilities::ignored());

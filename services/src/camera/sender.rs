@@ -1,41 +1,76 @@
-//! The network camera's RTP sender: what [`crate::camera::rtsp`]'s actions set
-//! going. One [`Stream`] per playing session draws frames from a
-//! [`SlotSource`] (the frame ring), paces them at the session's rate,
-//! numbers their rows with a [`Packetiser`], hands each row's packet to
-//! the caller's [`RtpSink`], answers NACKs from the repair window, and
-//! sends RTCP sender reports.
+//! The network camera's RTP sender: what the RTSP server's sessions set
+//! going ([`Camera`], through [`Bound`] as the server's
+//! [`Streams`](crate::camera::rtsp::Streams)).
 //!
-//! Sans-IO like the rest of the crate: the sink sends (a std socket on the
-//! host, a two-buffer DMA descriptor on the board), the caller supplies the
-//! time and the datagrams. A packet names its row by frame slot and row
-//! number; whether the sink copies the row or points the MAC at it is its
-//! business, so the same sender runs on both.
+//! # Render once, send to many
+//!
+//! Sessions that ask for the same frames (the same light or orbit at the
+//! same rate, [`StreamSpec::same_frames`]) share one *stream*: one frame
+//! rendered per frame time, one SSRC and one numbering, one repair window,
+//! as gst-rtsp-server's shared media and live555's reused source do. Each
+//! session reaches its client through an *output*: UDP to its ports, its
+//! RTSP connection (interleaved), or the stream's multicast group, which
+//! every multicast session of the stream shares (each row goes to the
+//! group once, whatever the number of receivers). A new output joins at
+//! the next frame's first row, whose sequence number the `PLAY` answer
+//! announces ([`Position`]); every frame spans exactly [`ROWS`] sequence
+//! numbers (a frame that fails part way leaves the rest unused), so that
+//! number is known before the frame begins.
 //!
 //! # Frames, slots and repair
 //!
-//! A frame is begun ([`FrameSource::begin`]) when it is due (`fps=N`: every
-//! 1/N s; `fps=max`: as soon as the one before is sent), with the light
-//! [`StreamSpec::light_at`] the stream's media time. Its rows go out as
-//! they land; when the last has gone the frame is ended, but every packet
-//! stays in the stream's [`FrameRepairWindow`] for the repair hold
-//! ([`repair_hold`]) counted from the frame's last row (a receiver asks
-//! only after the marker, and a frame rendered in software on the
-//! emulated board takes longer than the hold to go out), and a slot that any window holds must not be
-//! rendered into ([`Camera::held`], [`FrameRing::set_held`]). A NACK's
-//! packets are sent again from there, unchanged.
+//! A stream begins a frame in the [`SlotSource`] (the frame ring) when one
+//! is due (`fps=N`: every 1/N s; `fps=max`: as soon as every output has
+//! the one before), with the light of its media time
+//! ([`StreamSpec::light_at`]). Rows go to every output as they land, in
+//! runs; an output that cannot take rows for [`OUTPUT_STALL`] is cut from
+//! the frame and joins the next, so a slow client never holds the others
+//! back for long. When every output has the frame it is ended, and its
+//! packets stay in the stream's repair window until the frame after next
+//! begins (and at most [`MIN_REPAIR_HOLD`] after their frame's end if the
+//! stream stops): a stream holds at most two slots, the frame being sent
+//! and the one before it ([`SLOTS_PER_STREAM`]).
 //!
-//! [`FrameRing::set_held`]: crate::frames::FrameRing::set_held
+//! A NACK's packets go again unchanged, to the output that asked (for a
+//! multicast output, to the group), oldest first and before new rows,
+//! within limits that keep a flood of NACKs, real or spoofed, from
+//! multiplying the board's output or starving other streams: a packet goes
+//! again at most once a round trip to an output ([`ResendLog`]), an output
+//! earns one resend per [`REPAIR_SHARE`] packets it was sent (a budget of
+//! at most [`REPAIR_BURST`] banked), and one NACK datagram asks for at most
+//! [`MAX_NACKED_PER_DATAGRAM`] packets.
+//!
+//! # Liveness
+//!
+//! A UDP output whose client sent RTCP (receiver reports, NACKs) and then
+//! falls silent for [`RTCP_SILENCE`], or whose client's host answers
+//! [`UNREACHABLE_LIMIT`] of its packets with ICMP port unreachable
+//! ([`Camera::unreachable`]) without RTCP in between, ends its sessions
+//! ([`Camera::take_ended`]): a crashed player costs the link seconds, not
+//! the RTSP session timeout's minute. An interleaved output ends with its
+//! connection; a multicast one costs nothing per receiver and lives as
+//! long as an RTSP session keeps it.
+//!
+//! [`Position`]: crate::camera::rtsp::Position
+//! [`ResendLog`]: crate::camera::repair::ResendLog
+//! [`MAX_NACKED_PER_DATAGRAM`]: crate::camera::rtcp::MAX_NACKED_PER_DATAGRAM
 
-use core::net::IpAddr;
+use core::net::{IpAddr, Ipv4Addr, SocketAddr};
 use core::time::Duration;
 
 use model::Light;
 
-use crate::camera::repair::FrameRepairWindow;
-use crate::camera::rtcp::{self, write_sdes_cname, NackRequests, ReportTimer, SenderReport, SENDER_REPORT_BYTES};
+use crate::camera::repair::{FrameRepairWindow, FrameResendLog};
+use crate::camera::rtcp::{
+    self, round_trip, write_bye, write_sdes_cname, NackRequests, ReportTimer, SenderReport, BYE_BYTES,
+    SENDER_REPORT_BYTES,
+};
 use crate::camera::rtp::{self, FrameStamp, Packetiser, RowPacket};
-use crate::camera::rtsp::{Action, SessionId, StreamSpec, MAX_SESSIONS};
-use crate::frames::{FrameEngine, FrameMemory, FrameRing, FrameSource, ROWS};
+use crate::camera::rtsp::{
+    Client, ConnId, EndReason, Fresh, Group, Position, Profile, SessionId, SetUp, Status, Stream as Light_, StreamSpec,
+    Streams, Transport, MAX_SESSIONS,
+};
+use crate::frames::{FrameSource, ROWS};
 use crate::time::Instant;
 
 /// Frames in numbered slots that stay readable after [`FrameSource::end`]
@@ -46,48 +81,113 @@ pub trait SlotSource: FrameSource<Frame = usize> {
     fn set_held(&mut self, mask: u32);
 }
 
-/// Where a stream's packets go.
+/// Slots a stream holds at most: the frame being sent and the one before
+/// it, which its repair window keeps.
+pub const SLOTS_PER_STREAM: usize = 2;
+
+/// Slots the camera holds at most: [`SLOTS_PER_STREAM`] for each of
+/// [`MAX_SESSIONS`] streams (every session a stream of its own).
+pub const CAMERA_SLOTS: usize = SLOTS_PER_STREAM * MAX_SESSIONS;
+
+/// Rows a stream gathers into one run while the source keeps landing
+/// them (each run costs the sink one route lookup, the MAC one set of
+/// descriptor control words and counts, the repair window one check):
+/// 32 rows, 46 KB, 0.37 ms at 1 Gbit/s, the MAC's transmit ring.
+pub const MIN_RUN: u16 = 32;
+
+/// NACKed packets an output queues for resending (more are not
+/// repairable: a receiver asking for more at once lost the stream).
+pub const MAX_PENDING_REPAIRS: usize = 512;
+
+/// An output earns one resend per this many packets it is sent: repairs
+/// add at most a quarter to its traffic (10% loss needs about 11%,
+/// counting lost resends).
+pub const REPAIR_SHARE: u32 = 4;
+
+/// Resends an output may bank: one frame's worth.
+pub const REPAIR_BURST: u32 = ROWS as u32;
+
+/// The round trip assumed until a receiver report measures one.
+pub const DEFAULT_ROUND_TRIP: Duration = Duration::from_millis(50);
+
+/// The shortest round trip assumed (a LAN's is far less, but a receiver
+/// needs a few milliseconds to notice a resend arrived).
+pub const MIN_ROUND_TRIP: Duration = Duration::from_millis(5);
+
+/// The longest round trip assumed: a resend that took longer is worth
+/// sending again.
+pub const MAX_ROUND_TRIP: Duration = Duration::from_secs(1);
+
+/// An output that takes no row for this long is cut from the frame it is
+/// on and joins the next (a UDP path whose transmitter stays full, a TCP
+/// client that stopped reading).
+pub const OUTPUT_STALL: Duration = Duration::from_millis(500);
+
+/// A UDP client that has sent RTCP and then sends none (nor an RTSP
+/// request) for this long is gone: four times the 5 s report interval
+/// players use (GStreamer's and FFmpeg's receiver reports).
+pub const RTCP_SILENCE: Duration = Duration::from_secs(20);
+
+/// ICMP port unreachable answers to an output's packets, with no RTCP in
+/// between, after which its client is gone (Linux sends a few at once,
+/// then one a second: `icmp_ratelimit`).
+pub const UNREACHABLE_LIMIT: u8 = 3;
+
+/// How long a stream that stopped keeps its last frames for a NACK: a
+/// second, for a request that crosses a slow or lossy path.
+pub const MIN_REPAIR_HOLD: Duration = Duration::from_secs(1);
+
+/// The CNAME in the sender reports' SDES (RFC 3550 section 6.5.1).
+pub const CNAME: &[u8] = b"raytracer@board";
+
+/// Where an output's packets go.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Destination {
-    /// The client's address (the one that set the session up).
-    pub addr: IpAddr,
-    /// Its RTP port.
-    pub rtp_port: u16,
-    /// Its RTCP port.
-    pub rtcp_port: u16,
+pub enum Dest {
+    /// UDP to the client that set the session up.
+    Udp {
+        /// The client's address.
+        addr: IpAddr,
+        /// Its RTP port.
+        rtp_port: u16,
+        /// Its RTCP port.
+        rtcp_port: u16,
+    },
+    /// Inside an RTSP connection (RFC 2326 section 10.12): `$`, the
+    /// channel, the length, the packet.
+    Interleaved {
+        /// The connection.
+        conn: ConnId,
+        /// The channel of RTP packets.
+        rtp_channel: u8,
+        /// The channel of RTCP packets.
+        rtcp_channel: u8,
+    },
+    /// UDP to a multicast group: RTP to its port, RTCP to the next.
+    Multicast(Group),
 }
 
 /// The caller's way out.
 pub trait RtpSink {
-    /// Send the packet of `packet`: its 20 header bytes are
-    /// [`Packetiser::emit`] of it, its payload row `packet.row` of frame
-    /// slot `slot`. `false` if it cannot be sent now (nothing was sent;
-    /// it is offered again later).
-    fn send_row(&mut self, to: &Destination, packetiser: &Packetiser, packet: &RowPacket, slot: usize) -> bool;
-
-    /// Send a run of `count` packets: `first` and the ones after it
-    /// ([`RowPacket::nth`]), rows of slot `slot`. Returns how many went,
-    /// from the front (the rest are offered again later). The default
-    /// sends them one by one; a sink can do the per-run work once.
-    fn send_rows(
+    /// Send a run of `count` row packets to `to`: `first` and the ones
+    /// after it ([`RowPacket::nth`]), their 20 RTP and RFC 4175 header
+    /// bytes [`Packetiser::emit`] of each, their rows those of frame slot
+    /// `slot` (the same rows [`FrameSource::copy_row`] of `source` copies,
+    /// while the frame is the current one; a resend's slot is held, not
+    /// current, and only UDP outputs get resends). Returns how many went,
+    /// from the front (the rest are offered again later).
+    fn send_rows<S: FrameSource<Frame = usize>>(
         &mut self,
-        to: &Destination,
+        to: &Dest,
         packetiser: &Packetiser,
         first: &RowPacket,
         count: u16,
         slot: usize,
-    ) -> u16 {
-        for k in 0..count {
-            if !self.send_row(to, packetiser, &first.nth(k), slot) {
-                return k;
-            }
-        }
-        count
-    }
+        source: &mut S,
+    ) -> u16;
 
-    /// Send an RTCP datagram to the client's RTCP port; `false` if it
+    /// Send an RTCP packet to `to`'s RTCP port (or channel); `false` if it
     /// cannot be sent now (it is dropped: reports are periodic).
-    fn send_rtcp(&mut self, to: &Destination, datagram: &[u8]) -> bool;
+    fn send_rtcp(&mut self, to: &Dest, datagram: &[u8]) -> bool;
 
     /// Whether the camera should return to its caller now rather than
     /// ask the source for more rows: something arrived that the caller
@@ -97,27 +197,32 @@ pub trait RtpSink {
     }
 }
 
-/// How long sent packets stay ready for a NACK: two frame times at the
-/// stream's rate, and never less than [`MIN_REPAIR_HOLD`] (a receiver asks
-/// only once a frame's marker arrived, and a slow link or host adds its
-/// round trip).
-pub fn repair_hold(spec: &StreamSpec) -> Duration {
-    spec.fps.interval().map_or(MIN_REPAIR_HOLD, |i| (i * 2).max(MIN_REPAIR_HOLD))
+/// The sender's settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Config {
+    /// A live stream's light before its first `SET_PARAMETER`.
+    pub live_light: Light,
+    /// Where multicast streams go; `None`: no multicast (461).
+    pub multicast: Option<Multicast>,
 }
 
-/// The shortest repair hold: a second, for a NACK that crosses a slow or
-/// lossy path, or waits behind a long poll (the emulated board renders a
-/// frame on its CPU in one). It costs little: a window keeps at most
-/// [`crate::camera::repair::REPAIR_ENTRIES`] packets (under three frames) whatever the hold.
-pub const MIN_REPAIR_HOLD: Duration = Duration::from_secs(1);
+/// The multicast groups streams are sent to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Multicast {
+    /// The group address (an administratively scoped one, RFC 2365, for
+    /// a lab network: 239.255.0.0/16).
+    pub group: Ipv4Addr,
+    /// The RTP port of the first stream; stream `i` uses `base_port + 2i`
+    /// (RTCP one above).
+    pub base_port: u16,
+    /// Time to live: 1 keeps the packets on the board's link.
+    pub ttl: u8,
+}
 
-/// The CNAME in the sender reports' SDES (RFC 3550 section 6.5.1).
-pub const CNAME: &[u8] = b"raytracer@board";
-
-/// What a stream has done, for logs and tests.
+/// What an output has done, for logs and tests.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct StreamStats {
-    /// Frames whose every row was sent.
+pub struct OutputStats {
+    /// Frames whose every row it was sent.
     pub frames: u32,
     /// Row packets sent (first sends).
     pub packets: u32,
@@ -125,111 +230,161 @@ pub struct StreamStats {
     pub resent: u32,
     /// NACKed packets no longer (or never) in the repair window.
     pub unrepairable: u32,
-    /// Frames the source failed (not sent whole).
+    /// NACKed packets not resent because they went again less than a
+    /// round trip before.
+    pub too_soon: u32,
+    /// NACKed packets not resent because the output's repair budget was
+    /// spent.
+    pub over_budget: u32,
+    /// Frames cut short: the output stalled, or paused, mid-frame.
+    pub cut: u32,
+}
+
+/// What a stream has done.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StreamStats {
+    /// Frames rendered and sent to every output.
+    pub frames: u32,
+    /// Frames the source failed, or that stopped with the stream.
     pub failed: u32,
 }
 
-/// The frame being sent.
-#[derive(Clone, Copy, Debug)]
-struct Current {
-    slot: usize,
-    stamp: FrameStamp,
-    next_row: u16,
-    /// The extended sequence number of its first row.
-    first_seq: u32,
+/// Why the sender ended a session itself.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Gone {
+    /// Its client sent RTCP, then none for [`RTCP_SILENCE`].
+    Silent,
+    /// Its client's host answered [`UNREACHABLE_LIMIT`] packets with ICMP
+    /// port unreachable.
+    Unreachable,
 }
 
-/// One session's sender state (its repair window lives in the [`Camera`],
-/// so a stream is small enough to make on any stack).
+impl core::fmt::Display for Gone {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Gone::Silent => "no RTCP for 20 s",
+            Gone::Unreachable => "ICMP port unreachable",
+        })
+    }
+}
+
+/// The frame a stream is sending.
+#[derive(Clone, Copy, Debug)]
+struct Frame {
+    slot: usize,
+    stamp: FrameStamp,
+    /// The extended sequence number of its row 0.
+    first_seq: u32,
+    /// Rows landed (and numbered) so far.
+    landed: u16,
+}
+
+impl Frame {
+    fn packet(&self, row: u16) -> RowPacket {
+        RowPacket { seq: self.first_seq.wrapping_add(u32::from(row)), timestamp: self.stamp.timestamp, row }
+    }
+}
+
+/// One shared stream: its frames, numbering and pacing.
 #[derive(Clone, Debug)]
-pub struct Stream {
-    session: SessionId,
+struct Media {
     spec: StreamSpec,
-    to: Destination,
-    packetiser: Packetiser,
+    /// A live stream's light.
     live: Light,
-    /// Sending (`PLAY`) or holding (`PAUSE`).
-    playing: bool,
+    packetiser: Packetiser,
+    /// Whether any output plays (the media time runs).
+    running: bool,
     /// Media time (90 kHz ticks since the first `PLAY`) at `resumed_at`.
     media_at_resume: u64,
     resumed_at: Instant,
     /// When the next frame is due (`fps=N`).
     due: Instant,
-    current: Option<Current>,
-    /// NACKed packets not sent again yet (the sink was full): they go
-    /// before new rows, which a receiver waits for less.
-    repairs: heapless::Deque<u32, MAX_PENDING_REPAIRS>,
-    reports: ReportTimer,
+    current: Option<Frame>,
+    /// Row 0's sequence number of the frame before the current one (or of
+    /// the last one): the oldest the repair window keeps.
+    previous_first: Option<u32>,
     stats: StreamStats,
 }
 
-/// Rows a stream gathers into one run while the source keeps landing
-/// them (each run costs the sink one route lookup, the MAC one set of
-/// descriptor control words and counts, the repair window one check):
-/// 32 rows, 46 KB, 0.37 ms at 1 Gbit/s, the MAC's transmit ring. 16 cost
-/// the emulated board some 4,800 instructions a frame more.
-pub const MIN_RUN: u16 = 32;
-
-/// NACKed packets a stream queues for resending (more are not repairable:
-/// more than a frame's worth asked for at once is a receiver that lost
-/// the stream, not a few rows).
-pub const MAX_PENDING_REPAIRS: usize = 512;
-
-impl Stream {
-    /// The session.
-    pub fn session(&self) -> SessionId {
-        self.session
-    }
-
-    /// Where its packets go.
-    pub fn destination(&self) -> Destination {
-        self.to
-    }
-
-    /// What it has done.
-    pub fn stats(&self) -> StreamStats {
-        self.stats
-    }
-
-    /// The packetiser (SSRC, sequence numbers).
-    pub fn packetiser(&self) -> &Packetiser {
-        &self.packetiser
-    }
-
-    /// Whether it is sending.
-    pub fn playing(&self) -> bool {
-        self.playing
-    }
-
-    /// Media time at `now`, in 90 kHz ticks.
+impl Media {
     fn media_ticks(&self, now: Instant) -> u64 {
-        if self.playing {
+        if self.running {
             self.media_at_resume + rtp::ticks(now).saturating_sub(rtp::ticks(self.resumed_at))
         } else {
             self.media_at_resume
         }
     }
 
-    /// When it next wants [`Camera::poll`]: `None` while it waits for
-    /// something other than time (a slot, a row, the sink), or is paused.
-    fn deadline(&self) -> Option<Instant> {
-        match (self.playing, self.current, self.spec.fps.interval()) {
-            (true, None, Some(_)) => Some(self.due),
-            _ => None,
+    /// Row 0's sequence number of the next frame to begin.
+    fn next_frame_seq(&self) -> u32 {
+        match self.current {
+            Some(f) => f.first_seq.wrapping_add(u32::from(ROWS)),
+            None => self.packetiser.next_seq(),
         }
     }
 }
 
-/// The RTP senders of up to `N` sessions, with a repair window each.
-pub struct Camera<const N: usize = MAX_SESSIONS> {
-    streams: [Option<Stream>; N],
-    windows: [FrameRepairWindow; N],
-    /// Where RTCP reports are built.
-    rtcp: [u8; RTCP_BYTES],
+/// Where an output is in its stream's frames.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Cursor {
+    /// No session of it plays.
+    Paused,
+    /// Waiting for the frame whose row 0 is numbered `from` or later.
+    Waiting { from: u32 },
+    /// In the current frame, row `next` goes next.
+    Sending { next: u16 },
 }
 
-/// A sender report and an SDES CNAME chunk, the compound packet sent.
-const RTCP_BYTES: usize = SENDER_REPORT_BYTES + rtcp::sdes_cname_bytes(CNAME.len());
+/// One way out of a stream: a unicast client, or a multicast group.
+#[derive(Clone, Debug)]
+struct Output {
+    media: usize,
+    dest: Dest,
+    /// Sessions of it that play.
+    playing: u8,
+    cursor: Cursor,
+    repairs: heapless::Deque<u32, MAX_PENDING_REPAIRS>,
+    /// Resends it may still make, times [`REPAIR_SHARE`].
+    budget: u32,
+    round_trip: Duration,
+    /// Since when it takes no rows.
+    stalled_since: Option<Instant>,
+    reports: ReportTimer,
+    /// When its client's RTCP last arrived.
+    last_rtcp: Option<Instant>,
+    unreachable: u8,
+    stats: OutputStats,
+}
+
+/// A session: which output it goes through, and whether it plays.
+#[derive(Clone, Copy, Debug)]
+struct Member {
+    session: SessionId,
+    output: usize,
+    client: IpAddr,
+    playing: bool,
+}
+
+/// A sender report, an SDES CNAME chunk and a BYE: the largest compound
+/// packet sent.
+const RTCP_BYTES: usize = SENDER_REPORT_BYTES + rtcp::sdes_cname_bytes(CNAME.len()) + BYE_BYTES;
+
+/// The RTP sender of up to `N` sessions: up to `N` streams and outputs,
+/// with a repair window per stream and a resend log per output.
+pub struct Camera<const N: usize = MAX_SESSIONS> {
+    config: Option<Config>,
+    media: [Option<Media>; N],
+    windows: [FrameRepairWindow; N],
+    outputs: [Option<Output>; N],
+    resends: [FrameResendLog; N],
+    members: [Option<Member>; N],
+    /// Sessions the sender ended itself, for the RTSP server to forget.
+    ended: heapless::Deque<(SessionId, Gone), N>,
+    /// Goodbyes to send: an output's destination and its stream's SSRC.
+    byes: heapless::Deque<(Dest, u32), N>,
+    /// Where RTCP packets are built.
+    rtcp: [u8; RTCP_BYTES],
+}
 
 impl<const N: usize> Default for Camera<N> {
     fn default() -> Self {
@@ -238,238 +393,456 @@ impl<const N: usize> Default for Camera<N> {
 }
 
 impl<const N: usize> Camera<N> {
-    /// No streams. `const`, so a board can keep it in a `static` (its
-    /// repair windows are some 32 KiB each).
+    /// No streams, not configured. `const`, so a board can keep it in a
+    /// `static` (its repair windows and resend logs are some 30 KiB a
+    /// session).
     pub const fn new() -> Camera<N> {
+        const { assert!(N <= 32, "streams' slots live in 32-bit masks") };
         Camera {
-            streams: [const { None }; N],
+            config: None,
+            media: [const { None }; N],
             windows: [const { FrameRepairWindow::new(MIN_REPAIR_HOLD) }; N],
+            outputs: [const { None }; N],
+            resends: [const { FrameResendLog::new() }; N],
+            members: [const { None }; N],
+            ended: heapless::Deque::new(),
+            byes: heapless::Deque::new(),
             rtcp: [0; RTCP_BYTES],
         }
     }
 
-    /// The streams.
-    pub fn streams(&self) -> impl Iterator<Item = &Stream> {
-        self.streams.iter().flatten()
+    /// Set the live light and the multicast groups (before the first
+    /// session; a camera never configured serves no live stream and no
+    /// multicast).
+    pub fn configure(&mut self, config: Config) {
+        self.config = Some(config);
     }
 
-    /// The stream of `session`.
-    pub fn stream(&self, session: SessionId) -> Option<&Stream> {
-        self.streams().find(|s| s.session == session)
+    /// The sessions it sends to, with their output's statistics.
+    pub fn sessions(&self) -> impl Iterator<Item = (SessionId, OutputStats)> + '_ {
+        self.members.iter().flatten().filter_map(|m| Some((m.session, self.outputs[m.output].as_ref()?.stats)))
     }
 
-    fn index(&self, session: SessionId) -> Option<usize> {
-        self.streams.iter().position(|s| s.as_ref().is_some_and(|s| s.session == session))
+    /// `session`'s output's statistics.
+    pub fn stats(&self, session: SessionId) -> Option<OutputStats> {
+        let m = self.member(session)?;
+        Some(self.outputs[m.output].as_ref()?.stats)
     }
 
-    /// Packets `session`'s repair window holds (what a NACK can get back).
+    /// The statistics of `session`'s stream.
+    pub fn stream_stats(&self, session: SessionId) -> Option<StreamStats> {
+        let m = self.member(session)?;
+        Some(self.media[self.outputs[m.output].as_ref()?.media].as_ref()?.stats)
+    }
+
+    /// Streams running or set up.
+    pub fn streams(&self) -> usize {
+        self.media.iter().flatten().count()
+    }
+
+    /// Outputs (unicast clients and multicast groups).
+    pub fn outputs(&self) -> usize {
+        self.outputs.iter().flatten().count()
+    }
+
+    /// Where `session`'s packets go.
+    pub fn destination(&self, session: SessionId) -> Option<Dest> {
+        Some(self.outputs[self.member(session)?.output].as_ref()?.dest)
+    }
+
+    /// The SSRC of `session`'s stream.
+    pub fn ssrc(&self, session: SessionId) -> Option<u32> {
+        let o = self.outputs[self.member(session)?.output].as_ref()?;
+        Some(self.media[o.media].as_ref()?.packetiser.ssrc())
+    }
+
+    /// Packets `session`'s stream's repair window holds.
     pub fn repairable(&self, session: SessionId) -> usize {
-        self.index(session).map_or(0, |i| self.windows[i].len())
+        let Some(m) = self.member(session) else { return 0 };
+        self.outputs[m.output].as_ref().map_or(0, |o| self.windows[o.media].len())
     }
 
     /// The frame slots the repair windows hold (bit `i`: slot `i`); give it
     /// to the source ([`SlotSource::set_held`]) after every call that
-    /// sends or forgets.
+    /// sends or forgets ([`Bound`] and [`poll`](Self::poll) do).
     pub fn held(&self) -> u32 {
         self.windows.iter().fold(0, |m, w| m | w.held())
     }
 
-    /// Carry out an action of the RTSP server at `now`. Returns, for a
-    /// [`Action::Pause`], the position to report back with
-    /// [`crate::camera::rtsp::Server::set_position`]: the sequence number and
-    /// timestamp the next packet would have had.
-    pub fn apply<S: SlotSource>(&mut self, action: Action, now: Instant, source: &mut S) -> Option<(u16, u32)> {
-        match action {
-            Action::Play { session, spec, client_addr, rtp_port, rtcp_port, ssrc, seq, rtptime, live } => {
-                match self.index(session) {
-                    Some(i) => {
-                        // Resume: numbering and media time go on.
-                        if let Some(s) = self.streams[i].as_mut() {
-                            s.live = live;
-                            if !s.playing {
-                                s.playing = true;
-                                s.resumed_at = now;
-                                s.due = now;
-                            }
-                        }
-                    }
-                    None => {
-                        let i = self.streams.iter().position(Option::is_none)?;
-                        self.windows[i].clear(repair_hold(&spec));
-                        self.streams[i] = Some(Stream {
-                            session,
-                            spec,
-                            to: Destination { addr: client_addr, rtp_port, rtcp_port },
-                            packetiser: Packetiser::new(ssrc, u32::from(seq), rtptime),
-                            live,
-                            playing: true,
-                            media_at_resume: 0,
-                            resumed_at: now,
-                            due: now,
-                            current: None,
-                            repairs: heapless::Deque::new(),
-                            reports: ReportTimer::new(now),
-                            stats: StreamStats::default(),
-                        });
-                    }
-                }
-                None
-            }
-            Action::Pause { session } => {
-                let i = self.index(session)?;
-                let s = self.streams[i].as_mut()?;
-                if let Some(c) = s.current.take() {
-                    // The rest of the frame is not sent; its rows so far
-                    // stay repairable.
-                    source.end(c.slot);
-                    self.windows[i].restart_hold(c.first_seq, now);
-                    s.stats.failed += 1;
-                }
-                s.media_at_resume = s.media_ticks(now) + 1;
-                s.playing = false;
-                let next = s.packetiser.highest_seq().map_or(0, |h| h.wrapping_add(1));
-                Some((next as u16, s.packetiser.timestamp_at(s.media_at_resume)))
-            }
-            Action::Stop { session } | Action::Timeout { session } => {
-                self.forget(session, source);
-                None
-            }
-            Action::SetLight { session, light } => {
-                if let Some(s) = self.index(session).and_then(|i| self.streams[i].as_mut()) {
-                    s.live = light;
-                }
-                None
-            }
-        }
+    /// A session the sender ended itself, and why: the RTSP server must
+    /// forget it (`rtsp::Server::remove`). Call until `None` after each
+    /// poll.
+    pub fn take_ended(&mut self) -> Option<(SessionId, Gone)> {
+        self.ended.pop_front()
     }
 
-    /// Stop `session`'s stream and let its slots go.
-    pub fn forget<S: SlotSource>(&mut self, session: SessionId, source: &mut S) {
-        if let Some(i) = self.index(session) {
-            if let Some(c) = self.streams[i].take().and_then(|s| s.current) {
-                source.end(c.slot);
-            }
-            self.windows[i].clear(MIN_REPAIR_HOLD);
-            source.set_held(self.held());
-        }
+    fn member(&self, session: SessionId) -> Option<&Member> {
+        self.members.iter().flatten().find(|m| m.session == session)
     }
 
-    /// Do what is due at `now`: begin frames, send the rows that landed,
-    /// send reports, expire repair packets. `wall` is the sender reports'
-    /// clock (NTP format, [`rtcp::ntp_timestamp`]): the wall clock where
-    /// there is one, else the time since start. Returns whether anything
-    /// was sent or begun (poll again at once if so).
-    pub fn poll<S: SlotSource, K: RtpSink>(&mut self, now: Instant, wall: u64, source: &mut S, sink: &mut K) -> bool {
-        let mut progress = false;
-        for i in 0..N {
-            let Some(s) = self.streams[i].as_mut() else { continue };
-            let window = &mut self.windows[i];
-            // Packets expire by time only between frames: a frame's hold
-            // starts when its last row went (`restart_hold`), however long
-            // it took; meanwhile the window's size bounds what it keeps.
-            if s.current.is_none() && window.expire(now).released != 0 {
-                progress = true;
+    fn member_index(&self, session: SessionId) -> Option<usize> {
+        self.members.iter().position(|m| m.as_ref().is_some_and(|m| m.session == session))
+    }
+
+    /// The multicast group of stream slot `i`.
+    fn group_of(&self, i: usize) -> Option<Group> {
+        let m = self.config?.multicast?;
+        let port = m.base_port.checked_add(u16::try_from(2 * i).ok()?)?;
+        Some(Group { addr: m.group, port, ttl: m.ttl })
+    }
+
+    /// The stream `spec` is (or would be) sent as: its slot.
+    fn stream_for(&self, spec: &StreamSpec) -> Option<usize> {
+        self.media.iter().position(|m| m.as_ref().is_some_and(|m| m.spec.same_frames(spec)))
+    }
+
+    // ---- What the RTSP server asks ----
+
+    /// `SETUP` of `session` ([`Streams::setup`]).
+    #[allow(clippy::too_many_arguments)]
+    fn setup_session<S: SlotSource>(
+        &mut self,
+        session: SessionId,
+        spec: &StreamSpec,
+        transport: Transport,
+        client: Client,
+        fresh: Fresh,
+        now: Instant,
+        source: &mut S,
+    ) -> Result<SetUp, Status> {
+        if transport == Transport::Multicast && self.config.and_then(|c| c.multicast).is_none() {
+            return Err(Status::UnsupportedTransport);
+        }
+        // SETUP again (not playing): the old stream and output are left,
+        // once it is clear that the new ones can be had (counting what
+        // leaving frees), so a refusal leaves the session as it was.
+        if let Some(old) = self.member(session).copied() {
+            let sole_user = |o: usize| self.members.iter().flatten().filter(|m| m.output == o).count() == 1;
+            let frees_output = sole_user(old.output).then_some(old.output);
+            let frees_stream = frees_output.and_then(|o| self.outputs[o].as_ref()).map(|o| o.media).filter(|&mi| {
+                self.outputs
+                    .iter()
+                    .enumerate()
+                    .all(|(j, o)| Some(j) == frees_output || o.as_ref().is_none_or(|o| o.media != mi))
+            });
+            let stream_ok =
+                self.stream_for(spec).is_some() || self.media.iter().any(Option::is_none) || frees_stream.is_some();
+            let group_shared = transport == Transport::Multicast
+                && self.stream_for(spec).is_some_and(|mi| {
+                    self.outputs.iter().flatten().any(|o| o.media == mi && matches!(o.dest, Dest::Multicast(_)))
+                });
+            let output_ok = group_shared || self.outputs.iter().any(Option::is_none) || frees_output.is_some();
+            if !stream_ok || !output_ok {
+                return Err(Status::NotEnoughBandwidth);
             }
-            if s.playing && s.reports.poll(now) {
-                let sr = SenderReport::now(&s.packetiser, wall, s.media_ticks(now));
-                let n = sr.write(&mut self.rtcp).unwrap_or(0);
-                if let Ok(m) = write_sdes_cname(s.packetiser.ssrc(), CNAME, &mut self.rtcp[n..]) {
-                    let _ = sink.send_rtcp(&s.to, &self.rtcp[..n + m]);
-                }
+            self.leave(session, now, source, false);
+        }
+        let free_member = self.members.iter().position(Option::is_none).ok_or(Status::NotEnoughBandwidth)?;
+        let media = match self.stream_for(spec) {
+            Some(i) => i,
+            None => {
+                let i = self.media.iter().position(Option::is_none).ok_or(Status::NotEnoughBandwidth)?;
+                let live = match self.config {
+                    Some(c) => c.live_light,
+                    // A camera never configured: the light rt-client starts
+                    // with (3, 4, -2 in Q13.10: always in range).
+                    None => Light::from_raw(3 << 10, 4 << 10, -2 << 10).map_err(|_| Status::NotEnoughBandwidth)?,
+                };
+                self.media[i] = Some(Media {
+                    spec: *spec,
+                    live,
+                    packetiser: Packetiser::new(fresh.ssrc, u32::from(fresh.seq), fresh.rtptime),
+                    running: false,
+                    media_at_resume: 0,
+                    resumed_at: now,
+                    due: now,
+                    current: None,
+                    previous_first: None,
+                    stats: StreamStats::default(),
+                });
+                self.windows[i].clear(MIN_REPAIR_HOLD);
+                i
             }
-            if !s.repairs.is_empty() {
-                let before = s.stats.resent;
-                let done = s.send_repairs(window, sink);
-                progress |= s.stats.resent != before;
-                if !done {
-                    continue;
-                }
-            }
-            if !s.playing {
-                continue;
-            }
-            if s.current.is_none() {
-                let interval = s.spec.fps.interval();
-                if interval.is_some() && now < s.due {
-                    continue;
-                }
-                let media = s.media_ticks(now);
-                let light = s.spec.light_at(Duration::from_micros(media * 100 / 9), s.live);
-                match source.begin(&light) {
-                    Ok(Some(slot)) => {
-                        let stamp = s.packetiser.begin_frame(media);
-                        let first_seq = s.packetiser.highest_seq().map_or(0, |h| h.wrapping_add(1));
-                        s.current = Some(Current { slot, stamp, next_row: 0, first_seq });
-                        if let Some(iv) = interval {
-                            // Keep the rate; after a stall, start afresh.
-                            s.due = if now.saturating_duration_since(s.due) > iv { now + iv } else { s.due + iv };
-                        }
-                        progress = true;
+        };
+        let group = match transport {
+            Transport::Multicast => self.group_of(media),
+            _ => None,
+        };
+        let shared = match (transport, group) {
+            (Transport::Multicast, Some(g)) => self
+                .outputs
+                .iter()
+                .position(|o| o.as_ref().is_some_and(|o| o.media == media && o.dest == Dest::Multicast(g))),
+            _ => None,
+        };
+        let output = match shared {
+            Some(o) => o,
+            None => {
+                let Some(o) = self.outputs.iter().position(Option::is_none) else {
+                    self.forget_unused_media(media, source);
+                    return Err(Status::NotEnoughBandwidth);
+                };
+                let dest = match (transport, group) {
+                    (Transport::Udp { rtp_port, rtcp_port }, _) => Dest::Udp { addr: client.addr, rtp_port, rtcp_port },
+                    (Transport::Interleaved { rtp_channel, rtcp_channel }, _) => {
+                        Dest::Interleaved { conn: client.conn, rtp_channel, rtcp_channel }
                     }
-                    Ok(None) => continue,
-                    Err(_) => {
-                        s.stats.failed += 1;
-                        if let Some(iv) = interval {
-                            s.due = now + iv;
-                        }
-                        continue;
-                    }
-                }
-            }
-            let Some(mut c) = s.current else { continue };
-            // The rows landed, asking again while the source lands more:
-            // rows go in runs of up to MIN_RUN gathered while they keep
-            // coming, so the per-run work (the sink's route, the window's
-            // bookkeeping, the calls) is paid once a run, not once a row.
-            // A run goes as soon as the source has nothing more right now,
-            // so no row waits for a later one that is not on its way.
-            let mut failed = false;
-            let mut seen = c.next_row;
-            loop {
-                let ready = match source.rows_ready(c.slot) {
-                    Ok(r) => r.min(ROWS),
-                    Err(_) => {
-                        failed = true;
-                        break;
+                    (Transport::Multicast, Some(g)) => Dest::Multicast(g),
+                    (Transport::Multicast, None) => {
+                        self.forget_unused_media(media, source);
+                        return Err(Status::UnsupportedTransport);
                     }
                 };
-                let landing = ready > seen;
-                seen = ready;
-                let waiting = ready.saturating_sub(c.next_row);
-                if waiting > 0 && (waiting >= MIN_RUN || ready == ROWS || !landing) {
-                    let Ok(first) = s.packetiser.peek_packet(c.stamp, c.next_row) else { break };
-                    let sent = sink.send_rows(&s.to, &s.packetiser, &first, waiting, c.slot);
-                    // The numbers peeked: nothing else numbers between.
-                    s.packetiser.advance(sent);
-                    let _ = window.record_run(now, c.slot, first, sent);
-                    s.stats.packets += u32::from(sent);
-                    c.next_row += sent;
-                    progress |= sent > 0;
-                    // Between runs: something received (a NACK) goes first.
-                    if sent < waiting || sink.should_yield() {
-                        break;
-                    }
-                }
-                if c.next_row == ROWS || !landing {
-                    break;
+                self.outputs[o] = Some(Output {
+                    media,
+                    dest,
+                    playing: 0,
+                    cursor: Cursor::Paused,
+                    repairs: heapless::Deque::new(),
+                    budget: REPAIR_SHARE * REPAIR_BURST / 2,
+                    round_trip: DEFAULT_ROUND_TRIP,
+                    stalled_since: None,
+                    reports: ReportTimer::new(now),
+                    last_rtcp: None,
+                    unreachable: 0,
+                    stats: OutputStats::default(),
+                });
+                self.resends[o].clear();
+                o
+            }
+        };
+        self.members[free_member] = Some(Member { session, output, client: client.addr, playing: false });
+        let ssrc = self.media[media].as_ref().map_or(fresh.ssrc, |m| m.packetiser.ssrc());
+        Ok(SetUp { ssrc, group })
+    }
+
+    /// `PLAY` of `session` ([`Streams::play`]).
+    fn play_session(&mut self, session: SessionId, now: Instant) -> Result<Position, Status> {
+        let i = self.member_index(session).ok_or(Status::SessionNotFound)?;
+        let Some(m) = self.members[i].as_mut() else { return Err(Status::SessionNotFound) };
+        let was_playing = core::mem::replace(&mut m.playing, true);
+        let Some(o) = self.outputs[m.output].as_mut() else { return Err(Status::SessionNotFound) };
+        let Some(media) = self.media[o.media].as_mut() else { return Err(Status::SessionNotFound) };
+        if !media.running {
+            media.running = true;
+            media.resumed_at = now;
+            media.due = now;
+        }
+        if !was_playing {
+            o.playing += 1;
+        }
+        let from = media.next_frame_seq();
+        if o.cursor == Cursor::Paused {
+            o.cursor = Cursor::Waiting { from };
+            o.reports = ReportTimer::new(now);
+        }
+        let seq = match o.cursor {
+            Cursor::Waiting { from } => from,
+            // Already in a frame (another session of the group plays):
+            // the group's next frame is where this receiver starts whole.
+            _ => from,
+        };
+        let media_ticks = media.media_ticks(now);
+        Ok(Position { seq: seq as u16, rtptime: media.packetiser.timestamp_at(media_ticks), media_ticks })
+    }
+
+    /// `PAUSE` of `session` ([`Streams::pause`]).
+    fn pause_session<S: SlotSource>(&mut self, session: SessionId, now: Instant, source: &mut S) {
+        let Some(i) = self.member_index(session) else { return };
+        let Some(m) = self.members[i].as_mut() else { return };
+        if !core::mem::replace(&mut m.playing, false) {
+            return;
+        }
+        let output = m.output;
+        let Some(o) = self.outputs[output].as_mut() else { return };
+        o.playing = o.playing.saturating_sub(1);
+        if o.playing == 0 {
+            if matches!(o.cursor, Cursor::Sending { .. }) {
+                o.stats.cut += 1;
+            }
+            o.cursor = Cursor::Paused;
+            let media = o.media;
+            self.stop_if_idle(media, now, source);
+        }
+    }
+
+    /// A stream none of whose outputs plays stops: its frame in progress is
+    /// abandoned (its rows so far stay repairable), its media time halts.
+    fn stop_if_idle<S: SlotSource>(&mut self, media: usize, now: Instant, source: &mut S) {
+        let playing = self.outputs.iter().flatten().any(|o| o.media == media && o.cursor != Cursor::Paused);
+        let Some(m) = self.media[media].as_mut() else { return };
+        if playing || !m.running {
+            return;
+        }
+        if let Some(f) = m.current.take() {
+            source.end(f.slot);
+            m.packetiser.skip_to(f.first_seq.wrapping_add(u32::from(ROWS)));
+            self.windows[media].restart_hold(f.first_seq, now);
+            m.previous_first = Some(f.first_seq);
+            m.stats.failed += 1;
+        }
+        m.media_at_resume = m.media_ticks(now) + 1;
+        m.running = false;
+        source.set_held(self.held());
+    }
+
+    /// `session` is over: its membership goes; an output no session uses
+    /// any more says goodbye and goes; a stream without outputs goes.
+    fn leave<S: SlotSource>(&mut self, session: SessionId, now: Instant, source: &mut S, bye: bool) {
+        let Some(i) = self.member_index(session) else { return };
+        let Some(m) = self.members[i].take() else { return };
+        if m.playing {
+            if let Some(o) = self.outputs[m.output].as_mut() {
+                o.playing = o.playing.saturating_sub(1);
+                if o.playing == 0 {
+                    o.cursor = Cursor::Paused;
                 }
             }
-            if failed {
-                source.end(c.slot);
-                window.restart_hold(c.first_seq, now);
-                s.current = None;
-                s.stats.failed += 1;
+        }
+        let used = self.members.iter().flatten().any(|x| x.output == m.output);
+        let Some(media) = self.outputs[m.output].as_ref().map(|o| o.media) else { return };
+        if !used {
+            if let Some(o) = self.outputs[m.output].take() {
+                let ssrc = self.media[media].as_ref().map_or(0, |s| s.packetiser.ssrc());
+                if bye {
+                    let _ = self.byes.push_back((o.dest, ssrc));
+                }
+            }
+        }
+        self.stop_if_idle(media, now, source);
+        self.forget_unused_media(media, source);
+    }
+
+    /// Forget stream `media` if no output uses it.
+    fn forget_unused_media<S: SlotSource>(&mut self, media: usize, source: &mut S) {
+        if self.outputs.iter().flatten().any(|o| o.media == media) {
+            return;
+        }
+        if let Some(m) = self.media[media].take() {
+            if let Some(f) = m.current {
+                source.end(f.slot);
+            }
+        }
+        self.windows[media].clear(MIN_REPAIR_HOLD);
+        source.set_held(self.held());
+    }
+
+    /// End every session of output `o` (its client is gone).
+    fn end_output<S: SlotSource>(&mut self, o: usize, why: Gone, now: Instant, source: &mut S) {
+        while let Some(s) = self.members.iter().flatten().find(|m| m.output == o).map(|m| m.session) {
+            self.leave(s, now, source, true);
+            let _ = self.ended.push_back((s, why));
+        }
+    }
+
+    /// RTCP from `session`'s client inside its RTSP connection: it is alive
+    /// and its report may measure the round trip (no repair over TCP,
+    /// which loses nothing).
+    fn interleaved_rtcp(&mut self, session: SessionId, datagram: &[u8], now: Instant, wall: u64) {
+        let Some(m) = self.member(session).copied() else { return };
+        let Some(o) = self.outputs[m.output].as_mut() else { return };
+        let Some(media) = self.media[o.media].as_ref() else { return };
+        o.last_rtcp = Some(now);
+        if let Some(rtt) = round_trip(datagram, media.packetiser.ssrc(), wall) {
+            o.round_trip = rtt.clamp(MIN_ROUND_TRIP, MAX_ROUND_TRIP);
+        }
+    }
+
+    // ---- Traffic ----
+
+    /// An RTCP datagram arrived over UDP from `from` at `now` (`wall`
+    /// the sender reports' clock): the output whose client that is (its
+    /// RTCP port, else the address's first; for a multicast group, any
+    /// member's address) stays alive, its report may measure the round
+    /// trip, and the packets its NACKs ask for go again, within the
+    /// limits. Datagrams from any other address are ignored. Returns the
+    /// session it was for.
+    pub fn rtcp_received<S: SlotSource, K: RtpSink>(
+        &mut self,
+        from: SocketAddr,
+        datagram: &[u8],
+        now: Instant,
+        wall: u64,
+        source: &mut S,
+        sink: &mut K,
+    ) -> Option<SessionId> {
+        let (from, port) = (from.ip(), from.port());
+        let exact =
+            |o: &Output| matches!(o.dest, Dest::Udp { addr, rtcp_port, .. } if addr == from && rtcp_port == port);
+        let by_addr = |o: &Output, i: usize, members: &[Option<Member>; N]| match o.dest {
+            Dest::Udp { addr, .. } => addr == from,
+            Dest::Multicast(_) => members.iter().flatten().any(|m| m.output == i && m.client == from),
+            Dest::Interleaved { .. } => false,
+        };
+        let i = self.outputs.iter().position(|o| o.as_ref().is_some_and(exact)).or_else(|| {
+            self.outputs.iter().enumerate().position(|(i, o)| o.as_ref().is_some_and(|o| by_addr(o, i, &self.members)))
+        })?;
+        let session = self.members.iter().flatten().find(|m| m.output == i && (m.client == from))?.session;
+        let o = self.outputs[i].as_mut()?;
+        let media = self.media[o.media].as_ref()?;
+        let window = &self.windows[o.media];
+        o.last_rtcp = Some(now);
+        o.unreachable = 0;
+        if let Some(rtt) = round_trip(datagram, media.packetiser.ssrc(), wall) {
+            o.round_trip = rtt.clamp(MIN_ROUND_TRIP, MAX_ROUND_TRIP);
+        }
+        if matches!(o.dest, Dest::Interleaved { .. }) {
+            return Some(session);
+        }
+        for seq in NackRequests::new(datagram, media.packetiser.ssrc(), media.packetiser.highest_seq()) {
+            if window.lookup(seq).is_none() || o.repairs.push_back(seq).is_err() {
+                o.stats.unrepairable += 1;
+            }
+        }
+        send_repairs(o, window, &mut self.resends[i], &media.packetiser, now, source, sink);
+        Some(session)
+    }
+
+    /// The host at `to` answered a packet to its port `port` with ICMP port
+    /// unreachable: after [`UNREACHABLE_LIMIT`] of them with no RTCP in
+    /// between, the output's sessions end ([`take_ended`](Self::take_ended)).
+    pub fn unreachable<S: SlotSource>(&mut self, to: IpAddr, port: u16, now: Instant, source: &mut S) {
+        let hit = |o: &Option<Output>| {
+            o.as_ref().is_some_and(
+                |o| matches!(o.dest, Dest::Udp { addr, rtp_port, rtcp_port } if addr == to && (rtp_port == port || rtcp_port == port)),
+            )
+        };
+        let Some(i) = self.outputs.iter().position(hit) else { return };
+        let Some(o) = self.outputs[i].as_mut() else { return };
+        o.unreachable = o.unreachable.saturating_add(1);
+        if o.unreachable >= UNREACHABLE_LIMIT {
+            self.end_output(i, Gone::Unreachable, now, source);
+        }
+    }
+
+    /// Do what is due at `now`: goodbyes, reports, repairs, frames begun,
+    /// rows that landed sent, silent clients ended, repair packets expired.
+    /// `wall` is the sender reports' clock (NTP format,
+    /// [`rtcp::ntp_timestamp`]). Returns whether anything was sent or
+    /// begun (poll again at once if so).
+    pub fn poll<S: SlotSource, K: RtpSink>(&mut self, now: Instant, wall: u64, source: &mut S, sink: &mut K) -> bool {
+        let mut progress = false;
+        while let Some((dest, ssrc)) = self.byes.pop_front() {
+            let n = self.goodbye(ssrc, wall, now);
+            let _ = sink.send_rtcp(&dest, &self.rtcp[..n]);
+            progress = true;
+        }
+        // Clients gone quiet.
+        for i in 0..N {
+            let silent = self.outputs[i].as_ref().is_some_and(|o| {
+                matches!(o.dest, Dest::Udp { .. })
+                    && o.last_rtcp.is_some_and(|t| now.saturating_duration_since(t) >= RTCP_SILENCE)
+            });
+            if silent {
+                self.end_output(i, Gone::Silent, now, source);
                 progress = true;
-                continue;
             }
-            if c.next_row == ROWS {
-                source.end(c.slot);
-                window.restart_hold(c.first_seq, now);
-                s.current = None;
-                s.stats.frames += 1;
-            } else {
-                s.current = Some(c);
-            }
+        }
+        for i in 0..N {
+            progress |= self.poll_reports(i, now, wall, sink);
+        }
+        for media in 0..N {
+            progress |= self.poll_stream(media, now, source, sink);
         }
         if progress {
             source.set_held(self.held());
@@ -477,532 +850,338 @@ impl<const N: usize> Camera<N> {
         progress
     }
 
-    /// An RTCP datagram arrived from `from:port`: resend what its generic
-    /// NACKs ask for, from the repair window of the stream whose client
-    /// that is (the one with that RTCP port, else the address's first).
-    /// Datagrams from any other address are ignored (RTCP is taken only
-    /// from the session's client). Returns the session it was for.
-    pub fn rtcp_received<K: RtpSink>(
+    /// A sender report, CNAME and BYE of `ssrc` in `self.rtcp`; its length.
+    fn goodbye(&mut self, ssrc: u32, wall: u64, _now: Instant) -> usize {
+        let sr = SenderReport { ssrc, ntp_timestamp: wall, rtp_timestamp: 0, packet_count: 0, octet_count: 0 };
+        let mut n = sr.write(&mut self.rtcp).unwrap_or(0);
+        n += write_sdes_cname(ssrc, CNAME, &mut self.rtcp[n..]).unwrap_or(0);
+        n + write_bye(ssrc, &mut self.rtcp[n..]).unwrap_or(0)
+    }
+
+    /// Output `i`'s sender report, if due.
+    fn poll_reports<K: RtpSink>(&mut self, i: usize, now: Instant, wall: u64, sink: &mut K) -> bool {
+        let Some(o) = self.outputs[i].as_mut() else { return false };
+        let Some(m) = self.media[o.media].as_ref() else { return false };
+        if o.cursor == Cursor::Paused || !o.reports.poll(now) {
+            return false;
+        }
+        let sr = SenderReport::now(&m.packetiser, wall, m.media_ticks(now));
+        let n = sr.write(&mut self.rtcp).unwrap_or(0);
+        let k = write_sdes_cname(m.packetiser.ssrc(), CNAME, &mut self.rtcp[n..]).unwrap_or(0);
+        let _ = sink.send_rtcp(&o.dest, &self.rtcp[..n + k]);
+        true
+    }
+
+    /// Stream `media`'s repairs, frame and rows.
+    fn poll_stream<S: SlotSource, K: RtpSink>(
         &mut self,
-        from: IpAddr,
-        port: u16,
-        datagram: &[u8],
+        mi: usize,
+        now: Instant,
+        source: &mut S,
         sink: &mut K,
-    ) -> Option<SessionId> {
-        let is_from = |s: &Option<Stream>, exact: bool| {
-            s.as_ref().is_some_and(|s| s.to.addr == from && (!exact || s.to.rtcp_port == port))
-        };
-        let i = (self.streams.iter().position(|s| is_from(s, true)))
-            .or_else(|| self.streams.iter().position(|s| is_from(s, false)))?;
-        let s = self.streams[i].as_mut()?;
-        let window = &self.windows[i];
-        for seq in NackRequests::new(datagram, s.packetiser.ssrc(), s.packetiser.highest_seq()) {
-            if window.lookup(seq).is_none() || s.repairs.push_back(seq).is_err() {
-                s.stats.unrepairable += 1;
+    ) -> bool {
+        let Some(media) = self.media[mi].as_mut() else { return false };
+        let window = &mut self.windows[mi];
+        let mut progress = false;
+        // Packets expire by time only between frames: a frame's hold
+        // starts when its last row went, however long it took.
+        if media.current.is_none() && window.expire(now).released != 0 {
+            progress = true;
+        }
+        // Repairs first: a receiver waits for them more than for new rows.
+        let mut repairs_left = false;
+        for (o, log) in self.outputs.iter_mut().zip(self.resends.iter_mut()) {
+            let Some(o) = o.as_mut().filter(|o| o.media == mi && !o.repairs.is_empty()) else { continue };
+            let before = o.stats.resent;
+            repairs_left |= !send_repairs(o, window, log, &media.packetiser, now, source, sink);
+            progress |= o.stats.resent != before;
+        }
+        if !media.running {
+            return progress;
+        }
+        if media.current.is_none() {
+            if repairs_left {
+                return progress;
+            }
+            let interval = media.spec.fps.interval();
+            if interval.is_some_and(|_| now < media.due) {
+                return progress;
+            }
+            let ticks = media.media_ticks(now);
+            let light = media.spec.light_at(Duration::from_micros(ticks * 100 / 9), media.live);
+            match source.begin(&light) {
+                Ok(Some(slot)) => {
+                    if let Some(p) = media.previous_first {
+                        window.forget_before(p);
+                    }
+                    let stamp = media.packetiser.begin_frame(ticks);
+                    let first_seq = media.packetiser.next_seq();
+                    media.current = Some(Frame { slot, stamp, first_seq, landed: 0 });
+                    if let Some(iv) = interval {
+                        // Keep the rate; after a stall, start afresh.
+                        media.due =
+                            if now.saturating_duration_since(media.due) > iv { now + iv } else { media.due + iv };
+                    }
+                    for o in self.outputs.iter_mut().flatten().filter(|o| o.media == mi) {
+                        if let Cursor::Waiting { from } = o.cursor {
+                            if (first_seq.wrapping_sub(from) as i32) >= 0 {
+                                o.cursor = Cursor::Sending { next: 0 };
+                                o.stalled_since = None;
+                            }
+                        }
+                    }
+                    progress = true;
+                }
+                Ok(None) => return progress,
+                Err(_) => {
+                    media.stats.failed += 1;
+                    if let Some(iv) = interval {
+                        media.due = now + iv;
+                    }
+                    return progress;
+                }
             }
         }
-        s.send_repairs(window, sink);
-        Some(s.session)
+        let Some(mut frame) = media.current else { return progress };
+        // The rows landed, asking again while the source lands more: rows
+        // go in runs of up to MIN_RUN gathered while they keep coming, so
+        // the per-run work is paid once a run, not once a row. A run goes
+        // as soon as the source has nothing more right now, so no row
+        // waits for a later one that is not on its way.
+        let mut failed = false;
+        let mut seen = frame.landed;
+        loop {
+            let ready = match source.rows_ready(frame.slot) {
+                Ok(r) => r.min(ROWS),
+                Err(_) => {
+                    failed = true;
+                    break;
+                }
+            };
+            let landing = ready > seen;
+            seen = ready;
+            if ready > frame.landed {
+                let n = ready - frame.landed;
+                media.packetiser.advance(n);
+                let _ = window.record_run(now, frame.slot, frame.packet(frame.landed), n);
+                frame.landed = ready;
+            }
+            let behind = self
+                .outputs
+                .iter()
+                .flatten()
+                .filter(|o| o.media == mi)
+                .filter_map(|o| match o.cursor {
+                    Cursor::Sending { next } => Some(next),
+                    _ => None,
+                })
+                .min();
+            let mut refused = false;
+            if let Some(behind) = behind.filter(|&b| ready > b) {
+                if ready - behind >= MIN_RUN || ready == ROWS || !landing {
+                    for o in self.outputs.iter_mut().flatten().filter(|o| o.media == mi) {
+                        let Cursor::Sending { next } = o.cursor else { continue };
+                        if next >= ready {
+                            continue;
+                        }
+                        let want = ready - next;
+                        let first = frame.packet(next);
+                        let sent = sink.send_rows(&o.dest, &media.packetiser, &first, want, frame.slot, source);
+                        let sent = sent.min(want);
+                        o.stats.packets += u32::from(sent);
+                        o.budget = (o.budget + u32::from(sent)).min(REPAIR_SHARE * REPAIR_BURST);
+                        let next = next + sent;
+                        o.cursor = Cursor::Sending { next };
+                        if sent > 0 {
+                            progress = true;
+                            o.stalled_since = None;
+                        }
+                        if sent < want {
+                            refused = true;
+                            o.stalled_since.get_or_insert(now);
+                        }
+                    }
+                    if sink.should_yield() {
+                        break;
+                    }
+                }
+            }
+            if refused || !landing || frame.landed == ROWS {
+                break;
+            }
+            if behind.is_none() && sink.should_yield() {
+                // Rows landing for no output yet: something received goes first.
+                break;
+            }
+        }
+        // Outputs done with the frame, or stalled too long, wait for the next.
+        let next_frame = frame.first_seq.wrapping_add(u32::from(ROWS));
+        for o in self.outputs.iter_mut().flatten().filter(|o| o.media == mi) {
+            match o.cursor {
+                Cursor::Sending { next } if next == ROWS => {
+                    o.cursor = Cursor::Waiting { from: next_frame };
+                    o.stats.frames += 1;
+                }
+                Cursor::Sending { .. } if failed => o.cursor = Cursor::Waiting { from: next_frame },
+                Cursor::Sending { .. }
+                    if o.stalled_since.is_some_and(|t| now.saturating_duration_since(t) >= OUTPUT_STALL) =>
+                {
+                    o.cursor = Cursor::Waiting { from: next_frame };
+                    o.stats.cut += 1;
+                }
+                _ => {}
+            }
+        }
+        let sending =
+            self.outputs.iter().flatten().any(|o| o.media == mi && matches!(o.cursor, Cursor::Sending { .. }));
+        if failed || (frame.landed == ROWS && !sending) {
+            source.end(frame.slot);
+            window.restart_hold(frame.first_seq, now);
+            if failed {
+                media.packetiser.skip_to(next_frame);
+                media.stats.failed += 1;
+            } else {
+                media.stats.frames += 1;
+            }
+            media.previous_first = Some(frame.first_seq);
+            media.current = None;
+            progress = true;
+        } else {
+            media.current = Some(frame);
+        }
+        progress
     }
 
     /// When [`poll`](Self::poll) next has something to do by the clock
-    /// alone (a frame due, a report, a repair packet to expire), if no
-    /// stream waits for rows or slots; the caller polls at least this
+    /// alone (a frame due, a report, a silent client to end), if no stream
+    /// waits for rows, the sink or a slot; the caller polls at least this
     /// often, and whenever the source may have progressed.
     pub fn next_deadline(&self) -> Option<Instant> {
-        self.streams().flat_map(|s| [s.deadline(), s.playing.then(|| s.reports.deadline())]).flatten().min()
+        let frames = self
+            .media
+            .iter()
+            .flatten()
+            .filter_map(|m| (m.running && m.current.is_none() && m.spec.fps.interval().is_some()).then_some(m.due));
+        let outputs = self.outputs.iter().flatten().flat_map(|o| {
+            let reports = (o.cursor != Cursor::Paused).then(|| o.reports.deadline());
+            let silence = match o.dest {
+                Dest::Udp { .. } => o.last_rtcp.map(|t| t + RTCP_SILENCE),
+                _ => None,
+            };
+            [reports, silence]
+        });
+        frames.chain(outputs.flatten()).min()
     }
 
-    /// Whether any stream is sending a frame (waiting for its rows or the
-    /// sink): the caller should poll again soon.
+    /// Whether any stream is sending a frame, or has repairs or goodbyes
+    /// waiting: the caller should poll again soon.
     pub fn busy(&self) -> bool {
-        self.streams().any(|s| s.current.is_some() || !s.repairs.is_empty())
+        !self.byes.is_empty()
+            || self.media.iter().flatten().any(|m| m.current.is_some())
+            || self.outputs.iter().flatten().any(|o| !o.repairs.is_empty())
     }
 }
 
-impl Stream {
-    /// Resend the NACKed packets still waiting, oldest request first, while
-    /// the sink takes them; whether none is left.
-    fn send_repairs<K: RtpSink>(&mut self, window: &FrameRepairWindow, sink: &mut K) -> bool {
-        while let Some(&seq) = self.repairs.front() {
-            match window.lookup(seq) {
-                Some(r) => {
-                    if !sink.send_row(&self.to, &self.packetiser, &r.packet, r.slot) {
-                        return false;
-                    }
-                    self.stats.resent += 1;
+/// Resend output `o`'s NACKed packets still waiting, oldest request first,
+/// while the sink takes them, within its limits; whether none is left.
+fn send_repairs<S: FrameSource<Frame = usize>, K: RtpSink>(
+    o: &mut Output,
+    window: &FrameRepairWindow,
+    log: &mut FrameResendLog,
+    packetiser: &Packetiser,
+    now: Instant,
+    source: &mut S,
+    sink: &mut K,
+) -> bool {
+    while let Some(&seq) = o.repairs.front() {
+        match window.lookup(seq) {
+            // Left the window while it waited.
+            None => o.stats.unrepairable += 1,
+            Some(_) if !log.may_resend(seq, now, o.round_trip) => o.stats.too_soon += 1,
+            Some(_) if o.budget < REPAIR_SHARE => o.stats.over_budget += 1,
+            Some(r) => {
+                if sink.send_rows(&o.dest, packetiser, &r.packet, 1, r.slot, source) == 0 {
+                    return false;
                 }
-                // Left the window while it waited.
-                None => self.stats.unrepairable += 1,
+                o.budget -= REPAIR_SHARE;
+                log.resent(seq, now);
+                o.stats.resent += 1;
             }
-            self.repairs.pop_front();
         }
-        true
+        o.repairs.pop_front();
+    }
+    true
+}
+
+/// The camera, the frame source and the time, as the RTSP server's
+/// [`Streams`]: what [`rtsp::Server::handle`](crate::camera::rtsp::Server::handle)
+/// and its `poll` are given. `wall` is the sender reports' clock.
+pub struct Bound<'a, S, const N: usize = MAX_SESSIONS> {
+    /// The camera.
+    pub camera: &'a mut Camera<N>,
+    /// Its frames.
+    pub source: &'a mut S,
+    /// Now.
+    pub now: Instant,
+    /// Now on the sender reports' clock (NTP format).
+    pub wall: u64,
+}
+
+impl<S: SlotSource, const N: usize> Streams for Bound<'_, S, N> {
+    fn setup(
+        &mut self,
+        session: SessionId,
+        spec: &StreamSpec,
+        transport: Transport,
+        _profile: Profile,
+        client: Client,
+        fresh: Fresh,
+    ) -> Result<SetUp, Status> {
+        let r = self.camera.setup_session(session, spec, transport, client, fresh, self.now, self.source);
+        self.source.set_held(self.camera.held());
+        r
+    }
+
+    fn play(&mut self, session: SessionId) -> Result<Position, Status> {
+        self.camera.play_session(session, self.now)
+    }
+
+    fn pause(&mut self, session: SessionId) {
+        self.camera.pause_session(session, self.now, self.source);
+    }
+
+    fn end(&mut self, session: SessionId, _why: EndReason) {
+        self.camera.leave(session, self.now, self.source, true);
+        self.source.set_held(self.camera.held());
+    }
+
+    fn set_light(&mut self, session: SessionId, light: Light) {
+        let Some(m) = self.camera.member(session).copied() else { return };
+        let Some(o) = self.camera.outputs[m.output].as_ref() else { return };
+        if let Some(media) = self.camera.media[o.media].as_mut() {
+            if media.spec.stream == Light_::Live {
+                media.live = light;
+            }
+        }
+    }
+
+    fn rtcp(&mut self, session: SessionId, datagram: &[u8]) {
+        self.camera.interleaved_rtcp(session, datagram, self.now, self.wall);
+    }
+
+    fn group(&self, spec: &StreamSpec) -> Option<Group> {
+        let i = self.camera.stream_for(spec).or_else(|| self.camera.media.iter().position(Option::is_none))?;
+        self.camera.group_of(i)
     }
 }
 
-impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> SlotSource for FrameRing<M, E, SLOTS> {
+impl<M: crate::frames::FrameMemory, E: crate::frames::FrameEngine<M>, const SLOTS: usize> SlotSource
+    for crate::frames::FrameRing<M, E, SLOTS>
+{
     fn set_held(&mut self, mask: u32) {
-        FrameRing::set_held(self, mask)
+        crate::frames::FrameRing::set_held(self, mask)
     }
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::camera::rtsp::{Fps, Stream as Kind};
-    use model::{FRAME_BYTES, ROW_BYTES};
-    use std::cell::RefCell;
-    use std::rc::Rc;
-
-    /// Frame slots in host memory that the test's sink can read too.
-    #[derive(Clone)]
-    struct Shared(Rc<RefCell<Vec<u8>>>);
-
-    impl FrameMemory for Shared {
-        fn slot_address(&self, slot: usize) -> u32 {
-            (slot * FRAME_BYTES) as u32
-        }
-        fn read_row(&mut self, slot: usize, y: u16, offset: usize, out: &mut [u8]) {
-            let at = slot * FRAME_BYTES + usize::from(y) * ROW_BYTES + offset;
-            out.copy_from_slice(&self.0.borrow()[at..at + out.len()]);
-        }
-        fn write_row(&mut self, slot: usize, y: u16, row: &[u8; ROW_BYTES]) {
-            let at = slot * FRAME_BYTES + usize::from(y) * ROW_BYTES;
-            self.0.borrow_mut()[at..at + ROW_BYTES].copy_from_slice(row);
-        }
-    }
-
-    /// An engine that lands a recognisable frame for each light ([`pattern_row`]),
-    /// `step` rows per progress call.
-    struct Pattern {
-        step: u16,
-        rows: u16,
-        /// No more rows land than this (the test moves it).
-        cap: Rc<core::cell::Cell<u16>>,
-    }
-
-    fn pattern_row(light: &Light, y: u16) -> [u8; ROW_BYTES] {
-        let [x, y0, z] = light.raw();
-        let base = (x ^ y0.rotate_left(8) ^ z.rotate_left(16)) as usize + usize::from(y);
-        core::array::from_fn(|i| (base + i) as u8)
-    }
-
-    impl FrameEngine<Shared> for Pattern {
-        type Error = &'static str;
-        fn start(&mut self, mem: &mut Shared, slot: usize, light: &Light) -> Result<(), &'static str> {
-            for y in 0..ROWS {
-                mem.write_row(slot, y, &pattern_row(light, y));
-            }
-            self.rows = 0;
-            Ok(())
-        }
-        fn progress(&mut self, _: &mut Shared) -> Result<u16, &'static str> {
-            self.rows = (self.rows + self.step).min(ROWS).min(self.cap.get().max(self.rows));
-            Ok(self.rows)
-        }
-    }
-
-    type Ring = FrameRing<Shared, Pattern, 4>;
-
-    /// A packet as a receiver sees it.
-    #[derive(Clone, Debug, PartialEq)]
-    struct Received {
-        to: Destination,
-        header: [u8; rtp::HEADER_BYTES],
-        row: Vec<u8>,
-    }
-
-    impl Received {
-        fn seq16(&self) -> u16 {
-            u16::from_be_bytes([self.header[2], self.header[3]])
-        }
-        fn ext_seq(&self) -> u32 {
-            u32::from(u16::from_be_bytes([self.header[12], self.header[13]])) << 16 | u32::from(self.seq16())
-        }
-        fn timestamp(&self) -> u32 {
-            u32::from_be_bytes(self.header[4..8].try_into().unwrap())
-        }
-        fn marker(&self) -> bool {
-            self.header[1] & 0x80 != 0
-        }
-        fn line(&self) -> u16 {
-            u16::from_be_bytes([self.header[16], self.header[17]]) & 0x7fff
-        }
-    }
-
-    /// A sink reading rows out of the ring's memory (as hps-sim does),
-    /// taking at most `room` row packets before it refuses.
-    struct Sink {
-        mem: Shared,
-        room: usize,
-        rows: Vec<Received>,
-        rtcp: Vec<(Destination, Vec<u8>)>,
-        /// `should_yield` says yes once this many rows went (`None`: never).
-        yield_at: Option<usize>,
-        yield_asked: usize,
-    }
-
-    impl RtpSink for Sink {
-        fn send_row(&mut self, to: &Destination, p: &Packetiser, packet: &RowPacket, slot: usize) -> bool {
-            if self.room == 0 {
-                return false;
-            }
-            self.room -= 1;
-            let mut header = [0; rtp::HEADER_BYTES];
-            p.emit(packet, &mut header).unwrap();
-            let mut row = vec![0; ROW_BYTES];
-            self.mem.read_row(slot, packet.row, 0, &mut row);
-            self.rows.push(Received { to: *to, header, row });
-            true
-        }
-        fn send_rtcp(&mut self, to: &Destination, datagram: &[u8]) -> bool {
-            self.rtcp.push((*to, datagram.to_vec()));
-            true
-        }
-        fn should_yield(&mut self) -> bool {
-            self.yield_asked += 1;
-            self.yield_at.is_some_and(|n| self.rows.len() >= n)
-        }
-    }
-
-    const CLIENT: IpAddr = IpAddr::V4(core::net::Ipv4Addr::new(10, 0, 2, 2));
-    const SSRC: u32 = 0x1234_5678;
-
-    fn light(x: f64) -> Light {
-        Light::from_world(x, 4.0, -2.0).unwrap()
-    }
-
-    fn play(session: u64, stream: Kind, fps: Fps) -> Action {
-        Action::Play {
-            session: SessionId(session),
-            spec: StreamSpec { stream, fps },
-            client_addr: CLIENT,
-            rtp_port: 6000,
-            rtcp_port: 6001,
-            ssrc: SSRC,
-            seq: 65_500,
-            rtptime: 0xffff_ff00,
-            live: light(0.5),
-        }
-    }
-
-    fn t(ms: u64) -> Instant {
-        Instant::from_millis(ms)
-    }
-
-    fn rig(step: u16) -> (Box<Camera<2>>, Ring, Sink) {
-        let mem = Shared(Rc::new(RefCell::new(vec![0; 4 * FRAME_BYTES])));
-        let ring = FrameRing::new(mem.clone(), Pattern { step, rows: 0, cap: Rc::new(core::cell::Cell::new(ROWS)) });
-        let sink = Sink { mem, room: usize::MAX, rows: vec![], rtcp: vec![], yield_at: None, yield_asked: 0 };
-        (Box::new(Camera::new()), ring, sink)
-    }
-
-    /// Poll at `now` until nothing progresses.
-    fn settle(camera: &mut Camera<2>, now: Instant, ring: &mut Ring, sink: &mut Sink) {
-        for _ in 0..10_000 {
-            if !camera.poll(now, 0, ring, sink) {
-                return;
-            }
-        }
-        panic!("the camera never settled");
-    }
-
-    /// A generic NACK (RFC 4585 section 6.2.1) for `entries` (PID, BLP).
-    fn nack(media: u32, entries: &[(u16, u16)]) -> Vec<u8> {
-        let words = 2 + entries.len();
-        let mut d = vec![0x81, 205];
-        d.extend_from_slice(&(words as u16).to_be_bytes());
-        d.extend_from_slice(&0xdead_beefu32.to_be_bytes());
-        d.extend_from_slice(&media.to_be_bytes());
-        for (pid, blp) in entries {
-            d.extend_from_slice(&pid.to_be_bytes());
-            d.extend_from_slice(&blp.to_be_bytes());
-        }
-        d
-    }
-
-    #[test]
-    fn a_frame_goes_out_row_by_row_with_one_timestamp_and_a_marker_on_the_last() {
-        let (mut camera, mut ring, mut sink) = rig(100);
-        let fixed = light(2.0);
-        assert_eq!(camera.apply(play(1, Kind::Light(fixed), Fps::Max), t(0), &mut ring), None);
-        // fps=max never settles: the window keeps 1,024 packets, so slots
-        // come free for ever.
-        while sink.rows.len() <= usize::from(ROWS) {
-            assert!(camera.poll(t(0), 0, &mut ring, &mut sink));
-        }
-        let frame: Vec<_> = sink.rows.iter().take(usize::from(ROWS)).collect();
-        assert_eq!(frame.len(), usize::from(ROWS));
-        for (y, p) in frame.iter().enumerate() {
-            assert_eq!(p.line(), y as u16);
-            assert_eq!(p.row, pattern_row(&fixed, y as u16), "row {y}");
-            assert_eq!(p.ext_seq(), 65_500 + y as u32, "extended numbering across the 16-bit wrap");
-            assert_eq!(p.timestamp(), frame[0].timestamp());
-            assert_eq!(p.marker(), y == usize::from(ROWS) - 1);
-            assert_eq!(p.to, Destination { addr: CLIENT, rtp_port: 6000, rtcp_port: 6001 });
-            assert_eq!(u32::from_be_bytes(p.header[8..12].try_into().unwrap()), SSRC);
-        }
-        assert_eq!(frame[0].timestamp(), 0xffff_ff00, "the RTP-Info rtptime");
-        assert_eq!(frame[36].seq16(), 0, "the low 16 bits wrapped after 65,535");
-        let next = &sink.rows[usize::from(ROWS)];
-        assert_ne!(next.timestamp(), frame[0].timestamp(), "fps=max: the next frame at once, a new timestamp");
-    }
-
-    #[test]
-    fn one_poll_sends_the_rows_as_they_land_until_the_sink_asks_to_yield() {
-        // Two rows land per look at the source: one poll still sends the
-        // whole frame, in runs, asking the sink after each.
-        let (mut camera, mut ring, mut sink) = rig(2);
-        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(30)), t(0), &mut ring);
-        assert!(camera.poll(t(0), 0, &mut ring, &mut sink));
-        assert_eq!(sink.rows.len(), usize::from(ROWS), "the frame in one poll");
-        assert_eq!(sink.yield_asked, usize::from(ROWS.div_ceil(MIN_RUN)), "asked after each run of MIN_RUN");
-        // The sink asks to yield once 100 rows went: the poll returns at
-        // the end of that run (runs of MIN_RUN while rows keep landing),
-        // the next one goes on where it stopped.
-        sink.yield_at = Some(usize::from(ROWS) + 100);
-        assert!(camera.poll(t(34), 0, &mut ring, &mut sink));
-        let run = usize::from(MIN_RUN);
-        assert_eq!(sink.rows.len(), usize::from(ROWS) + (100 / run + 1) * run);
-        sink.yield_at = None;
-        assert!(camera.poll(t(34), 0, &mut ring, &mut sink));
-        assert_eq!(sink.rows.len(), 2 * usize::from(ROWS));
-        let lines: Vec<u16> = sink.rows[usize::from(ROWS)..].iter().map(Received::line).collect();
-        assert_eq!(lines, (0..ROWS).collect::<Vec<_>>(), "no row lost or repeated at the yield");
-    }
-
-    #[test]
-    fn rows_go_out_as_soon_as_the_source_stops_landing_more() {
-        let (mut camera, mut ring, mut sink) = rig(2);
-        let cap = Rc::clone(&ring.engine().cap);
-        cap.set(5);
-        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Max), t(0), &mut ring);
-        assert!(camera.poll(t(0), 0, &mut ring, &mut sink));
-        assert_eq!(sink.rows.len(), 5, "five landed, then none: all five go, short of a run");
-        cap.set(40);
-        assert!(camera.poll(t(0), 0, &mut ring, &mut sink));
-        assert_eq!(sink.rows.len(), 40);
-        assert!(!camera.poll(t(0), 0, &mut ring, &mut sink), "nothing new");
-    }
-
-    #[test]
-    fn a_paced_stream_begins_a_frame_per_interval_at_its_media_time() {
-        let (mut camera, mut ring, mut sink) = rig(ROWS);
-        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(30)), t(0), &mut ring);
-        settle(&mut camera, t(0), &mut ring, &mut sink);
-        assert_eq!(sink.rows.len(), usize::from(ROWS), "one frame at once");
-        settle(&mut camera, t(20), &mut ring, &mut sink);
-        assert_eq!(sink.rows.len(), usize::from(ROWS), "none before 1/30 s");
-        assert_eq!(camera.next_deadline(), Some(t(33)));
-        settle(&mut camera, t(34), &mut ring, &mut sink);
-        assert_eq!(sink.rows.len(), 2 * usize::from(ROWS));
-        let ts: Vec<u32> = sink.rows.iter().step_by(usize::from(ROWS)).map(Received::timestamp).collect();
-        assert_eq!(ts[1].wrapping_sub(ts[0]), 34 * 90, "90 kHz media time");
-    }
-
-    #[test]
-    fn an_orbit_renders_each_frame_at_its_media_time_and_resumes_after_pause() {
-        let (mut camera, mut ring, mut sink) = rig(ROWS);
-        let spec = StreamSpec::parse("rtsp://h/orbit?period=4&fps=1").unwrap();
-        camera.apply(play(1, spec.stream, spec.fps), t(0), &mut ring);
-        settle(&mut camera, t(0), &mut ring, &mut sink);
-        let pos = camera.apply(Action::Pause { session: SessionId(1) }, t(1_000), &mut ring);
-        let next_seq = sink.rows.last().unwrap().seq16().wrapping_add(1);
-        assert_eq!(pos, Some((next_seq, 0xffff_ff00u32.wrapping_add(90_000 + 1))));
-        let before = sink.rows.len();
-        settle(&mut camera, t(5_000), &mut ring, &mut sink);
-        assert_eq!(sink.rows.len(), before, "paused: nothing sent");
-        camera.apply(play(1, spec.stream, spec.fps), t(5_000), &mut ring);
-        camera.poll(t(5_000), 0, &mut ring, &mut sink);
-        let resumed = &sink.rows[before];
-        assert_eq!(resumed.seq16(), next_seq, "numbering goes on");
-        assert_eq!(resumed.timestamp(), 0xffff_ff00u32.wrapping_add(90_001), "media time skips the pause");
-        let expected = spec.light_at(Duration::from_micros(90_001 * 100 / 9), light(0.0));
-        assert_eq!(resumed.row, pattern_row(&expected, 0), "the light of the media time");
-    }
-
-    #[test]
-    fn a_refusing_sink_delays_rows_without_gaps_in_the_numbering() {
-        let (mut camera, mut ring, mut sink) = rig(ROWS);
-        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(10)), t(0), &mut ring);
-        sink.room = 7;
-        settle(&mut camera, t(0), &mut ring, &mut sink);
-        assert_eq!(sink.rows.len(), 7);
-        assert!(camera.busy());
-        sink.room = usize::MAX;
-        settle(&mut camera, t(1), &mut ring, &mut sink);
-        let seqs: Vec<u32> = sink.rows.iter().map(Received::ext_seq).collect();
-        assert_eq!(seqs, (65_500..65_500 + u32::from(ROWS)).collect::<Vec<_>>());
-        assert!(sink.rows.last().unwrap().marker());
-    }
-
-    #[test]
-    fn a_nack_gets_the_same_packets_again_and_only_from_the_client() {
-        let (mut camera, mut ring, mut sink) = rig(ROWS);
-        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(10)), t(0), &mut ring);
-        settle(&mut camera, t(0), &mut ring, &mut sink);
-        let sent = sink.rows.clone();
-        // Lost: 65,535 and 0 (across the wrap) and 3.
-        let req = nack(SSRC, &[(65_535, 0b1), (3, 0)]);
-        let stranger = IpAddr::V4(core::net::Ipv4Addr::new(10, 0, 2, 9));
-        assert_eq!(camera.rtcp_received(stranger, 6001, &req, &mut sink), None);
-        assert_eq!(sink.rows.len(), sent.len(), "a stranger's NACK is ignored");
-        assert_eq!(camera.rtcp_received(CLIENT, 6001, &nack(0x999, &[(3, 0)]), &mut sink), Some(SessionId(1)));
-        assert_eq!(sink.rows.len(), sent.len(), "another SSRC's NACK asks for nothing");
-        assert_eq!(camera.rtcp_received(CLIENT, 6001, &req, &mut sink), Some(SessionId(1)));
-        let again: Vec<u32> = sink.rows[sent.len()..].iter().map(Received::ext_seq).collect();
-        assert_eq!(again, [65_535, 65_536, 65_539]);
-        for r in &sink.rows[sent.len()..] {
-            let original = sent.iter().find(|o| o.ext_seq() == r.ext_seq()).unwrap();
-            assert_eq!(r, original, "byte for byte the original packet");
-        }
-        assert_eq!(camera.stream(SessionId(1)).unwrap().stats().resent, 3);
-    }
-
-    #[test]
-    fn a_nack_arriving_while_the_next_frame_goes_out_is_still_answered() {
-        let (mut camera, mut ring, mut sink) = rig(ROWS);
-        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(5)), t(0), &mut ring);
-        settle(&mut camera, t(0), &mut ring, &mut sink);
-        sink.room = 72;
-        settle(&mut camera, t(200), &mut ring, &mut sink);
-        assert_eq!(sink.rows.len(), 432);
-        let row17 = sink.rows[17].clone();
-        sink.room = usize::MAX;
-        camera.rtcp_received(CLIENT, 6001, &nack(SSRC, &[(row17.seq16(), 0)]), &mut sink);
-        assert_eq!(camera.stream(SessionId(1)).unwrap().stats().unrepairable, 0);
-        assert_eq!(sink.rows.last(), Some(&row17));
-    }
-
-    #[test]
-    fn repairs_the_sink_cannot_take_wait_and_go_before_new_rows() {
-        let (mut camera, mut ring, mut sink) = rig(ROWS);
-        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(10)), t(0), &mut ring);
-        settle(&mut camera, t(0), &mut ring, &mut sink);
-        let sent = sink.rows.len();
-        sink.room = 2;
-        // Ask for 10 rows: 2 go at once, 8 wait.
-        camera.rtcp_received(CLIENT, 6001, &nack(SSRC, &[(65_500, 0x1ff)]), &mut sink);
-        assert_eq!(sink.rows.len(), sent + 2);
-        assert!(camera.busy());
-        sink.room = usize::MAX;
-        settle(&mut camera, t(100), &mut ring, &mut sink);
-        let again: Vec<u32> = sink.rows[sent..sent + 10].iter().map(Received::ext_seq).collect();
-        assert_eq!(again, (65_500..65_510).collect::<Vec<_>>(), "all ten, before the next frame's rows");
-        assert_eq!(sink.rows[sent + 10].line(), 0, "then the next frame");
-        assert_eq!(camera.stream(SessionId(1)).unwrap().stats().resent, 10);
-    }
-
-    #[test]
-    fn a_slowly_rendered_frame_stays_repairable_for_the_hold_after_its_last_row() {
-        // One row per poll: the frame takes 3.6 s to go out at 10 ms a row,
-        // far beyond the 400 ms hold of fps=5.
-        let (mut camera, mut ring, mut sink) = rig(1);
-        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(5)), t(0), &mut ring);
-        let mut ms = 0;
-        while sink.rows.len() < usize::from(ROWS) {
-            camera.poll(t(ms), 0, &mut ring, &mut sink);
-            ms += 10;
-        }
-        let first = sink.rows[0].clone();
-        settle(&mut camera, t(ms + 350), &mut ring, &mut sink);
-        let before = sink.rows.len();
-        camera.rtcp_received(CLIENT, 6001, &nack(SSRC, &[(first.seq16(), 0)]), &mut sink);
-        assert_eq!(sink.rows.len(), before + 1, "row 0, sent 3.6 s ago, is still repairable");
-        assert_eq!(sink.rows[before], first);
-    }
-
-    #[test]
-    fn sent_frames_hold_their_slot_for_the_repair_time_then_let_it_go() {
-        let (mut camera, mut ring, mut sink) = rig(ROWS);
-        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(10)), t(0), &mut ring);
-        settle(&mut camera, t(0), &mut ring, &mut sink);
-        let slot0 = 0;
-        assert_eq!(camera.held(), 1 << slot0);
-        assert_eq!(ring.held(), 1 << slot0, "the ring knows");
-        assert_eq!(ring.free_slots(), 3);
-        // 10 fps: two frame times are 200 ms, the hold at least a second.
-        settle(&mut camera, t(950), &mut ring, &mut sink);
-        assert_eq!(camera.held() & 1, 1, "still repairable");
-        settle(&mut camera, t(1_050), &mut ring, &mut sink);
-        assert_eq!(camera.held() & 1, 0, "released after the hold");
-        assert_eq!(ring.held() & 1, 0);
-        let before = sink.rows.len();
-        assert_eq!(camera.rtcp_received(CLIENT, 6001, &nack(SSRC, &[(65_500, 0)]), &mut sink), Some(SessionId(1)));
-        assert_eq!(sink.rows.len(), before, "expired: not resent");
-        assert_eq!(camera.stream(SessionId(1)).unwrap().stats().unrepairable, 1);
-    }
-
-    #[test]
-    fn teardown_and_timeout_let_every_slot_go_and_a_live_light_moves() {
-        let (mut camera, mut ring, mut sink) = rig(ROWS);
-        camera.apply(play(1, Kind::Live, Fps::Rate(10)), t(0), &mut ring);
-        camera.apply(play(2, Kind::Light(light(1.0)), Fps::Rate(10)), t(0), &mut ring);
-        assert_eq!(camera.apply(play(3, Kind::Live, Fps::Rate(10)), t(0), &mut ring), None);
-        assert_eq!(camera.streams().count(), 2, "a camera of two");
-        settle(&mut camera, t(0), &mut ring, &mut sink);
-        let moved = light(-1.5);
-        camera.apply(Action::SetLight { session: SessionId(1), light: moved }, t(1), &mut ring);
-        settle(&mut camera, t(101), &mut ring, &mut sink);
-        let live_rows: Vec<_> = sink.rows.iter().filter(|r| r.to.addr == CLIENT && r.line() == 0).collect();
-        assert!(live_rows.iter().any(|r| r.row == pattern_row(&moved, 0)), "a frame with the new light");
-        camera.apply(Action::Stop { session: SessionId(1) }, t(2), &mut ring);
-        camera.apply(Action::Timeout { session: SessionId(2) }, t(2), &mut ring);
-        assert_eq!(camera.streams().count(), 0);
-        assert_eq!(camera.held(), 0);
-        assert_eq!(ring.held(), 0);
-        assert_eq!(ring.free_slots(), 4, "nothing left in use");
-    }
-
-    #[test]
-    fn sender_reports_go_to_the_rtcp_port_while_playing() {
-        let (mut camera, mut ring, mut sink) = rig(ROWS);
-        camera.apply(play(1, Kind::Light(light(1.0)), Fps::Rate(1)), t(0), &mut ring);
-        settle(&mut camera, t(0), &mut ring, &mut sink);
-        settle(&mut camera, t(1_500), &mut ring, &mut sink);
-        assert!(sink.rtcp.is_empty());
-        settle(&mut camera, t(2_500), &mut ring, &mut sink);
-        assert_eq!(sink.rtcp.len(), 1);
-        let (to, d) = &sink.rtcp[0];
-        assert_eq!(to.rtcp_port, 6001);
-        assert_eq!(d[1], rtcp::RTCP_SR);
-        assert_eq!(u32::from_be_bytes(d[4..8].try_into().unwrap()), SSRC);
-        assert_eq!(u32::from_be_bytes(d[20..24].try_into().unwrap()), 2 * u32::from(ROWS), "packets so far");
-        assert_eq!(d[SENDER_REPORT_BYTES + 1], rtcp::RTCP_SDES);
-    }
-
-    #[test]
-    fn the_software_renderer_s_frame_arrives_equal_to_the_model_s() {
-        let mut bytes = vec![0; FRAME_BYTES];
-        let mut ring = FrameRing::<_, _, 1>::new(
-            crate::frames::SliceMemory::new(0, &mut bytes),
-            crate::frames::RowEngine::new(crate::frames::rows::SoftwareRenderer),
-        );
-        struct Copy(Vec<(RowPacket, usize)>);
-        impl RtpSink for Copy {
-            fn send_row(&mut self, _: &Destination, _: &Packetiser, p: &RowPacket, slot: usize) -> bool {
-                self.0.push((*p, slot));
-                true
-            }
-            fn send_rtcp(&mut self, _: &Destination, _: &[u8]) -> bool {
-                true
-            }
-        }
-        let mut camera = Box::new(Camera::<1>::new());
-        let l = light(3.0);
-        camera.apply(play(1, Kind::Light(l), Fps::Rate(1)), t(0), &mut ring);
-        let mut sink = Copy(vec![]);
-        for _ in 0..5_000 {
-            camera.poll(t(0), 0, &mut ring, &mut sink);
-            if sink.0.len() == usize::from(ROWS) {
-                break;
-            }
-        }
-        assert_eq!(sink.0.len(), usize::from(ROWS));
-        let rows: Vec<u16> = sink.0.iter().map(|(p, _)| p.row).collect();
-        assert_eq!(rows, (0..ROWS).collect::<Vec<_>>());
-        drop(ring);
-        assert_eq!(bytes, model::render_frame(&l), "the slot the packets point at holds the model's frame");
-    }
-}
+mod tests;

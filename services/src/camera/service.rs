@@ -1,19 +1,35 @@
 //! The network camera on smoltcp (feature `smoltcp`), as the firmware runs
-//! it: [`rtsp::Server`] on TCP sockets listening on [`RTSP_PORT`], RTCP on
-//! a UDP socket on the RTP port + 1, and [`Camera`]'s row packets handed,
-//! as a 62-byte header plus the row's place in the frame ring, to a
-//! [`RowTransmitter`]: on the board the MAC's two-buffer descriptors, so
-//! the CPU never touches a pixel. smoltcp keeps ARP, ICMP and the frame
-//! server's TCP beside it.
+//! it: [`rtsp::Server`] on [`RTSP_SOCKETS`] TCP sockets listening on
+//! [`RTSP_PORT`], RTCP on a UDP socket on the RTP port + 1, and
+//! [`Camera`]'s row packets handed, as a 62-byte header plus the row's
+//! place in the frame ring, to a [`RowTransmitter`]: on the board the MAC's
+//! two-buffer descriptors, so the CPU never touches a pixel. An
+//! interleaved session's rows go through its RTSP socket instead (copied:
+//! TCP needs the bytes in its buffer). smoltcp keeps ARP, ICMP and the
+//! frame server's TCP beside it.
 //!
-//! # The next hop
+//! # Connections
 //!
-//! RTP leaves beside smoltcp, so its Ethernet header needs the client's
-//! (or its gateway's) MAC address. smoltcp 0.14 keeps its neighbour cache
-//! to itself; [`PeerMacs`] learns the same thing from the frames that
+//! Every RTSP socket holds one connection; a spare listens while the
+//! others are taken, so the player after the last session gets its 453
+//! rather than a refused connection. A connection is closed when the
+//! server's deadlines say so (`rtsp::Server::connection_expired`: half a
+//! request left for 5 s, or no session and no request for 10 s), and by
+//! smoltcp when its peer stops answering ([`KEEP_ALIVE`], [`TCP_TIMEOUT`]).
+//!
+//! # What the received frames tell
+//!
+//! RTP leaves beside smoltcp, so its Ethernet header needs the client's (or
+//! its gateway's) MAC address, and smoltcp 0.14 keeps its neighbour cache
+//! to itself. [`Snooped`] learns the same thing from the frames that
 //! arrive: the source MAC of the client's own IPv4 packets (its RTSP
-//! connection) is the next hop towards it. [`Snoop`] wraps the MAC's
-//! smoltcp device to feed it.
+//! connection) is the next hop towards it. It also notes ICMP port
+//! unreachable about the camera's RTP packets (a crashed player's host
+//! answers each with one): smoltcp's ICMP socket bound to a UDP port
+//! checks the quoted UDP header's length against the quote, and a host
+//! quotes at most 576 bytes of a 1,488-byte datagram (RFC 1812 section
+//! 4.3.2.3; Linux quotes 528 of its payload), so it would never match.
+//! [`Snoop`] wraps the MAC's smoltcp device to feed the table.
 
 use core::fmt::Write;
 use core::net::{IpAddr, Ipv4Addr, SocketAddrV4};
@@ -21,32 +37,49 @@ use core::net::{IpAddr, Ipv4Addr, SocketAddrV4};
 use smoltcp::iface::{SocketHandle, SocketSet};
 use smoltcp::phy::{self, Device, DeviceCapabilities};
 use smoltcp::socket::{tcp, udp};
-use smoltcp::time::Instant;
-use smoltcp::wire::{EthernetAddress, EthernetFrame, EthernetProtocol, IpEndpoint, Ipv4Packet};
-
-use crate::camera::rtp::{Endpoints, HeaderTemplate, Packetiser, RowPacket, UdpChecksum};
-use crate::camera::rtsp::{
-    self, Action, Connection, Server, MAX_REQUEST_BYTES, MAX_RESPONSE_BYTES, MAX_SESSIONS, RTSP_PORT,
+use smoltcp::time::{Duration as NetDuration, Instant};
+use smoltcp::wire::{
+    EthernetAddress, EthernetFrame, EthernetProtocol, Icmpv4Message, Icmpv4Packet, IpEndpoint, IpProtocol, Ipv4Packet,
+    UdpPacket,
 };
-use crate::camera::sender::{Camera, Destination, RtpSink, SlotSource};
+
+use super::random::SessionRng;
+use super::rtp::{Endpoints, HeaderTemplate, Packetiser, RowPacket, UdpChecksum, HEADER_BYTES, UNICAST_TTL};
+use super::rtsp::{self, ConnId, Connection, Server, CONNECTIONS, MAX_RESPONSE_BYTES, MAX_SESSIONS, RTSP_PORT};
+use super::sender::{Bound, Camera, Dest, RtpSink, SlotSource};
+use crate::frames::FrameSource;
 use crate::time;
 
-/// TCP sockets listening for RTSP: two clients setting up at once.
-pub const RTSP_SOCKETS: usize = 2;
+/// TCP sockets listening for RTSP: one per session's player and two
+/// spares ([`rtsp::CONNECTIONS`]).
+pub const RTSP_SOCKETS: usize = CONNECTIONS;
+
+/// Transmit buffer of an RTSP socket: 64 KiB, 44 interleaved row packets
+/// (RTP over the RTSP connection needs room for a run; responses alone
+/// would need 2.5 KiB).
+pub const RTSP_TX_BYTES: usize = 64 * 1024;
+
+/// Idle time after which smoltcp probes an RTSP connection's peer.
+pub const KEEP_ALIVE: NetDuration = NetDuration::from_secs(10);
+
+/// A peer that acknowledges nothing for this long loses its connection
+/// (smoltcp's timeout: retransmissions and keep-alive probes unanswered).
+pub const TCP_TIMEOUT: NetDuration = NetDuration::from_secs(30);
 
 /// Most [`Camera::poll`] calls per [`CameraService::poll`], a bound of
-/// last resort. One call already sends what a frame has landed, in runs,
-/// returning early when the transmitter says a frame was received
-/// ([`RowTransmitter::receive_waiting`]: NACKs arrive only through
-/// `Interface::poll`); more calls follow only while they move something
-/// and no frame has completed. (Four short rounds a poll, the earlier
-/// design, cost a main-loop iteration per eight rows on the emulated
-/// board; 64 without the receive check let NACKs wait a frame time and
-/// lossy-link repairs come too late.)
+/// last resort. One call already sends what the streams' frames have
+/// landed, in runs, returning early when the transmitter says a frame was
+/// received ([`RowTransmitter::receive_waiting`]: NACKs arrive only
+/// through `Interface::poll`); more calls follow only while they move
+/// something.
 pub const MAX_POLLS: usize = 2 * crate::frames::ROWS as usize;
 
-/// Peers remembered by [`PeerMacs`].
+/// Peers remembered by [`Snooped`].
 pub const PEERS: usize = 8;
+
+/// ICMP port unreachable notes [`Snooped`] keeps until the service takes
+/// them (more in one main-loop pass are dropped: the sender needs three).
+pub const UNREACHABLE_NOTES: usize = 8;
 
 /// The way rows leave: the board's zero-copy transmit path.
 pub trait RowTransmitter {
@@ -75,17 +108,21 @@ pub trait RowTransmitter {
     fn receive_waiting(&self) -> bool;
 }
 
-/// IPv4 address to next-hop MAC, learnt from received frames; the newest
-/// [`PEERS`] peers.
-#[derive(Clone, Debug, Default)]
-pub struct PeerMacs {
+/// What the received frames tell the camera: each peer's next-hop MAC
+/// address (the newest [`PEERS`]), and the ICMP port unreachable answers
+/// to its RTP packets.
+#[derive(Clone, Debug)]
+pub struct Snooped {
     entries: heapless::Deque<(Ipv4Addr, EthernetAddress), PEERS>,
+    unreachable: heapless::Deque<(Ipv4Addr, u16), UNREACHABLE_NOTES>,
+    rtp_port: u16,
 }
 
-impl PeerMacs {
-    /// Nothing learnt.
-    pub const fn new() -> PeerMacs {
-        PeerMacs { entries: heapless::Deque::new() }
+impl Snooped {
+    /// Nothing learnt; port unreachable is noted for packets that left
+    /// from `rtp_port`.
+    pub const fn new(rtp_port: u16) -> Snooped {
+        Snooped { entries: heapless::Deque::new(), unreachable: heapless::Deque::new(), rtp_port }
     }
 
     /// Learn from one received Ethernet frame (anything but IPv4 is
@@ -96,6 +133,9 @@ impl PeerMacs {
             return;
         }
         let Ok(ip) = Ipv4Packet::new_checked(eth.payload()) else { return };
+        if ip.next_header() == IpProtocol::Icmp {
+            self.note_unreachable(ip.payload());
+        }
         let (addr, mac) = (ip.src_addr(), eth.src_addr());
         if self.lookup(addr) == Some(mac) {
             return;
@@ -116,24 +156,57 @@ impl PeerMacs {
         let _ = self.entries.push_back((addr, mac));
     }
 
+    /// An ICMP message: destination unreachable, port unreachable (RFC 792
+    /// type 3 code 3), quoting a UDP datagram that left from our RTP port:
+    /// noted as (its destination, its destination port).
+    fn note_unreachable(&mut self, icmp: &[u8]) {
+        let Ok(msg) = Icmpv4Packet::new_checked(icmp) else { return };
+        if msg.msg_type() != Icmpv4Message::DstUnreachable || msg.msg_code() != 3 {
+            return;
+        }
+        // The quote is cut short of the datagram's total length: only its
+        // header is checked.
+        let data = msg.data();
+        if data.len() < 20 || data[0] >> 4 != 4 {
+            return;
+        }
+        let quoted = Ipv4Packet::new_unchecked(data);
+        let header = usize::from(quoted.header_len());
+        if header < 20 || quoted.next_header() != IpProtocol::Udp {
+            return;
+        }
+        // The quote holds at least the first 8 bytes of the datagram: the
+        // UDP header (RFC 792).
+        let Some(udp) = msg.data().get(header..header + 8) else { return };
+        let udp = UdpPacket::new_unchecked(udp);
+        if udp.src_port() == self.rtp_port {
+            let _ = self.unreachable.push_back((quoted.dst_addr(), udp.dst_port()));
+        }
+    }
+
     /// The next hop towards `addr`, if a frame from it was seen.
     pub fn lookup(&self, addr: Ipv4Addr) -> Option<EthernetAddress> {
         self.entries.iter().rev().find(|(a, _)| *a == addr).map(|(_, m)| *m)
     }
+
+    /// The next port unreachable noted: (client address, its port).
+    pub fn take_unreachable(&mut self) -> Option<(Ipv4Addr, u16)> {
+        self.unreachable.pop_front()
+    }
 }
 
-/// A smoltcp device that lets [`PeerMacs`] see every received frame.
+/// A smoltcp device that lets [`Snooped`] see every received frame.
 pub struct Snoop<'d, D> {
     /// The device.
     pub inner: &'d mut D,
     /// The table it feeds.
-    pub peers: &'d mut PeerMacs,
+    pub peers: &'d mut Snooped,
 }
 
 /// A received frame's token, learning from the frame on its way in.
 pub struct SnoopRx<'p, R> {
     inner: R,
-    peers: &'p mut PeerMacs,
+    peers: &'p mut Snooped,
 }
 
 impl<R: phy::RxToken> phy::RxToken for SnoopRx<'_, R> {
@@ -170,24 +243,32 @@ impl<D: Device> Device for Snoop<'_, D> {
     }
 }
 
+/// One RTSP socket's buffers. The transmit buffer comes first and is
+/// cache-line aligned, as the frame service's are.
+#[repr(C, align(32))]
+struct RtspBuffers {
+    tx: [u8; RTSP_TX_BYTES],
+    rx: [u8; rtsp::MAX_REQUEST_BYTES],
+}
+
 /// Buffers of the service's sockets (in a `static` on the board).
 pub struct CameraBuffers {
-    rtsp: [([u8; MAX_REQUEST_BYTES], [u8; MAX_RESPONSE_BYTES * 2]); RTSP_SOCKETS],
+    rtsp: [RtspBuffers; RTSP_SOCKETS],
     rtcp_meta: [udp::PacketMetadata; 8],
     rtcp_rx: [u8; 4096],
-    rtcp_tx_meta: [udp::PacketMetadata; 4],
-    rtcp_tx: [u8; 512],
+    rtcp_tx_meta: [udp::PacketMetadata; 8],
+    rtcp_tx: [u8; 1024],
 }
 
 impl CameraBuffers {
     /// Zeroed buffers (usable in a `static`).
     pub const fn new() -> CameraBuffers {
         CameraBuffers {
-            rtsp: [([0; MAX_REQUEST_BYTES], [0; MAX_RESPONSE_BYTES * 2]); RTSP_SOCKETS],
+            rtsp: [const { RtspBuffers { tx: [0; RTSP_TX_BYTES], rx: [0; rtsp::MAX_REQUEST_BYTES] } }; RTSP_SOCKETS],
             rtcp_meta: [udp::PacketMetadata::EMPTY; 8],
             rtcp_rx: [0; 4096],
-            rtcp_tx_meta: [udp::PacketMetadata::EMPTY; 4],
-            rtcp_tx: [0; 512],
+            rtcp_tx_meta: [udp::PacketMetadata::EMPTY; 8],
+            rtcp_tx: [0; 1024],
         }
     }
 }
@@ -198,16 +279,35 @@ impl Default for CameraBuffers {
     }
 }
 
-/// One RTSP socket and its request buffer.
+/// One RTSP socket and its connection.
 struct RtspSocket {
     handle: SocketHandle,
     conn: Option<Connection>,
 }
 
-/// A stream's 62-byte header template, made when its first packet goes.
+/// A UDP or multicast output's 62-byte header template, made when its
+/// first packet goes.
 struct Route {
-    to: Destination,
+    to: Dest,
     template: HeaderTemplate,
+}
+
+/// What the service has done, for logs and the bench.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ServiceStats {
+    /// Rows handed to the transmitter, resends included.
+    pub rows_sent: u32,
+    /// Rows copied into RTSP connections (interleaved).
+    pub rows_interleaved: u32,
+    /// Row packets dropped because the next hop was unknown.
+    pub no_route: u32,
+    /// RTSP connections accepted.
+    pub connections: u32,
+    /// Connections closed at a deadline (an unfinished request, or idle
+    /// without a session).
+    pub expired: u32,
+    /// RTCP datagrams from no session's client, dropped.
+    pub stray_rtcp: u32,
 }
 
 /// The network camera bound to smoltcp sockets.
@@ -218,30 +318,34 @@ pub struct CameraService<'c> {
     rtcp: SocketHandle,
     routes: [Option<Route>; MAX_SESSIONS],
     local_mac: EthernetAddress,
-    rng: u32,
+    rng: SessionRng,
+    next_conn: u32,
     response: [u8; MAX_RESPONSE_BYTES],
-    /// Rows handed to the transmitter, resends included.
-    pub rows_sent: u32,
-    /// Row packets dropped because the next hop was unknown.
-    pub no_route: u32,
+    /// What it has done.
+    pub stats: ServiceStats,
 }
 
 impl<'c> CameraService<'c> {
     /// Add the service's sockets to `sockets`: [`RTSP_SOCKETS`] TCP sockets
     /// on [`RTSP_PORT`] and a UDP socket on `config.rtp_port + 1` (RTCP).
-    /// `seed` starts the session ids, SSRCs and sequence numbers (RFC 3550
-    /// section 5.1 wants them unpredictable: a timer's ticks).
+    /// `entropy` keys the session ids, SSRCs and sequence numbers
+    /// ([`SessionRng`]); each connection stirs in the `entropy` given to
+    /// [`poll`](Self::poll) when it arrives.
     pub fn new<'a>(
         sockets: &mut SocketSet<'a>,
         buffers: &'a mut CameraBuffers,
         camera: &'c mut Camera<MAX_SESSIONS>,
         config: rtsp::Config,
         local_mac: EthernetAddress,
-        seed: u32,
+        entropy: &[u8],
     ) -> Result<CameraService<'c>, udp::BindError> {
         let CameraBuffers { rtsp, rtcp_meta, rtcp_rx, rtcp_tx_meta, rtcp_tx } = buffers;
-        let tcp_sockets = rtsp.each_mut().map(|(rx, tx)| {
-            let socket = tcp::Socket::new(tcp::SocketBuffer::new(&mut rx[..]), tcp::SocketBuffer::new(&mut tx[..]));
+        let tcp_sockets = rtsp.each_mut().map(|b| {
+            let mut socket =
+                tcp::Socket::new(tcp::SocketBuffer::new(&mut b.rx[..]), tcp::SocketBuffer::new(&mut b.tx[..]));
+            socket.set_keep_alive(Some(KEEP_ALIVE));
+            socket.set_timeout(Some(TCP_TIMEOUT));
+            socket.set_nagle_enabled(false);
             RtspSocket { handle: sockets.add(socket), conn: None }
         });
         let mut rtcp = udp::Socket::new(
@@ -256,10 +360,10 @@ impl<'c> CameraService<'c> {
             rtcp: sockets.add(rtcp),
             routes: [const { None }; MAX_SESSIONS],
             local_mac,
-            rng: seed | 1,
+            rng: SessionRng::new(entropy),
+            next_conn: 0,
             response: [0; MAX_RESPONSE_BYTES],
-            rows_sent: 0,
-            no_route: 0,
+            stats: ServiceStats::default(),
         })
     }
 
@@ -268,82 +372,107 @@ impl<'c> CameraService<'c> {
         &self.server
     }
 
-    /// The RTP senders.
+    /// The RTP sender.
     pub fn camera(&self) -> &Camera<MAX_SESSIONS> {
         self.camera
     }
 
-    /// Serve once: RTSP requests, session timeouts, RTCP (keep-alive and
-    /// NACKs), then the streams' rows through `tx`. Call it after each
-    /// `Interface::poll`; `held` says which slots the caller keeps besides
-    /// the repair windows' (rows still in a descriptor), and the source
-    /// learns the union.
+    /// RTSP sockets listening for a connection.
+    pub fn listening(&self, sockets: &SocketSet<'_>) -> usize {
+        self.sockets.iter().filter(|s| sockets.get::<tcp::Socket>(s.handle).state() == tcp::State::Listen).count()
+    }
+
+    /// Serve once: RTSP connections (requests, deadlines), session
+    /// timeouts, RTCP (keep-alive, round trips and NACKs), what the
+    /// received frames told ([`Snooped`]), then the streams' rows through
+    /// `tx`. Call it after each `Interface::poll`; `entropy` (a fast
+    /// counter's value) is stirred into the random numbers when a
+    /// connection arrives.
     #[allow(clippy::too_many_arguments)]
     pub fn poll<S: SlotSource, T: RowTransmitter>(
         &mut self,
         now: Instant,
         sockets: &mut SocketSet<'_>,
-        peers: &PeerMacs,
+        snooped: &mut Snooped,
         source: &mut S,
         tx: &mut T,
-        held: u32,
+        entropy: u64,
         log: &mut impl Write,
     ) {
         let now_ms = time::Instant::from_millis(u64::try_from(now.total_millis()).unwrap_or(0));
+        // The sender reports' clock: time since start (the board has no
+        // other; receivers use it to pair RTP and NTP times, and the
+        // round trip is measured on it).
+        let wall = super::rtcp::ntp_timestamp(core::time::Duration::from_micros(now.total_micros().max(0) as u64));
         for i in 0..RTSP_SOCKETS {
-            self.serve_socket(i, now_ms, sockets, source, log);
+            self.serve_socket(i, now_ms, wall, sockets, source, entropy, log);
         }
-        while let Some(action) = self.server.poll(now_ms) {
-            self.apply(action, now_ms, source, log);
+        {
+            let mut streams = Bound { camera: &mut *self.camera, source: &mut *source, now: now_ms, wall };
+            while let Some(session) = self.server.poll(now_ms, &mut streams) {
+                let _ = writeln!(log, "rtsp: session {session} timed out");
+            }
+        }
+        while let Some((to, port)) = snooped.take_unreachable() {
+            self.camera.unreachable(IpAddr::V4(to), port, now_ms, source);
         }
         let local = *self.server.config();
         let mut sink = Sink {
             tx,
-            peers,
+            peers: snooped,
             routes: &mut self.routes,
             local: &local,
             local_mac: self.local_mac,
-            rtcp: sockets.get_mut::<udp::Socket>(self.rtcp),
-            rows_sent: &mut self.rows_sent,
-            no_route: &mut self.no_route,
+            sockets,
+            rtcp: self.rtcp,
+            rtsp: &self.sockets,
+            stats: &mut self.stats,
         };
-        while let Ok((datagram, meta)) = sink.rtcp.recv() {
+        let mut datagram = [0u8; 1500];
+        loop {
+            let socket = sink.sockets.get_mut::<udp::Socket>(sink.rtcp);
+            let Ok((n, meta)) = socket.recv_slice(&mut datagram) else { break };
             let IpAddr::V4(from) = IpAddr::from(meta.endpoint.addr) else { continue };
             let from = IpAddr::V4(from);
-            let mut copy = [0u8; 1500];
-            let n = datagram.len().min(copy.len());
-            copy[..n].copy_from_slice(&datagram[..n]);
-            if self.server.rtcp_received(now_ms, from, meta.endpoint.port).is_some() {
-                self.camera.rtcp_received(from, meta.endpoint.port, &copy[..n], &mut sink);
+            let port = meta.endpoint.port;
+            if self.server.rtcp_received(now_ms, from, port).is_some() {
+                let from = core::net::SocketAddr::new(from, port);
+                self.camera.rtcp_received(from, &datagram[..n], now_ms, wall, source, &mut sink);
             } else {
-                let _ = writeln!(log, "rtcp: {} bytes from {} ignored (no session of theirs)", n, meta.endpoint);
+                sink.stats.stray_rtcp = sink.stats.stray_rtcp.wrapping_add(1);
             }
         }
-        // The wall clock of the sender reports: time since start (the board
-        // has no other; receivers use it to pair RTP and NTP times only).
-        let wall =
-            crate::camera::rtcp::ntp_timestamp(core::time::Duration::from_micros(now.total_micros().max(0) as u64));
-        // Rounds until nothing moves, a frame is complete or a frame was
-        // received: NACKs arrive only through the next `Interface::poll`.
-        let frames = |c: &Camera<MAX_SESSIONS>| c.streams().map(|s| s.stats().frames).fold(0u32, u32::wrapping_add);
-        let before = frames(self.camera);
+        // Rounds until nothing moves or a frame was received: NACKs arrive
+        // only through the next `Interface::poll`.
         for _ in 0..MAX_POLLS {
-            if !self.camera.poll(now_ms, wall, source, &mut sink)
-                || frames(self.camera) != before
-                || sink.tx.receive_waiting()
-            {
+            if !self.camera.poll(now_ms, wall, source, &mut sink) || sink.tx.receive_waiting() {
                 break;
             }
         }
-        source.set_held(self.camera.held() | held);
+        while let Some((session, why)) = self.camera.take_ended() {
+            self.server.remove(session);
+            let _ = writeln!(log, "rtsp: session {session} ends: {why}");
+        }
+        // Routes of outputs that are gone are dropped; a new output to the
+        // same place makes its own (its own IPv4 identifications).
+        let camera = &*self.camera;
+        for r in &mut self.routes {
+            if r.as_ref().is_some_and(|r| !camera_has(camera, &r.to)) {
+                *r = None;
+            }
+        }
+        source.set_held(self.camera.held());
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn serve_socket<S: SlotSource>(
         &mut self,
         i: usize,
         now: time::Instant,
+        wall: u64,
         sockets: &mut SocketSet<'_>,
         source: &mut S,
+        entropy: u64,
         log: &mut impl Write,
     ) {
         let socket = sockets.get_mut::<tcp::Socket>(self.sockets[i].handle);
@@ -351,7 +480,9 @@ impl<'c> CameraService<'c> {
             socket.abort();
         }
         if !socket.is_open() {
-            self.sockets[i].conn = None;
+            if let Some(conn) = self.sockets[i].conn.take() {
+                self.closed(conn.id(), now, wall, source, log);
+            }
             if let Err(e) = socket.listen(RTSP_PORT) {
                 let _ = writeln!(log, "rtsp: listen failed: {e:?}");
             }
@@ -362,14 +493,26 @@ impl<'c> CameraService<'c> {
                 return;
             }
             let Some(peer) = socket.remote_endpoint() else { return };
-            let _ = writeln!(log, "rtsp: client {peer}");
-            self.sockets[i].conn = Some(Connection::new(IpAddr::from(peer.addr)));
+            self.next_conn = self.next_conn.wrapping_add(1);
+            let id = ConnId(self.next_conn);
+            let _ = writeln!(log, "rtsp: client {peer} ({id})");
+            // The arrival's time on a fast counter, and who arrived.
+            let mut sample = [0u8; 14];
+            sample[..8].copy_from_slice(&entropy.to_le_bytes());
+            let smoltcp::wire::IpAddress::Ipv4(a) = peer.addr;
+            sample[8..12].copy_from_slice(&a.octets());
+            sample[12..].copy_from_slice(&peer.port.to_le_bytes());
+            self.rng.stir(&sample);
+            self.stats.connections = self.stats.connections.wrapping_add(1);
+            self.sockets[i].conn = Some(Connection::new(id, IpAddr::from(peer.addr), now));
         }
         if !socket.may_recv() && socket.recv_queue() == 0 {
-            // The client closed its side: its sessions live on (RFC 2326
-            // section 3.1); the connection goes.
+            // The client closed its side: its UDP sessions live on (RFC
+            // 2326 section 3.1); the connection and what went through it go.
             socket.close();
-            self.sockets[i].conn = None;
+            if let Some(conn) = self.sockets[i].conn.take() {
+                self.closed(conn.id(), now, wall, source, log);
+            }
             return;
         }
         loop {
@@ -377,160 +520,257 @@ impl<'c> CameraService<'c> {
             let socket = sockets.get_mut::<tcp::Socket>(self.sockets[i].handle);
             while socket.can_recv() {
                 match socket.recv(|buf| {
-                    let n = conn.receive(buf);
+                    let n = conn.receive(now, buf);
                     (n, n)
                 }) {
                     Ok(n) if n > 0 => {}
                     _ => break,
                 }
             }
-            // Answer only what fits: a response is never cut.
+            if self.server.connection_expired(conn, now) {
+                self.stats.expired = self.stats.expired.wrapping_add(1);
+                let _ = writeln!(log, "rtsp: connection {} closed at its deadline", conn.id());
+                let id = conn.id();
+                socket.abort();
+                self.sockets[i].conn = None;
+                self.closed(id, now, wall, source, log);
+                return;
+            }
+            // Answer only what fits: a response is never cut, nor put
+            // inside an interleaved packet (those go whole too).
             if socket.send_capacity() - socket.send_queue() < MAX_RESPONSE_BYTES {
                 return;
             }
-            let rng = &mut self.rng;
-            let mut random = || xorshift(rng);
-            let Some(reply) = self.server.handle(conn, now, &mut random, &mut self.response) else { return };
+            let mut streams = Bound { camera: &mut *self.camera, source: &mut *source, now, wall };
+            let Some(reply) = self.server.handle(conn, now, &mut self.rng, &mut streams, &mut self.response) else {
+                return;
+            };
             let _ = socket.send_slice(&self.response[..reply.len]);
             let _ = writeln!(log, "rtsp: {} {}", reply.status.code(), reply.status.reason());
-            let close = reply.close;
-            if let Some(action) = reply.action {
-                self.apply(action, now, source, log);
-            }
-            if close {
+            if reply.close {
                 sockets.get_mut::<tcp::Socket>(self.sockets[i].handle).close();
-                self.sockets[i].conn = None;
                 return;
             }
         }
     }
 
-    fn apply<S: SlotSource>(&mut self, action: Action, now: time::Instant, source: &mut S, log: &mut impl Write) {
-        match action {
-            Action::Play { session, client_addr, rtp_port, .. } => {
-                let _ = writeln!(log, "rtsp: session {session} plays to {client_addr}:{rtp_port}");
-            }
-            Action::Stop { session } | Action::Timeout { session } => match self.camera.stream(session) {
-                Some(s) => {
-                    let st = s.stats();
-                    let _ = writeln!(
-                        log,
-                        "rtsp: session {session} ends: {} frames, {} packets, {} resent, {} not repairable, {} failed",
-                        st.frames, st.packets, st.resent, st.unrepairable, st.failed
-                    );
-                }
-                None => {
-                    let _ = writeln!(log, "rtsp: session {session} ends");
-                }
-            },
-            _ => {}
-        }
-        if let Some((seq, rtptime)) = self.camera.apply(action, now, source) {
-            if let Action::Pause { session } = action {
-                self.server.set_position(session, seq, rtptime);
-            }
-        }
-        // Routes of streams that are gone are dropped; a new stream to the
-        // same place makes its own (its own IPv4 identifications).
-        let camera = &*self.camera;
-        for r in &mut self.routes {
-            if r.as_ref().is_some_and(|r| !camera.streams().any(|s| s.destination() == r.to)) {
-                *r = None;
-            }
+    /// Connection `id` is gone: its interleaved sessions end.
+    fn closed<S: SlotSource>(
+        &mut self,
+        id: ConnId,
+        now: time::Instant,
+        wall: u64,
+        source: &mut S,
+        log: &mut impl Write,
+    ) {
+        let mut streams = Bound { camera: &mut *self.camera, source, now, wall };
+        let ended = self.server.connection_closed(id, &mut streams);
+        if ended > 0 {
+            let _ = writeln!(log, "rtsp: connection {id} gone: {ended} interleaved session(s) end");
         }
     }
 }
 
-/// The next of xorshift32 (Marsaglia 2003): unpredictable enough for RTP's
-/// identifiers, none of which is a secret (a random-number crate for three
-/// numbers a session would be more than they need).
-fn xorshift(state: &mut u32) -> u32 {
-    let mut x = *state;
-    x ^= x << 13;
-    x ^= x >> 17;
-    x ^= x << 5;
-    *state = x;
-    x
+/// Whether `camera` still has an output to `to`.
+fn camera_has<const N: usize>(camera: &Camera<N>, to: &Dest) -> bool {
+    camera.sessions().any(|(s, _)| camera.destination(s).as_ref() == Some(to))
 }
 
-/// The camera's way out through the transmitter, with a header per stream.
+/// The camera's way out: UDP and multicast rows through the transmitter
+/// with a header template per output, interleaved rows and RTCP through
+/// smoltcp's sockets.
 struct Sink<'s, 'r, T> {
     tx: &'s mut T,
-    peers: &'s PeerMacs,
+    peers: &'s Snooped,
     routes: &'s mut [Option<Route>; MAX_SESSIONS],
     local: &'s rtsp::Config,
     local_mac: EthernetAddress,
-    rtcp: &'s mut udp::Socket<'r>,
-    rows_sent: &'s mut u32,
-    no_route: &'s mut u32,
-}
-
-impl<T: RowTransmitter> Sink<'_, '_, T> {
-    /// The route to `to`, made (with its header template) the first time a
-    /// packet goes there; `None` while the next hop is unknown, or if
-    /// every route is taken.
-    fn route(&mut self, to: &Destination, first_ident: u16) -> Result<usize, NoRoute> {
-        if let Some(i) = self.routes.iter().position(|r| r.as_ref().is_some_and(|r| r.to == *to)) {
-            return Ok(i);
-        }
-        // The board speaks IPv4 only.
-        let IpAddr::V4(client) = to.addr else { return Err(NoRoute::Unknown) };
-        let Some(dst_mac) = self.peers.lookup(client) else { return Err(NoRoute::Unknown) };
-        let endpoints = Endpoints {
-            src_mac: self.local_mac,
-            dst_mac,
-            src: SocketAddrV4::new(self.local.server_ip, self.local.rtp_port),
-            dst: SocketAddrV4::new(client, to.rtp_port),
-        };
-        let checksum = if self.tx.checksum_offload() { UdpChecksum::Offload } else { UdpChecksum::Zero };
-        let i = self.routes.iter().position(Option::is_none).ok_or(NoRoute::Full)?;
-        self.routes[i] = Some(Route { to: *to, template: HeaderTemplate::new(&endpoints, checksum, first_ident) });
-        Ok(i)
-    }
+    sockets: &'s mut SocketSet<'r>,
+    rtcp: SocketHandle,
+    rtsp: &'s [RtspSocket; RTSP_SOCKETS],
+    stats: &'s mut ServiceStats,
 }
 
 /// Why a packet has no route.
 enum NoRoute {
     /// The next hop is not known (or not IPv4): the packet is dropped.
     Unknown,
-    /// Every route is taken (never expected: one per stream): try later.
+    /// Every route is taken (never expected: one per output): try later.
     Full,
 }
 
-impl<T: RowTransmitter> RtpSink for Sink<'_, '_, T> {
-    fn send_row(&mut self, to: &Destination, packetiser: &Packetiser, packet: &RowPacket, slot: usize) -> bool {
-        self.send_rows(to, packetiser, packet, 1, slot) == 1
+/// The Ethernet address of an IPv4 multicast group (RFC 1112 section 6.4:
+/// 01-00-5E and the group's low 23 bits).
+pub fn multicast_mac(group: Ipv4Addr) -> EthernetAddress {
+    let [_, b, c, d] = group.octets();
+    EthernetAddress([0x01, 0x00, 0x5e, b & 0x7f, c, d])
+}
+
+impl<T: RowTransmitter> Sink<'_, '_, T> {
+    /// The route to `to` (UDP or multicast), made (with its header
+    /// template) the first time a packet goes there.
+    fn route(&mut self, to: &Dest, first_ident: u16) -> Result<usize, NoRoute> {
+        if let Some(i) = self.routes.iter().position(|r| r.as_ref().is_some_and(|r| r.to == *to)) {
+            return Ok(i);
+        }
+        let (dst_mac, dst, ttl) = match *to {
+            // The board speaks IPv4 only.
+            Dest::Udp { addr: IpAddr::V4(client), rtp_port, .. } => {
+                let mac = self.peers.lookup(client).ok_or(NoRoute::Unknown)?;
+                (mac, SocketAddrV4::new(client, rtp_port), UNICAST_TTL)
+            }
+            Dest::Multicast(g) => (multicast_mac(g.addr), SocketAddrV4::new(g.addr, g.port), g.ttl),
+            _ => return Err(NoRoute::Unknown),
+        };
+        let endpoints = Endpoints {
+            src_mac: self.local_mac,
+            dst_mac,
+            src: SocketAddrV4::new(self.local.server_ip, self.local.rtp_port),
+            dst,
+            ttl,
+        };
+        let checksum = if self.tx.checksum_offload() { UdpChecksum::Offload } else { UdpChecksum::Zero };
+        let i = self.routes.iter().position(Option::is_none).ok_or(NoRoute::Full)?;
+        self.routes[i] = Some(Route { to: *to, template: HeaderTemplate::new(&endpoints, checksum, first_ident) });
+        Ok(i)
     }
 
-    fn send_rows(
+    /// The RTSP socket of connection `conn`.
+    fn connection(&self, conn: ConnId) -> Option<SocketHandle> {
+        self.rtsp.iter().find(|s| s.conn.as_ref().is_some_and(|c| c.id() == conn)).map(|s| s.handle)
+    }
+}
+
+/// Bytes of an interleaved row packet: `$`, channel, length, then the RTP
+/// packet.
+const INTERLEAVED_BYTES: usize = 4 + HEADER_BYTES + model::ROW_BYTES;
+
+impl<T: RowTransmitter> RtpSink for Sink<'_, '_, T> {
+    fn send_rows<S: FrameSource<Frame = usize>>(
         &mut self,
-        to: &Destination,
+        to: &Dest,
         packetiser: &Packetiser,
         first: &RowPacket,
         count: u16,
         slot: usize,
+        source: &mut S,
     ) -> u16 {
+        if let Dest::Interleaved { conn, rtp_channel, .. } = *to {
+            let Some(handle) = self.connection(conn) else { return count };
+            let socket = self.sockets.get_mut::<tcp::Socket>(handle);
+            let mut packet = [0u8; INTERLEAVED_BYTES];
+            packet[0] = b'$';
+            packet[1] = rtp_channel;
+            packet[2..4].copy_from_slice(&((HEADER_BYTES + model::ROW_BYTES) as u16).to_be_bytes());
+            for k in 0..count {
+                if socket.send_capacity() - socket.send_queue() < INTERLEAVED_BYTES {
+                    return k;
+                }
+                let p = first.nth(k);
+                let _ = packetiser.emit(&p, &mut packet[4..4 + HEADER_BYTES]);
+                if source.copy_row(slot, p.row, 0, &mut packet[4 + HEADER_BYTES..]) < model::ROW_BYTES {
+                    // Not the current frame's row (never expected): skipped
+                    // like a lost one.
+                    continue;
+                }
+                let _ = socket.send_slice(&packet);
+                self.stats.rows_interleaved = self.stats.rows_interleaved.wrapping_add(1);
+            }
+            return count;
+        }
         let route = match self.route(to, first.seq as u16) {
             Ok(i) => i,
             Err(NoRoute::Unknown) => {
-                *self.no_route += u32::from(count);
+                self.stats.no_route = self.stats.no_route.wrapping_add(u32::from(count));
                 return count;
             }
             Err(NoRoute::Full) => return 0,
         };
         let Some(r) = self.routes[route].as_mut() else { return 0 };
         let sent = self.tx.send_run(&mut r.template, packetiser, first, count, slot);
-        *self.rows_sent = self.rows_sent.wrapping_add(u32::from(sent));
+        self.stats.rows_sent = self.stats.rows_sent.wrapping_add(u32::from(sent));
         sent
     }
 
-    fn send_rtcp(&mut self, to: &Destination, datagram: &[u8]) -> bool {
-        let IpAddr::V4(addr) = to.addr else { return false };
-        let endpoint = IpEndpoint::new(addr.into(), to.rtcp_port);
-        self.rtcp.send_slice(datagram, endpoint).is_ok()
+    fn send_rtcp(&mut self, to: &Dest, datagram: &[u8]) -> bool {
+        match *to {
+            Dest::Udp { addr: IpAddr::V4(addr), rtcp_port, .. } => {
+                let socket = self.sockets.get_mut::<udp::Socket>(self.rtcp);
+                socket.send_slice(datagram, IpEndpoint::new(addr.into(), rtcp_port)).is_ok()
+            }
+            Dest::Multicast(g) => {
+                let socket = self.sockets.get_mut::<udp::Socket>(self.rtcp);
+                socket.set_hop_limit(Some(g.ttl));
+                let sent = socket.send_slice(datagram, IpEndpoint::new(g.addr.into(), g.port.wrapping_add(1))).is_ok();
+                socket.set_hop_limit(None);
+                sent
+            }
+            Dest::Interleaved { conn, rtcp_channel, .. } => {
+                let Some(handle) = self.connection(conn) else { return false };
+                let socket = self.sockets.get_mut::<tcp::Socket>(handle);
+                if socket.send_capacity() - socket.send_queue() < 4 + datagram.len() {
+                    return false;
+                }
+                let len = datagram.len() as u16;
+                let head = [b'$', rtcp_channel, (len >> 8) as u8, len as u8];
+                socket.send_slice(&head).is_ok() && socket.send_slice(datagram).is_ok()
+            }
+            Dest::Udp { addr: IpAddr::V6(_), .. } => false,
+        }
     }
 
     fn should_yield(&mut self) -> bool {
         self.tx.receive_waiting()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn multicast_groups_map_to_their_ethernet_address() {
+        assert_eq!(multicast_mac(Ipv4Addr::new(239, 255, 42, 1)).0, [0x01, 0x00, 0x5e, 0x7f, 0x2a, 0x01]);
+        assert_eq!(multicast_mac(Ipv4Addr::new(224, 128, 0, 9)).0, [0x01, 0x00, 0x5e, 0x00, 0x00, 0x09], "23 bits");
+    }
+
+    /// An Ethernet frame from 10.0.2.2 carrying ICMP `kind`/`code` about a
+    /// UDP datagram from port `src` to 10.0.2.2:`dst`, quoting `quote`
+    /// bytes of it.
+    fn icmp_frame(kind: u8, code: u8, src: u16, dst: u16, quote: usize) -> Vec<u8> {
+        let mut quoted = vec![0x45, 0, 0x05, 0xd0, 0, 0, 0x40, 0, 64, 17, 0, 0, 10, 0, 2, 15, 10, 0, 2, 2];
+        quoted.extend_from_slice(&src.to_be_bytes());
+        quoted.extend_from_slice(&dst.to_be_bytes());
+        quoted.extend_from_slice(&1_468u16.to_be_bytes());
+        quoted.extend_from_slice(&[0, 0]);
+        quoted.resize(20 + quote, 0xaa);
+        let mut icmp = vec![kind, code, 0, 0, 0, 0, 0, 0];
+        icmp.extend_from_slice(&quoted);
+        let sum = !smoltcp::wire::checksum::data(&icmp);
+        icmp[2..4].copy_from_slice(&sum.to_be_bytes());
+        let total = (20 + icmp.len()) as u16;
+        let mut ip = vec![0x45, 0, (total >> 8) as u8, total as u8, 0, 0, 0, 0, 64, 1, 0, 0, 10, 0, 2, 2, 10, 0, 2, 15];
+        let sum = !smoltcp::wire::checksum::data(&ip);
+        ip[10..12].copy_from_slice(&sum.to_be_bytes());
+        let mut frame = vec![0x02, 0, 0, 0, 0, 1, 0x52, 0x54, 0, 0x12, 0x34, 0x57, 0x08, 0x00];
+        frame.extend_from_slice(&ip);
+        frame.extend_from_slice(&icmp);
+        frame
+    }
+
+    #[test]
+    fn port_unreachable_about_an_rtp_packet_is_noted_and_the_next_hop_learnt() {
+        let mut s = Snooped::new(5004);
+        s.learn(&icmp_frame(3, 3, 5004, 6000, 528));
+        assert_eq!(s.take_unreachable(), Some((Ipv4Addr::new(10, 0, 2, 2), 6000)), "a truncated quote is enough");
+        assert_eq!(s.lookup(Ipv4Addr::new(10, 0, 2, 2)), Some(EthernetAddress([0x52, 0x54, 0, 0x12, 0x34, 0x57])));
+        s.learn(&icmp_frame(3, 3, 5004, 6000, 8));
+        assert!(s.take_unreachable().is_some(), "the UDP header alone");
+        for (kind, code, src) in [(3, 1, 5004), (11, 0, 5004), (3, 3, 5005), (0, 0, 5004)] {
+            s.learn(&icmp_frame(kind, code, src, 6000, 8));
+            assert_eq!(s.take_unreachable(), None, "{kind}/{code} from {src}");
+        }
+        s.learn(&icmp_frame(3, 3, 5004, 6000, 4));
+        assert_eq!(s.take_unreachable(), None, "no whole UDP header quoted");
     }
 }

@@ -52,6 +52,11 @@ pub struct StreamSpec {
     pub stream: Stream,
     /// The frame rate.
     pub fps: Fps,
+    /// `multicast` in the query: the description names the stream's
+    /// multicast group. Not part of what the stream is: a multicast and a
+    /// unicast viewer of one light at one rate share its frames
+    /// ([`StreamSpec::same_frames`]).
+    pub multicast: bool,
 }
 
 /// Why a URL names no stream.
@@ -85,6 +90,7 @@ impl StreamSpec {
         };
         let path = path.strip_suffix('/').unwrap_or(path);
         let mut fps = Fps::Rate(DEFAULT_FPS);
+        let mut multicast = false;
         let (mut radius, mut height, mut period) = (DEFAULT_RADIUS, DEFAULT_HEIGHT, DEFAULT_PERIOD);
         let kind = match path {
             "/live" => Kind::Live,
@@ -95,6 +101,10 @@ impl StreamSpec {
             },
         };
         for pair in query.split('&').filter(|p| !p.is_empty()) {
+            if pair == "multicast" {
+                multicast = true;
+                continue;
+            }
             let (key, value) = pair.split_once('=').ok_or(UrlError::BadParameter)?;
             match (key, kind) {
                 ("fps", _) => fps = parse_fps(value)?,
@@ -111,7 +121,14 @@ impl StreamSpec {
             Kind::Live => Stream::Live,
             Kind::Orbit => Stream::Orbit(Orbit::new(radius, height, period).map_err(|_| UrlError::BadParameter)?),
         };
-        Ok(StreamSpec { stream, fps })
+        Ok(StreamSpec { stream, fps, multicast })
+    }
+
+    /// Whether viewers of `self` and of `other` see the same frames: the
+    /// same light (or orbit) at the same rate. A live stream's light is its
+    /// session's own, so live streams never share.
+    pub fn same_frames(&self, other: &StreamSpec) -> bool {
+        self.stream != Stream::Live && self.stream == other.stream && self.fps == other.fps
     }
 
     /// The stream's light `t` into the stream (media time: the RTP
@@ -182,12 +199,18 @@ mod tests {
     #[test]
     fn stream_urls_parse() {
         let fixed = StreamSpec::parse("rtsp://board:8554/light/3,4,-2").unwrap();
-        assert_eq!(fixed, StreamSpec { stream: Stream::Light(light(3.0, 4.0, -2.0)), fps: Fps::Rate(30) });
+        assert_eq!(
+            fixed,
+            StreamSpec { stream: Stream::Light(light(3.0, 4.0, -2.0)), fps: Fps::Rate(30), multicast: false }
+        );
         let spec = |u| StreamSpec::parse(u);
         assert_eq!(spec("rtsp://board/light/0.5,2,-1.25?fps=60").unwrap().fps, Fps::Rate(60));
         assert_eq!(spec("/light/3%2C4%2c-2/").unwrap(), fixed, "an absolute path, encoded commas, a trailing slash");
         assert_eq!(spec("RTSP://board:8554/light/3,4,-2/trackID=0").unwrap(), fixed);
-        assert_eq!(spec("rtsp://10.0.0.2:8554/live").unwrap(), StreamSpec { stream: Stream::Live, fps: Fps::Rate(30) });
+        assert_eq!(
+            spec("rtsp://10.0.0.2:8554/live").unwrap(),
+            StreamSpec { stream: Stream::Live, fps: Fps::Rate(30), multicast: false }
+        );
         assert_eq!(spec("rtsp://h/live?fps=max").unwrap().fps, Fps::Max);
         assert_eq!(spec("rtsp://h/live?fps=MAX/trackID=0").unwrap().fps, Fps::Max);
         let orbit = |r, h, p| Stream::Orbit(Orbit::new(r, h, Duration::from_secs_f64(p)).unwrap());
@@ -195,8 +218,12 @@ mod tests {
         assert_eq!(spec("rtsp://h/orbit?").unwrap().stream, orbit(3.0, 4.0, 2.0));
         assert_eq!(spec("rtsp://h/orbit?height=6").unwrap().stream, orbit(3.0, 6.0, 2.0));
         let full = spec("rtsp://h:8554/orbit?radius=5&height=-1.5&period=8&fps=12").unwrap();
-        assert_eq!(full, StreamSpec { stream: orbit(5.0, -1.5, 8.0), fps: Fps::Rate(12) });
+        assert_eq!(full, StreamSpec { stream: orbit(5.0, -1.5, 8.0), fps: Fps::Rate(12), multicast: false });
         assert_eq!(spec("rtsp://h/orbit?period=0.5&&radius=2").unwrap().stream, orbit(2.0, 4.0, 0.5));
+        let group = spec("rtsp://h/light/3,4,-2?multicast&fps=30").unwrap();
+        assert!(group.multicast && group.same_frames(&fixed) && fixed.same_frames(&group));
+        assert!(!spec("/live").unwrap().same_frames(&spec("/live").unwrap()), "a live light is its session's");
+        assert!(!fixed.same_frames(&spec("/light/3,4,-2?fps=31").unwrap()));
         assert_eq!(Fps::Rate(30).interval(), Some(Duration::from_nanos(33_333_333)));
         assert_eq!(Fps::Max.interval(), None);
     }
@@ -227,6 +254,7 @@ mod tests {
             "rtsp://h/orbit?period=-1",
             "rtsp://h/orbit?period=1e30",
             "rtsp://h/orbit?colour=red",
+            "rtsp://h/orbit?multicast=1",
         ] {
             assert_eq!(StreamSpec::parse(url), Err(UrlError::BadParameter), "{url}");
         }

@@ -1,0 +1,537 @@
+//! RTSP/1.0 on the wire (RFC 2326): one connection's input framed into
+//! requests and interleaved binary data, a request's fields, the
+//! `Transport` header, and responses written into the caller's buffer.
+//! No server state: [`super::Server`] decides what to answer.
+
+use core::fmt::{self, Write};
+use core::net::IpAddr;
+
+use super::{ConnId, Status, MAX_BODY_BYTES, MAX_HEADER_BYTES, MAX_REQUEST_BYTES, MAX_URL_BYTES};
+use crate::camera::sdp::Profile;
+use crate::time::Instant;
+
+// ---- Connections ----------------------------------------------------------------------
+
+/// One TCP connection's input: the bytes not yet answered, the peer's
+/// address, and when it last made progress (for the server's deadlines,
+/// [`super::Server::connection_expired`]).
+#[derive(Clone, Debug)]
+pub struct Connection {
+    id: ConnId,
+    peer: IpAddr,
+    buf: [u8; MAX_REQUEST_BYTES],
+    len: usize,
+    /// Bytes still to drop of an interleaved frame too long to buffer.
+    skip: usize,
+    pub(super) closed: bool,
+    /// When its last complete request (or interleaved frame) was taken, or
+    /// when it opened.
+    pub(super) last_request: Instant,
+    /// Since when bytes of an unfinished request wait.
+    pub(super) partial_since: Option<Instant>,
+}
+
+impl Connection {
+    /// Connection `id` from `peer`, opened at `now`. The caller numbers
+    /// its connections; the id binds sessions that carry their RTP on
+    /// this connection (`interleaved`).
+    pub fn new(id: ConnId, peer: IpAddr, now: Instant) -> Connection {
+        Connection {
+            id,
+            peer,
+            buf: [0; MAX_REQUEST_BYTES],
+            len: 0,
+            skip: 0,
+            closed: false,
+            last_request: now,
+            partial_since: None,
+        }
+    }
+
+    /// The connection's id.
+    pub fn id(&self) -> ConnId {
+        self.id
+    }
+
+    /// The peer's address.
+    pub fn peer(&self) -> IpAddr {
+        self.peer
+    }
+
+    /// Take bytes received at `now`; returns how many were taken. Fewer
+    /// than `data.len()` means the buffer is full: call
+    /// [`super::Server::handle`], then offer the rest. After a reply that
+    /// closes, everything is taken and dropped.
+    pub fn receive(&mut self, now: Instant, data: &[u8]) -> usize {
+        if self.closed {
+            return data.len();
+        }
+        let skipped = data.len().min(self.skip);
+        self.skip -= skipped;
+        if skipped > 0 && self.skip == 0 && self.len == 0 {
+            // The long interleaved frame is over.
+            self.partial_since = None;
+        }
+        let data = &data[skipped..];
+        let n = data.len().min(MAX_REQUEST_BYTES - self.len);
+        if n > 0 && self.len == 0 && self.partial_since.is_none() {
+            self.partial_since = Some(now);
+        }
+        self.buf[self.len..self.len + n].copy_from_slice(&data[..n]);
+        self.len += n;
+        skipped + n
+    }
+
+    /// Bytes buffered, not answered yet.
+    pub fn buffered(&self) -> usize {
+        self.len
+    }
+
+    /// Whether nothing is under way: no bytes buffered, no long
+    /// interleaved frame being dropped, not closed.
+    pub fn is_idle(&self) -> bool {
+        self.len == 0 && self.skip == 0 && !self.closed
+    }
+
+    /// Whether a reply closed the connection (input is no longer read).
+    pub fn is_closed(&self) -> bool {
+        self.closed
+    }
+
+    /// The bytes of the first `n` buffered.
+    pub(super) fn bytes(&self, range: core::ops::Range<usize>) -> &[u8] {
+        &self.buf[range]
+    }
+
+    /// Drop the first `n` buffered bytes; at `now` a request (or frame)
+    /// was complete.
+    pub(super) fn consume(&mut self, n: usize, now: Instant) {
+        let n = n.min(self.len);
+        self.buf.copy_within(n..self.len, 0);
+        self.len -= n;
+        self.last_request = now;
+        // What is left is the start of the next one: its time runs from now.
+        self.partial_since = (self.len > 0).then_some(now);
+    }
+
+    /// Drop everything and read nothing more (the input cannot be framed).
+    pub(super) fn close(&mut self) {
+        self.closed = true;
+        self.len = 0;
+        self.partial_since = None;
+    }
+
+    /// Where the first message ends, if it is all here.
+    pub(super) fn frame(&mut self) -> Framing {
+        // Empty lines between requests are allowed (RFC 2326 section 15.1).
+        let blank = self.buf[..self.len].iter().take_while(|&&b| b == b'\r' || b == b'\n').count();
+        if blank > 0 {
+            let (last, partial) = (self.last_request, self.partial_since);
+            self.consume(blank, last);
+            self.partial_since = partial.filter(|_| self.len > 0);
+        }
+        if self.buf[..self.len].first() == Some(&b'$') {
+            // RFC 2326 section 10.12: `$`, channel, 16-bit length, data.
+            let Some(&[_, channel, hi, lo]) = self.buf[..self.len].first_chunk::<4>() else {
+                return Framing::Incomplete;
+            };
+            let len = usize::from(u16::from_be_bytes([hi, lo]));
+            if 4 + len > MAX_REQUEST_BYTES {
+                // Longer than anything a client sends us (RTCP): dropped.
+                let here = self.len - 4;
+                self.skip = len - here;
+                let (last, partial) = (self.last_request, self.partial_since);
+                self.consume(self.len, last);
+                // Still unfinished: its deadline runs on.
+                self.partial_since = partial;
+                return Framing::Incomplete;
+            }
+            return if self.len >= 4 + len { Framing::Interleaved { channel, len } } else { Framing::Incomplete };
+        }
+        let window = &self.buf[..self.len.min(MAX_HEADER_BYTES)];
+        let mut end = None;
+        for i in 0..window.len() {
+            if window[i] != b'\n' {
+                continue;
+            }
+            match window.get(i + 1..) {
+                Some([b'\n', ..]) => end = Some(i + 2),
+                Some([b'\r', b'\n', ..]) => end = Some(i + 3),
+                _ => {}
+            }
+            if end.is_some() {
+                break;
+            }
+        }
+        let Some(head) = end else {
+            return if self.len >= MAX_HEADER_BYTES { Framing::Fatal } else { Framing::Incomplete };
+        };
+        match content_length(&self.buf[..head]) {
+            Some(body) if body <= MAX_BODY_BYTES => {
+                if self.len >= head + body {
+                    Framing::Request { head, body }
+                } else {
+                    Framing::Incomplete
+                }
+            }
+            _ => Framing::Fatal,
+        }
+    }
+}
+
+/// The state of a connection's first message.
+pub(super) enum Framing {
+    /// More bytes needed.
+    Incomplete,
+    /// A request: the header block is `..head`, the body the next `body`
+    /// bytes.
+    Request { head: usize, body: usize },
+    /// Interleaved data (RFC 2326 section 10.12): `len` bytes of
+    /// `channel` after the 4-byte header.
+    Interleaved { channel: u8, len: usize },
+    /// Cannot be framed: answer 400 and close.
+    Fatal,
+}
+
+/// The `Content-Length` of a header block: 0 if absent, `None` if malformed,
+/// beyond 9 digits or given twice with different values.
+fn content_length(head: &[u8]) -> Option<usize> {
+    let mut found: Option<usize> = None;
+    for line in head.split(|&b| b == b'\n').skip(1) {
+        let Some(colon) = line.iter().position(|&b| b == b':') else { continue };
+        if !line[..colon].trim_ascii().eq_ignore_ascii_case(b"content-length") {
+            continue;
+        }
+        let value = line[colon + 1..].trim_ascii();
+        if value.is_empty() || value.len() > 9 || !value.iter().all(u8::is_ascii_digit) {
+            return None;
+        }
+        let n = value.iter().fold(0usize, |n, d| n * 10 + usize::from(d - b'0'));
+        if found.is_some_and(|f| f != n) {
+            return None;
+        }
+        found = Some(n);
+    }
+    Some(found.unwrap_or(0))
+}
+
+// ---- Requests -----------------------------------------------------------------------
+
+/// A request's fields the server reads.
+pub(super) struct Request<'a> {
+    pub method: &'a str,
+    pub url: &'a str,
+    pub cseq: &'a str,
+    pub session: Option<&'a str>,
+    pub transport: Option<&'a str>,
+}
+
+/// Parse a header block; the error is the status to answer and the `CSeq`
+/// to echo, if it was readable.
+pub(super) fn parse_request(head: &[u8]) -> Result<Request<'_>, (Status, Option<&str>)> {
+    let text = core::str::from_utf8(head).map_err(|_| (Status::BadRequest, None))?;
+    let mut lines = text.split('\n').map(|l| l.strip_suffix('\r').unwrap_or(l));
+    let request_line = lines.next().unwrap_or("");
+    let (mut cseq, mut session, mut transport) = (None, None, None);
+    let mut malformed = false;
+    for line in lines {
+        if line.is_empty() {
+            break;
+        }
+        let Some((name, value)) = line.split_once(':') else {
+            malformed = true;
+            continue;
+        };
+        if name.is_empty() || !name.bytes().all(is_token_byte) {
+            malformed = true;
+            continue;
+        }
+        let value = value.trim_matches([' ', '\t']);
+        let slot = if name.eq_ignore_ascii_case("cseq") {
+            &mut cseq
+        } else if name.eq_ignore_ascii_case("session") {
+            &mut session
+        } else if name.eq_ignore_ascii_case("transport") {
+            &mut transport
+        } else {
+            continue;
+        };
+        if slot.is_none() {
+            *slot = Some(value);
+        }
+    }
+    let cseq = cseq.filter(|c| !c.is_empty() && c.len() <= 10 && c.bytes().all(|b| b.is_ascii_digit()));
+    let Some(cseq) = cseq else { return Err((Status::BadRequest, None)) };
+    let bad = Err((Status::BadRequest, Some(cseq)));
+    if malformed {
+        return bad;
+    }
+    let mut parts = request_line.splitn(3, ' ');
+    let (Some(method), Some(url), Some(version)) = (parts.next(), parts.next(), parts.next()) else { return bad };
+    if method.is_empty()
+        || !method.bytes().all(is_token_byte)
+        || url.is_empty()
+        || url.len() > MAX_URL_BYTES
+        || !url.bytes().all(|b| b.is_ascii_graphic())
+    {
+        return bad;
+    }
+    if version != "RTSP/1.0" {
+        let other_version = version
+            .strip_prefix("RTSP/")
+            .is_some_and(|v| !v.is_empty() && v.bytes().all(|b| b.is_ascii_digit() || b == b'.') && v.contains('.'));
+        return Err((if other_version { Status::VersionNotSupported } else { Status::BadRequest }, Some(cseq)));
+    }
+    Ok(Request { method, url, cseq, session, transport })
+}
+
+fn is_token_byte(b: u8) -> bool {
+    b.is_ascii_alphanumeric() || b"!#$%&'*+-.^_`|~".contains(&b)
+}
+
+// ---- The Transport header -----------------------------------------------------------
+
+/// How a session's RTP reaches its client.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub enum Transport {
+    /// RTP and RTCP over UDP to the client's address, these ports.
+    Udp {
+        /// The client's RTP port.
+        rtp_port: u16,
+        /// The client's RTCP port.
+        rtcp_port: u16,
+    },
+    /// RTP and RTCP inside the RTSP connection (RFC 2326 section 10.12), on
+    /// these channels: for clients behind NAT or a firewall.
+    Interleaved {
+        /// The channel of RTP packets.
+        rtp_channel: u8,
+        /// The channel of RTCP packets.
+        rtcp_channel: u8,
+    },
+    /// RTP and RTCP to the stream's multicast group (the server's choice of
+    /// group, port and TTL): one copy of each packet for every receiver.
+    Multicast,
+}
+
+/// The first acceptable transport of a `Transport` header (its
+/// alternatives are in the client's order of preference, RFC 2326 section
+/// 12.39), with the profile asked for; `None` if none is (recording, an
+/// unknown profile, UDP without client ports, a destination other than
+/// the client's own for unicast).
+pub(super) fn parse_transport(header: &str) -> Option<(Transport, Profile)> {
+    header.split(',').find_map(|spec| {
+        let mut params = spec.split(';').map(str::trim);
+        let Proto { profile, tcp } = proto(params.next()?)?;
+        let (mut multicast, mut ports, mut channels) = (false, None, None);
+        for p in params {
+            let (name, value) = p.split_once('=').unwrap_or((p, ""));
+            let value = value.trim_matches('"');
+            if name.eq_ignore_ascii_case("multicast") {
+                multicast = true;
+            } else if name.eq_ignore_ascii_case("mode") {
+                if !value.eq_ignore_ascii_case("play") {
+                    return None;
+                }
+            } else if name.eq_ignore_ascii_case("client_port") {
+                ports = Some(pair(value)?);
+            } else if name.eq_ignore_ascii_case("interleaved") {
+                let (a, b) = pair(value)?;
+                channels = Some((u8::try_from(a).ok()?, u8::try_from(b).ok()?));
+            } else if name.eq_ignore_ascii_case("destination") && !multicast {
+                // A unicast stream goes to the client that asked only: a
+                // destination elsewhere would make the board a flooder.
+                return None;
+            }
+        }
+        let transport = match (tcp, multicast, ports, channels) {
+            (true, false, _, channels) => {
+                let (rtp_channel, rtcp_channel) = channels.unwrap_or((0, 1));
+                Transport::Interleaved { rtp_channel, rtcp_channel }
+            }
+            (false, true, _, _) => Transport::Multicast,
+            (false, false, Some((a, b)), _) if a != 0 && b != 0 => Transport::Udp { rtp_port: a, rtcp_port: b },
+            _ => return None,
+        };
+        Some((transport, profile))
+    })
+}
+
+/// A transport's protocol part: the profile and whether it is over TCP.
+struct Proto {
+    profile: Profile,
+    tcp: bool,
+}
+
+/// `RTP/AVP`, `RTP/AVP/UDP`, `RTP/AVP/TCP` and the same for `RTP/AVPF`,
+/// any case.
+fn proto(text: &str) -> Option<Proto> {
+    let mut parts = text.split('/');
+    if !parts.next()?.eq_ignore_ascii_case("RTP") {
+        return None;
+    }
+    let profile = match parts.next()? {
+        p if p.eq_ignore_ascii_case("AVP") => Profile::Avp,
+        p if p.eq_ignore_ascii_case("AVPF") => Profile::Avpf,
+        _ => return None,
+    };
+    let tcp = match parts.next() {
+        None => false,
+        Some(l) if l.eq_ignore_ascii_case("UDP") => false,
+        Some(l) if l.eq_ignore_ascii_case("TCP") => true,
+        Some(_) => return None,
+    };
+    parts.next().is_none().then_some(Proto { profile, tcp })
+}
+
+/// `a-b` or `a` (then `b` = `a + 1`), as ports or channels.
+fn pair(value: &str) -> Option<(u16, u16)> {
+    let n = |s: &str| s.trim().parse::<u16>().ok();
+    match value.split_once('-') {
+        Some((a, b)) => Some((n(a)?, n(b)?)),
+        None => {
+            let a = n(value)?;
+            Some((a, a.checked_add(1)?))
+        }
+    }
+}
+
+// ---- Responses ----------------------------------------------------------------------
+
+/// A `fmt::Write` into a byte slice that remembers running out of room.
+pub(super) struct Out<'a> {
+    pub buf: &'a mut [u8],
+    pub len: usize,
+    pub overflow: bool,
+}
+
+impl Write for Out<'_> {
+    fn write_str(&mut self, s: &str) -> fmt::Result {
+        let end = self.len + s.len();
+        if end > self.buf.len() {
+            self.overflow = true;
+            return Err(fmt::Error);
+        }
+        self.buf[self.len..end].copy_from_slice(s.as_bytes());
+        self.len = end;
+        Ok(())
+    }
+}
+
+/// Status line and `CSeq`. Write errors are caught by `Out::overflow`.
+pub(super) fn status_line(out: &mut impl Write, status: Status, cseq: Option<&str>) {
+    let _ = write!(out, "RTSP/1.0 {} {}\r\n", status.code(), status.reason());
+    if let Some(c) = cseq {
+        let _ = write!(out, "CSeq: {c}\r\n");
+    }
+}
+
+/// An answer of the status line and CSeq alone, as every error answer is.
+pub(super) fn bare_answer(out: &mut impl Write, status: Status, cseq: Option<&str>) -> Status {
+    status_line(out, status, cseq);
+    let _ = out.write_str("\r\n");
+    status
+}
+
+/// `url` as an `RTP-Info` header's `url=` value: its commas written `%2C`,
+/// since the header separates streams with commas (RFC 2326 section
+/// 12.33), and players split there (a light's `3,4,-2` would cut the URL).
+pub(super) struct RtpInfoUrl<'a>(pub &'a str);
+
+impl fmt::Display for RtpInfoUrl<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let mut parts = self.0.split(',');
+        if let Some(first) = parts.next() {
+            f.write_str(first)?;
+        }
+        for part in parts {
+            f.write_str("%2C")?;
+            f.write_str(part)?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn transports_parse_in_the_clients_order() {
+        let udp = Transport::Udp { rtp_port: 6000, rtcp_port: 6001 };
+        let t = |h: &str| parse_transport(h);
+        assert_eq!(t("RTP/AVP;unicast;client_port=6000-6001"), Some((udp, Profile::Avp)));
+        assert_eq!(t("RTP/AVP/UDP;unicast;client_port=6000"), Some((udp, Profile::Avp)));
+        assert_eq!(t("rtp/avpf;unicast;client_port=6000-6001"), Some((udp, Profile::Avpf)));
+        let tcp = Transport::Interleaved { rtp_channel: 4, rtcp_channel: 5 };
+        assert_eq!(t("RTP/AVP/TCP;unicast;interleaved=4-5"), Some((tcp, Profile::Avp)));
+        let first = Transport::Interleaved { rtp_channel: 0, rtcp_channel: 1 };
+        assert_eq!(t("RTP/AVP/TCP;unicast"), Some((first, Profile::Avp)), "the server picks 0-1");
+        assert_eq!(
+            t("RTP/AVP;multicast;destination=239.1.1.1;port=5000-5001;ttl=4"),
+            Some((Transport::Multicast, Profile::Avp))
+        );
+        assert_eq!(
+            t("RTP/SAVP;unicast;client_port=1-2,RTP/AVP/TCP;interleaved=2-3"),
+            Some((Transport::Interleaved { rtp_channel: 2, rtcp_channel: 3 }, Profile::Avp)),
+            "the first acceptable alternative"
+        );
+        for bad in [
+            "RTP/AVP;unicast",
+            "RTP/AVP;unicast;client_port=0-1",
+            "RTP/AVP;unicast;client_port=6000;mode=record",
+            "RTP/AVP;unicast;client_port=6000;destination=10.9.9.9",
+            "RTP/AVP/SCTP;client_port=6000",
+            "RTP/AVP/TCP;interleaved=300-301",
+            "RTP/AVP/UDP/X;client_port=6000",
+            "RAW/RAW/UDP;client_port=6000",
+            "",
+        ] {
+            assert_eq!(t(bad), None, "{bad}");
+        }
+    }
+
+    #[test]
+    fn rtp_info_urls_have_no_bare_commas() {
+        let s = std::format!("{}", RtpInfoUrl("rtsp://h:8554/light/3,4,-2?fps=10"));
+        assert_eq!(s, "rtsp://h:8554/light/3%2C4%2C-2?fps=10");
+    }
+
+    #[test]
+    fn interleaved_frames_are_told_from_requests() {
+        let t0 = Instant::from_millis(0);
+        let mut c = Connection::new(ConnId(1), IpAddr::V4(core::net::Ipv4Addr::LOCALHOST), t0);
+        c.receive(t0, b"$\x01\x00\x03abcOPTIONS");
+        assert!(matches!(c.frame(), Framing::Interleaved { channel: 1, len: 3 }));
+        assert_eq!(c.bytes(4..7), b"abc");
+        c.consume(7, t0);
+        assert!(matches!(c.frame(), Framing::Incomplete));
+        c.receive(t0, b" * RTSP/1.0\r\nCSeq: 1\r\n\r\n");
+        assert!(matches!(c.frame(), Framing::Request { .. }));
+    }
+
+    #[test]
+    fn an_interleaved_frame_too_long_to_buffer_is_skipped() {
+        let t0 = Instant::from_millis(0);
+        let mut c = Connection::new(ConnId(1), IpAddr::V4(core::net::Ipv4Addr::LOCALHOST), t0);
+        let mut data = std::vec![b'$', 0, 0x27, 0x10];
+        data.extend(std::iter::repeat_n(b'x', 10_000));
+        data.extend_from_slice(b"OPTIONS * RTSP/1.0\r\nCSeq: 1\r\n\r\n");
+        let mut fed = 0;
+        let mut requests = 0;
+        while fed < data.len() {
+            fed += c.receive(t0, &data[fed..]);
+            loop {
+                match c.frame() {
+                    Framing::Request { head, body } => {
+                        requests += 1;
+                        c.consume(head + body, t0);
+                    }
+                    Framing::Incomplete => break,
+                    other => panic!("{}", matches!(other, Framing::Fatal)),
+                }
+            }
+        }
+        assert_eq!(requests, 1, "the request after it is read");
+    }
+}

@@ -1,0 +1,786 @@
+use super::*;
+use crate::camera::rtsp::{Fps, Stream as Kind};
+use crate::frames::{FrameEngine, FrameMemory, FrameRing};
+use model::{FRAME_BYTES, ROW_BYTES};
+use std::cell::{Cell, RefCell};
+use std::rc::Rc;
+use std::vec;
+use std::vec::Vec;
+
+/// Frame slots in host memory that the test's sink can read too.
+#[derive(Clone)]
+struct Shared(Rc<RefCell<Vec<u8>>>);
+
+impl FrameMemory for Shared {
+    fn slot_address(&self, slot: usize) -> u32 {
+        (slot * FRAME_BYTES) as u32
+    }
+    fn read_row(&mut self, slot: usize, y: u16, offset: usize, out: &mut [u8]) {
+        let at = slot * FRAME_BYTES + usize::from(y) * ROW_BYTES + offset;
+        out.copy_from_slice(&self.0.borrow()[at..at + out.len()]);
+    }
+    fn write_row(&mut self, slot: usize, y: u16, row: &[u8; ROW_BYTES]) {
+        let at = slot * FRAME_BYTES + usize::from(y) * ROW_BYTES;
+        self.0.borrow_mut()[at..at + ROW_BYTES].copy_from_slice(row);
+    }
+}
+
+/// An engine that lands a recognisable frame for each light ([`pattern_row`]),
+/// `step` rows per progress call, counting the frames it starts; a light
+/// in `fail` fails its frame once `cap` rows landed.
+struct Pattern {
+    step: u16,
+    rows: u16,
+    /// No more rows land than this (the test moves it).
+    cap: Rc<Cell<u16>>,
+    started: Rc<Cell<u32>>,
+    fail: Option<Light>,
+    current: Option<Light>,
+}
+
+fn pattern_row(light: &Light, y: u16) -> [u8; ROW_BYTES] {
+    let [x, y0, z] = light.raw();
+    let base = (x ^ y0.rotate_left(8) ^ z.rotate_left(16)) as usize + usize::from(y);
+    core::array::from_fn(|i| (base + i) as u8)
+}
+
+impl FrameEngine<Shared> for Pattern {
+    type Error = &'static str;
+    fn start(&mut self, mem: &mut Shared, slot: usize, light: &Light) -> Result<(), &'static str> {
+        for y in 0..ROWS {
+            mem.write_row(slot, y, &pattern_row(light, y));
+        }
+        self.rows = 0;
+        self.current = Some(*light);
+        self.started.set(self.started.get() + 1);
+        Ok(())
+    }
+    fn progress(&mut self, _: &mut Shared) -> Result<u16, &'static str> {
+        if self.fail.is_some() && self.fail == self.current && self.rows >= self.cap.get() {
+            return Err("bus error");
+        }
+        self.rows = (self.rows + self.step).min(ROWS).min(self.cap.get().max(self.rows));
+        Ok(self.rows)
+    }
+}
+
+type Ring = FrameRing<Shared, Pattern, 8>;
+
+/// A packet as a receiver sees it.
+#[derive(Clone, Debug, PartialEq)]
+struct Received {
+    to: Dest,
+    header: [u8; rtp::HEADER_BYTES],
+    row: Vec<u8>,
+}
+
+impl Received {
+    fn seq16(&self) -> u16 {
+        u16::from_be_bytes([self.header[2], self.header[3]])
+    }
+    fn ext_seq(&self) -> u32 {
+        u32::from(u16::from_be_bytes([self.header[12], self.header[13]])) << 16 | u32::from(self.seq16())
+    }
+    fn timestamp(&self) -> u32 {
+        u32::from_be_bytes(self.header[4..8].try_into().unwrap())
+    }
+    fn ssrc(&self) -> u32 {
+        u32::from_be_bytes(self.header[8..12].try_into().unwrap())
+    }
+    fn marker(&self) -> bool {
+        self.header[1] & 0x80 != 0
+    }
+    fn line(&self) -> u16 {
+        u16::from_be_bytes([self.header[16], self.header[17]]) & 0x7fff
+    }
+}
+
+/// A sink reading rows out of the ring's memory (as hps-sim does; for an
+/// interleaved output through the source, as the board does), taking at
+/// most `room` row packets before it refuses, and none for `blocked`.
+struct Sink {
+    mem: Shared,
+    room: usize,
+    blocked: Option<Dest>,
+    rows: Vec<Received>,
+    rtcp: Vec<(Dest, Vec<u8>)>,
+    /// `should_yield` says yes once this many rows went (`None`: never).
+    yield_at: Option<usize>,
+    yield_asked: usize,
+}
+
+impl RtpSink for Sink {
+    fn send_rows<S: FrameSource<Frame = usize>>(
+        &mut self,
+        to: &Dest,
+        p: &Packetiser,
+        first: &RowPacket,
+        count: u16,
+        slot: usize,
+        source: &mut S,
+    ) -> u16 {
+        for k in 0..count {
+            if self.room == 0 || self.blocked == Some(*to) {
+                return k;
+            }
+            self.room -= 1;
+            let packet = first.nth(k);
+            let mut header = [0; rtp::HEADER_BYTES];
+            p.emit(&packet, &mut header).unwrap();
+            let mut row = vec![0; ROW_BYTES];
+            if matches!(to, Dest::Interleaved { .. }) {
+                assert_eq!(source.copy_row(slot, packet.row, 0, &mut row), ROW_BYTES, "a current frame's row");
+            } else {
+                self.mem.read_row(slot, packet.row, 0, &mut row);
+            }
+            self.rows.push(Received { to: *to, header, row });
+        }
+        count
+    }
+    fn send_rtcp(&mut self, to: &Dest, datagram: &[u8]) -> bool {
+        self.rtcp.push((*to, datagram.to_vec()));
+        true
+    }
+    fn should_yield(&mut self) -> bool {
+        self.yield_asked += 1;
+        self.yield_at.is_some_and(|n| self.rows.len() >= n)
+    }
+}
+
+impl Sink {
+    fn rows_to(&self, to: Dest) -> Vec<&Received> {
+        self.rows.iter().filter(|r| r.to == to).collect()
+    }
+}
+
+const CLIENT: IpAddr = IpAddr::V4(core::net::Ipv4Addr::new(10, 0, 2, 2));
+const CLIENT2: IpAddr = IpAddr::V4(core::net::Ipv4Addr::new(10, 0, 2, 3));
+const SSRC: u32 = 0x1234_5678;
+const FRESH: Fresh = Fresh { ssrc: SSRC, seq: 65_500, rtptime: 0xffff_ff00 };
+const GROUP: core::net::Ipv4Addr = core::net::Ipv4Addr::new(239, 255, 42, 1);
+
+fn light(x: f64) -> Light {
+    Light::from_world(x, 4.0, -2.0).unwrap()
+}
+
+fn t(ms: u64) -> Instant {
+    Instant::from_millis(ms)
+}
+
+fn udp(port: u16) -> Transport {
+    Transport::Udp { rtp_port: port, rtcp_port: port + 1 }
+}
+
+fn udp_dest(addr: IpAddr, port: u16) -> Dest {
+    Dest::Udp { addr, rtp_port: port, rtcp_port: port + 1 }
+}
+
+fn spec(stream: Kind, fps: Fps) -> StreamSpec {
+    StreamSpec { stream, fps, multicast: false }
+}
+
+struct Rig {
+    camera: Box<Camera<4>>,
+    ring: Ring,
+    sink: Sink,
+    cap: Rc<Cell<u16>>,
+    started: Rc<Cell<u32>>,
+}
+
+fn rig(step: u16) -> Rig {
+    let mem = Shared(Rc::new(RefCell::new(vec![0; 8 * FRAME_BYTES])));
+    let (cap, started) = (Rc::new(Cell::new(ROWS)), Rc::new(Cell::new(0)));
+    let engine = Pattern { step, rows: 0, cap: cap.clone(), started: started.clone(), fail: None, current: None };
+    let ring = FrameRing::new(mem.clone(), engine);
+    let sink =
+        Sink { mem, room: usize::MAX, blocked: None, rows: vec![], rtcp: vec![], yield_at: None, yield_asked: 0 };
+    let mut camera = Box::new(Camera::new());
+    let multicast = Some(Multicast { group: GROUP, base_port: 5006, ttl: 1 });
+    camera.configure(Config { live_light: light(0.5), multicast });
+    Rig { camera, ring, sink, cap, started }
+}
+
+impl Rig {
+    fn streams(&mut self, now: Instant) -> Bound<'_, Ring, 4> {
+        Bound { camera: &mut self.camera, source: &mut self.ring, now, wall: 0 }
+    }
+
+    /// SETUP and PLAY of `session` for `spec` over `transport` from
+    /// `addr`; where its stream starts.
+    fn join(&mut self, session: u64, spec: StreamSpec, transport: Transport, addr: IpAddr, now: Instant) -> Position {
+        let client = Client { addr, conn: ConnId(session as u32) };
+        let fresh = Fresh { ssrc: FRESH.ssrc.wrapping_add(session as u32 - 1), ..FRESH };
+        let mut s = self.streams(now);
+        s.setup(SessionId(session), &spec, transport, Profile::Avp, client, fresh).unwrap();
+        s.play(SessionId(session)).unwrap()
+    }
+
+    fn play(&mut self, session: u64, stream: Kind, fps: Fps, now: Instant) -> Position {
+        self.join(session, spec(stream, fps), udp(6000), CLIENT, now)
+    }
+
+    fn poll(&mut self, now: Instant) -> bool {
+        self.camera.poll(now, 0, &mut self.ring, &mut self.sink)
+    }
+
+    /// Poll at `now` until nothing progresses.
+    fn settle(&mut self, now: Instant) {
+        for _ in 0..10_000 {
+            if !self.poll(now) {
+                return;
+            }
+        }
+        panic!("the camera never settled");
+    }
+
+    fn nack_from(&mut self, addr: IpAddr, port: u16, datagram: &[u8], now: Instant) -> Option<SessionId> {
+        self.camera.rtcp_received(SocketAddr::new(addr, port), datagram, now, 0, &mut self.ring, &mut self.sink)
+    }
+}
+
+/// A generic NACK (RFC 4585 section 6.2.1) for `entries` (PID, BLP).
+fn nack(media: u32, entries: &[(u16, u16)]) -> Vec<u8> {
+    let words = 2 + entries.len();
+    let mut d = vec![0x81, 205];
+    d.extend_from_slice(&(words as u16).to_be_bytes());
+    d.extend_from_slice(&0xdead_beefu32.to_be_bytes());
+    d.extend_from_slice(&media.to_be_bytes());
+    for (pid, blp) in entries {
+        d.extend_from_slice(&pid.to_be_bytes());
+        d.extend_from_slice(&blp.to_be_bytes());
+    }
+    d
+}
+
+// ---- One viewer ----
+
+#[test]
+fn a_frame_goes_out_row_by_row_with_one_timestamp_and_a_marker_on_the_last() {
+    let mut r = rig(100);
+    let fixed = light(2.0);
+    let at = r.play(1, Kind::Light(fixed), Fps::Max, t(0));
+    assert_eq!(at, Position { seq: 65_500, rtptime: 0xffff_ff00, media_ticks: 0 }, "the fresh stream's first packet");
+    while r.sink.rows.len() <= usize::from(ROWS) {
+        assert!(r.poll(t(0)));
+    }
+    let frame: Vec<_> = r.sink.rows.iter().take(usize::from(ROWS)).collect();
+    for (y, p) in frame.iter().enumerate() {
+        assert_eq!(p.line(), y as u16);
+        assert_eq!(p.row, pattern_row(&fixed, y as u16), "row {y}");
+        assert_eq!(p.ext_seq(), 65_500 + y as u32, "extended numbering across the 16-bit wrap");
+        assert_eq!(p.timestamp(), frame[0].timestamp());
+        assert_eq!(p.marker(), y == usize::from(ROWS) - 1);
+        assert_eq!(p.to, udp_dest(CLIENT, 6000));
+        assert_eq!(p.ssrc(), SSRC);
+    }
+    assert_eq!(frame[0].timestamp(), 0xffff_ff00, "the RTP-Info rtptime");
+    assert_eq!(frame[36].seq16(), 0, "the low 16 bits wrapped after 65,535");
+    let next = &r.sink.rows[usize::from(ROWS)];
+    assert_ne!(next.timestamp(), frame[0].timestamp(), "fps=max: the next frame at once, a new timestamp");
+}
+
+#[test]
+fn one_poll_sends_the_rows_as_they_land_until_the_sink_asks_to_yield() {
+    // Two rows land per look at the source: one poll still sends the
+    // whole frame, in runs, asking the sink after each.
+    let mut r = rig(2);
+    r.play(1, Kind::Light(light(1.0)), Fps::Rate(30), t(0));
+    assert!(r.poll(t(0)));
+    assert_eq!(r.sink.rows.len(), usize::from(ROWS), "the frame in one poll");
+    assert_eq!(r.sink.yield_asked, usize::from(ROWS.div_ceil(MIN_RUN)), "asked after each run of MIN_RUN");
+    // The sink asks to yield once 100 rows went: the poll returns at the
+    // end of that run, the next one goes on where it stopped.
+    r.sink.yield_at = Some(usize::from(ROWS) + 100);
+    assert!(r.poll(t(34)));
+    let run = usize::from(MIN_RUN);
+    assert_eq!(r.sink.rows.len(), usize::from(ROWS) + (100 / run + 1) * run);
+    r.sink.yield_at = None;
+    assert!(r.poll(t(34)));
+    assert_eq!(r.sink.rows.len(), 2 * usize::from(ROWS));
+    let lines: Vec<u16> = r.sink.rows[usize::from(ROWS)..].iter().map(Received::line).collect();
+    assert_eq!(lines, (0..ROWS).collect::<Vec<_>>(), "no row lost or repeated at the yield");
+}
+
+#[test]
+fn rows_go_out_as_soon_as_the_source_stops_landing_more() {
+    let mut r = rig(2);
+    r.cap.set(5);
+    r.play(1, Kind::Light(light(1.0)), Fps::Max, t(0));
+    assert!(r.poll(t(0)));
+    assert_eq!(r.sink.rows.len(), 5, "five landed, then none: all five go, short of a run");
+    r.cap.set(40);
+    assert!(r.poll(t(0)));
+    assert_eq!(r.sink.rows.len(), 40);
+    assert!(!r.poll(t(0)), "nothing new");
+}
+
+#[test]
+fn a_paced_stream_begins_a_frame_per_interval_at_its_media_time() {
+    let mut r = rig(ROWS);
+    r.play(1, Kind::Light(light(1.0)), Fps::Rate(30), t(0));
+    r.settle(t(0));
+    assert_eq!(r.sink.rows.len(), usize::from(ROWS), "one frame at once");
+    r.settle(t(20));
+    assert_eq!(r.sink.rows.len(), usize::from(ROWS), "none before 1/30 s");
+    assert_eq!(r.camera.next_deadline(), Some(t(33)));
+    r.settle(t(34));
+    assert_eq!(r.sink.rows.len(), 2 * usize::from(ROWS));
+    let ts: Vec<u32> = r.sink.rows.iter().step_by(usize::from(ROWS)).map(Received::timestamp).collect();
+    assert_eq!(ts[1].wrapping_sub(ts[0]), 34 * 90, "90 kHz media time");
+}
+
+#[test]
+fn an_orbit_renders_each_frame_at_its_media_time_and_resumes_after_pause() {
+    let mut r = rig(ROWS);
+    let orbit = StreamSpec::parse("rtsp://h/orbit?period=4&fps=1").unwrap();
+    r.play(1, orbit.stream, orbit.fps, t(0));
+    r.settle(t(0));
+    r.streams(t(1_000)).pause(SessionId(1));
+    let before = r.sink.rows.len();
+    r.settle(t(5_000));
+    assert_eq!(r.sink.rows.len(), before, "paused: nothing sent");
+    let at = r.streams(t(5_000)).play(SessionId(1)).unwrap();
+    let next_seq = r.sink.rows.last().unwrap().seq16().wrapping_add(1);
+    assert_eq!(at, Position { seq: next_seq, rtptime: 0xffff_ff00u32.wrapping_add(90_001), media_ticks: 90_001 });
+    r.poll(t(5_000));
+    let resumed = &r.sink.rows[before];
+    assert_eq!(resumed.seq16(), next_seq, "numbering goes on");
+    assert_eq!(resumed.timestamp(), 0xffff_ff00u32.wrapping_add(90_001), "media time skips the pause");
+    let expected = orbit.light_at(Duration::from_micros(90_001 * 100 / 9), light(0.0));
+    assert_eq!(resumed.row, pattern_row(&expected, 0), "the light of the media time");
+}
+
+#[test]
+fn a_refusing_sink_delays_rows_without_gaps_in_the_numbering() {
+    let mut r = rig(ROWS);
+    r.play(1, Kind::Light(light(1.0)), Fps::Rate(10), t(0));
+    r.sink.room = 7;
+    r.settle(t(0));
+    assert_eq!(r.sink.rows.len(), 7);
+    assert!(r.camera.busy());
+    r.sink.room = usize::MAX;
+    r.settle(t(1));
+    let seqs: Vec<u32> = r.sink.rows.iter().map(Received::ext_seq).collect();
+    assert_eq!(seqs, (65_500..65_500 + u32::from(ROWS)).collect::<Vec<_>>());
+    assert!(r.sink.rows.last().unwrap().marker());
+}
+
+#[test]
+fn a_failed_frame_leaves_its_rows_numbers_unused() {
+    let mut r = rig(ROWS);
+    r.ring.engine().fail = Some(light(1.0));
+    r.cap.set(100);
+    r.play(1, Kind::Light(light(1.0)), Fps::Rate(10), t(0));
+    r.settle(t(0));
+    assert_eq!(r.sink.rows.len(), 100, "rows 0..100 went before the failure");
+    assert_eq!(r.camera.stream_stats(SessionId(1)).unwrap().failed, 1);
+    r.ring.engine().fail = None;
+    r.cap.set(ROWS);
+    r.settle(t(100));
+    assert_eq!(r.sink.rows[100].ext_seq(), 65_500 + u32::from(ROWS), "the next frame starts a frame's numbers on");
+    assert_eq!(r.sink.rows[100].line(), 0);
+}
+
+// ---- Many viewers ----
+
+#[test]
+fn viewers_of_one_stream_share_each_rendered_frame() {
+    let mut r = rig(ROWS);
+    let fixed = spec(Kind::Light(light(1.0)), Fps::Rate(10));
+    for (s, (addr, port)) in [(CLIENT, 6000), (CLIENT, 7000), (CLIENT2, 6000)].into_iter().enumerate() {
+        r.join(s as u64 + 1, fixed, udp(port), addr, t(0));
+    }
+    r.settle(t(0));
+    r.settle(t(100));
+    assert_eq!(r.started.get(), 2, "two frames rendered for three viewers");
+    assert_eq!(r.camera.streams(), 1);
+    let a = r.sink.rows_to(udp_dest(CLIENT, 6000));
+    for dest in [udp_dest(CLIENT, 7000), udp_dest(CLIENT2, 6000)] {
+        let b = r.sink.rows_to(dest);
+        assert_eq!(b.len(), 2 * usize::from(ROWS));
+        for (x, y) in a.iter().zip(&b) {
+            assert_eq!((x.header, &x.row), (y.header, &y.row), "the same packets: one SSRC, one numbering");
+        }
+    }
+    // Another light, or another rate, is another stream.
+    r.join(4, spec(Kind::Light(light(1.0)), Fps::Rate(11)), udp(8000), CLIENT, t(100));
+    assert_eq!(r.camera.streams(), 2);
+    r.settle(t(100));
+    assert_eq!(r.started.get(), 3);
+    assert_ne!(r.sink.rows.last().unwrap().ssrc(), SSRC, "its own SSRC");
+}
+
+#[test]
+fn a_viewer_joining_mid_frame_starts_at_the_frame_its_play_announced() {
+    let mut r = rig(10);
+    let fixed = spec(Kind::Light(light(1.0)), Fps::Max);
+    r.join(1, fixed, udp(6000), CLIENT, t(0));
+    r.cap.set(100);
+    r.poll(t(0));
+    assert_eq!(r.sink.rows.len(), 100, "mid-frame");
+    r.cap.set(ROWS);
+    let at = r.join(2, fixed, udp(7000), CLIENT, t(0));
+    assert_eq!(at.seq, (65_500 + u32::from(ROWS)) as u16, "the next frame's row 0");
+    while r.sink.rows_to(udp_dest(CLIENT, 7000)).len() < usize::from(ROWS) {
+        r.poll(t(0));
+    }
+    let late = r.sink.rows_to(udp_dest(CLIENT, 7000));
+    assert_eq!(late[0].seq16(), at.seq);
+    assert_eq!(late[0].line(), 0, "a whole frame first");
+}
+
+#[test]
+fn a_stream_never_holds_more_than_two_slots() {
+    let mut r = rig(ROWS);
+    // Four streams at full rate, each with a NACKing client: no stream's
+    // window keeps more than the frame being sent and the one before it.
+    for s in 1..=4u64 {
+        r.join(s, spec(Kind::Light(light(s as f64)), Fps::Max), udp(6000 + 2 * s as u16), CLIENT, t(0));
+    }
+    for ms in 0..50 {
+        for _ in 0..4 {
+            r.poll(t(ms));
+        }
+        let held = r.camera.held().count_ones() as usize;
+        assert!(held <= CAMERA_SLOTS, "{held} slots held at {ms} ms");
+        for w in r.camera.windows.iter() {
+            assert!(w.held().count_ones() <= SLOTS_PER_STREAM as u32);
+        }
+    }
+    assert!(r.started.get() > 40, "frames kept coming: {}", r.started.get());
+}
+
+#[test]
+fn multicast_sessions_of_a_stream_share_one_output_and_each_row_goes_once() {
+    let mut r = rig(ROWS);
+    let fixed = spec(Kind::Light(light(1.0)), Fps::Rate(10));
+    let g = Group { addr: GROUP, port: 5006, ttl: 1 };
+    for s in 1..=3u64 {
+        let client = Client { addr: CLIENT, conn: ConnId(s as u32) };
+        let mut b = r.streams(t(0));
+        let set = b.setup(SessionId(s), &fixed, Transport::Multicast, Profile::Avp, client, FRESH).unwrap();
+        assert_eq!(set.group, Some(g));
+        b.play(SessionId(s)).unwrap();
+    }
+    assert_eq!(r.camera.outputs(), 1);
+    r.settle(t(0));
+    assert_eq!(r.sink.rows.len(), usize::from(ROWS), "one frame, once, to the group");
+    assert!(r.sink.rows.iter().all(|p| p.to == Dest::Multicast(g)));
+    // Two leave: the group goes on; the last one leaving says goodbye.
+    r.streams(t(1)).end(SessionId(1), EndReason::Teardown);
+    r.streams(t(1)).end(SessionId(2), EndReason::Teardown);
+    r.settle(t(100));
+    assert_eq!(r.sink.rows.len(), 2 * usize::from(ROWS));
+    r.streams(t(101)).end(SessionId(3), EndReason::Teardown);
+    r.settle(t(101));
+    let (to, bye) = r.sink.rtcp.last().unwrap();
+    assert_eq!(*to, Dest::Multicast(g));
+    assert_eq!(bye[bye.len() - rtcp::BYE_BYTES + 1], rtcp::RTCP_BYE);
+    assert_eq!((r.camera.outputs(), r.camera.streams(), r.camera.held()), (0, 0, 0));
+}
+
+#[test]
+fn a_stalled_output_is_cut_from_the_frame_and_the_others_go_on() {
+    let mut r = rig(ROWS);
+    let fixed = spec(Kind::Light(light(1.0)), Fps::Max);
+    r.join(1, fixed, udp(6000), CLIENT, t(0));
+    r.join(2, fixed, udp(7000), CLIENT, t(0));
+    r.sink.blocked = Some(udp_dest(CLIENT, 7000));
+    r.settle(t(0));
+    assert_eq!(r.sink.rows_to(udp_dest(CLIENT, 6000)).len(), usize::from(ROWS));
+    assert_eq!(r.started.get(), 1, "fps=max: the next frame waits for the slow output");
+    r.settle(t(499));
+    assert_eq!(r.started.get(), 1, "for a while");
+    r.settle(t(500));
+    assert_eq!(r.camera.stats(SessionId(2)).unwrap().cut, 1);
+    assert!(r.started.get() > 1, "then it is cut and the stream goes on");
+    r.sink.blocked = None;
+    for _ in 0..4 {
+        r.poll(t(600)); // fps=max: frames for ever
+    }
+    let late = r.sink.rows_to(udp_dest(CLIENT, 7000));
+    assert_eq!(late[0].line(), 0, "back at a frame's start");
+}
+
+// ---- Repair ----
+
+#[test]
+fn a_nack_gets_the_same_packets_again_and_only_from_the_client() {
+    let mut r = rig(ROWS);
+    r.play(1, Kind::Light(light(1.0)), Fps::Rate(10), t(0));
+    r.settle(t(0));
+    let sent = r.sink.rows.clone();
+    // Lost: 65,535 and 0 (across the wrap) and 3.
+    let req = nack(SSRC, &[(65_535, 0b1), (3, 0)]);
+    let stranger = IpAddr::V4(core::net::Ipv4Addr::new(10, 0, 2, 9));
+    assert_eq!(r.nack_from(stranger, 6001, &req, t(1)), None);
+    assert_eq!(r.sink.rows.len(), sent.len(), "a stranger's NACK is ignored");
+    assert_eq!(r.nack_from(CLIENT, 6001, &nack(0x999, &[(3, 0)]), t(1)), Some(SessionId(1)));
+    assert_eq!(r.sink.rows.len(), sent.len(), "another SSRC's NACK asks for nothing");
+    assert_eq!(r.nack_from(CLIENT, 6001, &req, t(1)), Some(SessionId(1)));
+    let again: Vec<u32> = r.sink.rows[sent.len()..].iter().map(Received::ext_seq).collect();
+    assert_eq!(again, [65_535, 65_536, 65_539]);
+    for x in &r.sink.rows[sent.len()..] {
+        let original = sent.iter().find(|o| o.ext_seq() == x.ext_seq()).unwrap();
+        assert_eq!(x, original, "byte for byte the original packet");
+    }
+    assert_eq!(r.camera.stats(SessionId(1)).unwrap().resent, 3);
+}
+
+#[test]
+fn a_packet_goes_again_at_most_once_a_round_trip() {
+    let mut r = rig(ROWS);
+    r.play(1, Kind::Light(light(1.0)), Fps::Rate(10), t(0));
+    r.settle(t(0));
+    let req = nack(SSRC, &[(65_510, 0)]);
+    for ms in [1, 2, 30] {
+        r.nack_from(CLIENT, 6001, &req, t(ms));
+    }
+    assert_eq!(r.camera.stats(SessionId(1)).unwrap().resent, 1, "a NACK repeated within the round trip");
+    assert_eq!(r.camera.stats(SessionId(1)).unwrap().too_soon, 2);
+    r.nack_from(CLIENT, 6001, &req, t(1 + DEFAULT_ROUND_TRIP.as_millis() as u64));
+    assert_eq!(r.camera.stats(SessionId(1)).unwrap().resent, 2, "a round trip later it may be lost again");
+}
+
+#[test]
+fn a_nack_flood_gets_no_more_than_the_repair_budget() {
+    let mut r = rig(ROWS);
+    let fixed = spec(Kind::Light(light(1.0)), Fps::Rate(10));
+    r.join(1, fixed, udp(6000), CLIENT, t(0));
+    r.join(2, fixed, udp(7000), CLIENT2, t(0));
+    r.settle(t(0));
+    let first = r.sink.rows.len();
+    // Every packet of the frame, over and over, a round trip apart.
+    let all: Vec<(u16, u16)> = (0..ROWS / 17).map(|k| ((65_500 + 17 * u32::from(k)) as u16, 0xffff)).collect();
+    let flood = nack(SSRC, &all);
+    for k in 0..20u64 {
+        r.nack_from(CLIENT, 6001, &flood, t(100 + k * 60));
+    }
+    let resent = r.camera.stats(SessionId(1)).unwrap().resent;
+    let budget = REPAIR_BURST / 2 + u32::from(ROWS) / REPAIR_SHARE;
+    assert!(resent <= budget, "{resent} resends, budget {budget}");
+    assert!(r.camera.stats(SessionId(1)).unwrap().over_budget > 0);
+    assert_eq!(r.sink.rows.len() - first, resent as usize, "nothing else went");
+    assert_eq!(r.camera.stats(SessionId(2)).unwrap().resent, 0, "the other viewer's stream is untouched");
+    // One datagram asks for a bounded number at most.
+    let huge: Vec<(u16, u16)> = (0..300).map(|k| (65_500u32.wrapping_add(17 * k) as u16, 0xffff)).collect();
+    let before = r.camera.stats(SessionId(2)).unwrap();
+    r.nack_from(CLIENT2, 6001, &nack(SSRC, &huge), t(2_000));
+    let after = r.camera.stats(SessionId(2)).unwrap();
+    let asked = (after.resent + after.unrepairable + after.over_budget + after.too_soon)
+        - (before.resent + before.unrepairable + before.over_budget + before.too_soon);
+    assert!(asked <= u32::from(rtcp::MAX_NACKED_PER_DATAGRAM), "{asked}");
+}
+
+#[test]
+fn a_nack_arriving_while_the_next_frame_goes_out_is_still_answered() {
+    let mut r = rig(ROWS);
+    r.play(1, Kind::Light(light(1.0)), Fps::Rate(5), t(0));
+    r.settle(t(0));
+    r.sink.room = 72;
+    r.settle(t(200));
+    assert_eq!(r.sink.rows.len(), 432);
+    let row17 = r.sink.rows[17].clone();
+    r.sink.room = usize::MAX;
+    r.nack_from(CLIENT, 6001, &nack(SSRC, &[(row17.seq16(), 0)]), t(201));
+    assert_eq!(r.camera.stats(SessionId(1)).unwrap().unrepairable, 0);
+    assert_eq!(r.sink.rows.last(), Some(&row17));
+}
+
+#[test]
+fn repairs_the_sink_cannot_take_wait_and_go_before_new_rows() {
+    let mut r = rig(ROWS);
+    r.play(1, Kind::Light(light(1.0)), Fps::Rate(10), t(0));
+    r.settle(t(0));
+    let sent = r.sink.rows.len();
+    r.sink.room = 2;
+    // Ask for 10 rows: 2 go at once, 8 wait.
+    r.nack_from(CLIENT, 6001, &nack(SSRC, &[(65_500, 0x1ff)]), t(1));
+    assert_eq!(r.sink.rows.len(), sent + 2);
+    assert!(r.camera.busy());
+    r.sink.room = usize::MAX;
+    r.settle(t(100));
+    let again: Vec<u32> = r.sink.rows[sent..sent + 10].iter().map(Received::ext_seq).collect();
+    assert_eq!(again, (65_500..65_510).collect::<Vec<_>>(), "all ten, before the next frame's rows");
+    assert_eq!(r.sink.rows[sent + 10].line(), 0, "then the next frame");
+    assert_eq!(r.camera.stats(SessionId(1)).unwrap().resent, 10);
+}
+
+#[test]
+fn the_frame_before_stays_repairable_and_the_one_before_that_does_not() {
+    let mut r = rig(ROWS);
+    r.play(1, Kind::Light(light(1.0)), Fps::Rate(10), t(0));
+    r.settle(t(0));
+    r.settle(t(100));
+    // Frame 2 goes out: frames 1 and 2 held. Frame 3 begins: frame 1 leaves.
+    let first_of = |k: u32| (65_500 + k * u32::from(ROWS)) as u16;
+    r.nack_from(CLIENT, 6001, &nack(SSRC, &[(first_of(0), 0)]), t(150));
+    assert_eq!(r.camera.stats(SessionId(1)).unwrap().resent, 1);
+    r.settle(t(200));
+    r.nack_from(CLIENT, 6001, &nack(SSRC, &[(first_of(0) + 1, 0), (first_of(1), 0)]), t(250));
+    let stats = r.camera.stats(SessionId(1)).unwrap();
+    assert_eq!((stats.resent, stats.unrepairable), (2, 1), "frame 2 repaired, frame 1 gone");
+    assert_eq!(r.ring.held().count_ones(), 2);
+}
+
+#[test]
+fn a_stopped_stream_keeps_its_frames_for_the_hold_then_lets_them_go() {
+    let mut r = rig(ROWS);
+    r.play(1, Kind::Light(light(1.0)), Fps::Rate(10), t(0));
+    r.settle(t(0));
+    r.streams(t(10)).pause(SessionId(1));
+    assert_eq!(r.camera.held(), 1, "slot 0 still repairable");
+    r.settle(t(950));
+    assert_eq!(r.camera.held(), 1);
+    r.settle(t(1_050));
+    assert_eq!((r.camera.held(), r.ring.held()), (0, 0), "released after the hold");
+}
+
+// ---- Sessions ----
+
+#[test]
+fn teardown_says_goodbye_and_lets_every_slot_go_and_a_live_light_moves() {
+    let mut r = rig(ROWS);
+    r.play(1, Kind::Live, Fps::Rate(10), t(0));
+    r.join(2, spec(Kind::Light(light(1.0)), Fps::Rate(10)), udp(7000), CLIENT, t(0));
+    r.settle(t(0));
+    let moved = light(-1.5);
+    r.streams(t(1)).set_light(SessionId(1), moved);
+    r.settle(t(101));
+    let live_rows = r.sink.rows_to(udp_dest(CLIENT, 6000));
+    assert!(live_rows.iter().any(|x| x.line() == 0 && x.row == pattern_row(&moved, 0)), "a frame with the new light");
+    r.streams(t(102)).end(SessionId(1), EndReason::Teardown);
+    r.streams(t(102)).end(SessionId(2), EndReason::Timeout);
+    r.settle(t(102));
+    let byes: Vec<_> = r.sink.rtcp.iter().filter(|(_, d)| d[d.len() - rtcp::BYE_BYTES + 1] == rtcp::RTCP_BYE).collect();
+    assert_eq!(byes.len(), 2, "a BYE to each");
+    assert_eq!(byes[0].1[1], rtcp::RTCP_SR, "in a compound packet that starts with a report");
+    assert_eq!((r.camera.streams(), r.camera.held(), r.ring.held()), (0, 0, 0));
+    assert_eq!(r.ring.free_slots(), 8, "nothing left in use");
+}
+
+#[test]
+fn setup_again_on_a_paused_session_applies_its_new_stream_and_transport() {
+    let mut r = rig(ROWS);
+    r.play(1, Kind::Light(light(1.0)), Fps::Rate(10), t(0));
+    r.settle(t(0));
+    r.streams(t(50)).pause(SessionId(1));
+    let client = Client { addr: CLIENT, conn: ConnId(1) };
+    let orbit = spec(Kind::Light(light(2.0)), Fps::Rate(5));
+    let tcp = Transport::Interleaved { rtp_channel: 0, rtcp_channel: 1 };
+    let fresh = Fresh { ssrc: 0xabcd, ..FRESH };
+    let set = r.streams(t(60)).setup(SessionId(1), &orbit, tcp, Profile::Avp, client, fresh).unwrap();
+    assert_eq!(set.ssrc, 0xabcd, "a new stream");
+    r.streams(t(60)).play(SessionId(1)).unwrap();
+    r.settle(t(60));
+    let dest = Dest::Interleaved { conn: ConnId(1), rtp_channel: 0, rtcp_channel: 1 };
+    let rows = r.sink.rows_to(dest);
+    assert_eq!(rows.len(), usize::from(ROWS), "over the connection, copied from the current frame");
+    assert_eq!(rows[0].row, pattern_row(&light(2.0), 0));
+    assert_eq!(r.camera.streams(), 1, "the old stream is gone");
+}
+
+#[test]
+fn the_sender_refuses_what_it_has_no_room_for() {
+    let mut r = rig(ROWS);
+    for s in 1..=4 {
+        r.join(s, spec(Kind::Light(light(s as f64)), Fps::Rate(10)), udp(6000), CLIENT, t(0));
+    }
+    let client = Client { addr: CLIENT, conn: ConnId(9) };
+    let fifth = spec(Kind::Light(light(9.0)), Fps::Rate(10));
+    let mut b = r.streams(t(0));
+    assert_eq!(b.setup(SessionId(5), &fifth, udp(6000), Profile::Avp, client, FRESH), Err(Status::NotEnoughBandwidth));
+    let mut unconfigured: Camera<4> = Camera::new();
+    let mut b = Bound { camera: &mut unconfigured, source: &mut r.ring, now: t(0), wall: 0 };
+    assert_eq!(
+        b.setup(SessionId(5), &fifth, Transport::Multicast, Profile::Avp, client, FRESH),
+        Err(Status::UnsupportedTransport),
+        "no group"
+    );
+}
+
+#[test]
+fn a_silent_or_unreachable_client_is_ended_by_the_sender() {
+    let mut r = rig(ROWS);
+    r.play(1, Kind::Light(light(1.0)), Fps::Rate(10), t(0));
+    r.join(2, spec(Kind::Light(light(2.0)), Fps::Rate(10)), udp(7000), CLIENT2, t(0));
+    r.settle(t(0));
+    // Client 1 sends a report, then nothing: ended 20 s later.
+    r.nack_from(CLIENT, 6001, &nack(SSRC, &[]), t(1_000));
+    assert_eq!(r.camera.next_deadline().map(|d| d <= t(21_000)), Some(true));
+    r.settle(t(20_999));
+    assert_eq!(r.camera.take_ended(), None);
+    r.settle(t(21_000));
+    assert_eq!(r.camera.take_ended(), Some((SessionId(1), Gone::Silent)));
+    // Client 2's host answers with port unreachable, three times.
+    for _ in 0..UNREACHABLE_LIMIT {
+        assert_eq!(r.camera.take_ended(), None);
+        r.camera.unreachable(CLIENT2, 7000, t(21_100), &mut r.ring);
+    }
+    assert_eq!(r.camera.take_ended(), Some((SessionId(2), Gone::Unreachable)));
+    assert_eq!(r.camera.streams(), 0);
+}
+
+#[test]
+fn sender_reports_go_to_each_output_while_playing() {
+    let mut r = rig(ROWS);
+    r.play(1, Kind::Light(light(1.0)), Fps::Rate(1), t(0));
+    r.settle(t(0));
+    r.settle(t(1_500));
+    assert!(r.sink.rtcp.is_empty());
+    r.settle(t(2_500));
+    assert_eq!(r.sink.rtcp.len(), 1);
+    let (to, d) = &r.sink.rtcp[0];
+    assert_eq!(*to, udp_dest(CLIENT, 6000));
+    assert_eq!(d[1], rtcp::RTCP_SR);
+    assert_eq!(u32::from_be_bytes(d[4..8].try_into().unwrap()), SSRC);
+    assert_eq!(u32::from_be_bytes(d[20..24].try_into().unwrap()), 2 * u32::from(ROWS), "packets so far");
+    assert_eq!(d[SENDER_REPORT_BYTES + 1], rtcp::RTCP_SDES);
+}
+
+#[test]
+fn the_software_renderer_s_frame_arrives_equal_to_the_model_s() {
+    let mut bytes = vec![0; FRAME_BYTES];
+    let mut ring = FrameRing::<_, _, 1>::new(
+        crate::frames::SliceMemory::new(0, &mut bytes),
+        crate::frames::RowEngine::new(crate::frames::SoftwareRenderer),
+    );
+    struct Copy(Vec<(RowPacket, usize)>);
+    impl RtpSink for Copy {
+        fn send_rows<S: FrameSource<Frame = usize>>(
+            &mut self,
+            _: &Dest,
+            _: &Packetiser,
+            p: &RowPacket,
+            count: u16,
+            slot: usize,
+            _: &mut S,
+        ) -> u16 {
+            for k in 0..count {
+                self.0.push((p.nth(k), slot));
+            }
+            count
+        }
+        fn send_rtcp(&mut self, _: &Dest, _: &[u8]) -> bool {
+            true
+        }
+    }
+    let mut camera = Box::new(Camera::<1>::new());
+    let l = light(3.0);
+    let client = Client { addr: CLIENT, conn: ConnId(0) };
+    let mut b = Bound { camera: &mut camera, source: &mut ring, now: t(0), wall: 0 };
+    b.setup(SessionId(1), &spec(Kind::Light(l), Fps::Rate(1)), udp(6000), Profile::Avp, client, FRESH).unwrap();
+    b.play(SessionId(1)).unwrap();
+    let mut sink = Copy(vec![]);
+    for _ in 0..5_000 {
+        camera.poll(t(0), 0, &mut ring, &mut sink);
+        if sink.0.len() == usize::from(ROWS) {
+            break;
+        }
+    }
+    assert_eq!(sink.0.len(), usize::from(ROWS));
+    let rows: Vec<u16> = sink.0.iter().map(|(p, _)| p.row).collect();
+    assert_eq!(rows, (0..ROWS).collect::<Vec<_>>());
+    drop(ring);
+    assert_eq!(bytes, model::render_frame(&l), "the slot the packets point at holds the model's frame");
+}
