@@ -166,6 +166,10 @@ struct RunArgs {
     /// rtsp: frames per second asked of the stream, 1-1000 or `max`.
     #[arg(long, default_value = "max", value_parser = parse_fps)]
     fps: String,
+    /// rtsp: a fixed light, X,Y,Z in world units: the `/light/X,Y,Z`
+    /// stream instead of the orbit.
+    #[arg(long, allow_hyphen_values = true)]
+    light: Option<String>,
 }
 
 /// How frames travel from the server.
@@ -354,10 +358,14 @@ fn finish_sink(sink: FrameSink) -> Result<(), String> {
 /// `orbit`/`bench` over RTSP: `--frames` frames of the `/orbit` stream.
 fn orbit_rtsp(args: &RunArgs, out: Option<PathBuf>, show: bool) -> Result<(), String> {
     let (addr, _board) = rtsp_board(args.server.as_deref(), args.rtsp.as_deref())?;
-    let url = rtsp::stream_url(
-        addr,
-        &format!("/orbit?radius={}&height={}&period={}&fps={}", args.radius, args.height, args.period, args.fps),
-    );
+    let path = match &args.light {
+        Some(light) => {
+            light.parse::<Light>().map_err(|e| format!("--light {light}: {e}"))?;
+            format!("/light/{}?fps={}", light.replace(',', "%2C"), args.fps)
+        }
+        None => format!("/orbit?radius={}&height={}&period={}&fps={}", args.radius, args.height, args.period, args.fps),
+    };
+    let url = rtsp::stream_url(addr, &path);
     let frames = args.frames as usize;
     let mut window = if show { Some(window::LiveWindow::open("rt-client orbit")?) } else { None };
     let mut sink = FrameSink::new(out)?;

@@ -15,6 +15,7 @@ use std::time::{Duration, Instant};
 
 use model::Light;
 use rt_services::camera::receiver::{ReceivedFrame, Receiver, ReceiverConfig, ReceiverCounts, MAX_NACK_BYTES};
+use rt_services::camera::rtcp;
 use rt_services::camera::rtp::PACKET_BYTES;
 use rt_services::camera::rtsp::RTSP_PORT;
 
@@ -31,6 +32,11 @@ const MAX_BODY_BYTES: usize = 64 * 1024;
 const KEEPALIVE: Duration = Duration::from_secs(20);
 /// Our SSRC in NACKs; the server keys sessions on our address, not this.
 const CLIENT_SSRC: u32 = 0x7274_636c; // "rtcl"
+
+/// A receiver report this often (RFC 3550's 5 s minimum, halved: reports
+/// are small, and the server takes a player that falls silent for 20 s
+/// as gone).
+const REPORT_EVERY: Duration = Duration::from_millis(2_500);
 
 /// Why an RTSP exchange or stream failed, worded for one terminal line.
 #[derive(Debug)]
@@ -424,6 +430,12 @@ pub struct RtpStream {
     last_packet: Instant,
     last_keepalive: Instant,
     datagram: Vec<u8>,
+    /// The SSRC the SETUP answer announced.
+    media_ssrc: u32,
+    /// When the last receiver report went.
+    last_report: Instant,
+    /// The last sender report's LSR and when it arrived.
+    last_sr: Option<(u32, Instant)>,
 }
 
 impl RtpStream {
@@ -456,6 +468,9 @@ impl RtpStream {
             last_packet: now,
             last_keepalive: now,
             datagram: vec![0; PACKET_BYTES + 64],
+            media_ssrc: setup.ssrc.unwrap_or(0),
+            last_report: now,
+            last_sr: None,
         })
     }
 
@@ -520,8 +535,33 @@ impl RtpStream {
                 // A lost NACK is lost repair, not an error.
                 let _ = self.rtcp.send_to(&nack[..n], self.server_rtcp);
             }
+            self.report();
         }
         Ok(frames)
+    }
+
+    /// Take the server's sender reports in, and send a receiver report
+    /// when one is due: it tells the server this player is alive and lets
+    /// it measure the round trip (its repairs' pace).
+    fn report(&mut self) {
+        let mut sr = [0u8; 256];
+        let _ = self.rtcp.set_nonblocking(true);
+        while let Ok((n, from)) = self.rtcp.recv_from(&mut sr) {
+            if let (true, Some(lsr)) = (from.ip() == self.server_ip, rtcp::sender_report_lsr(&sr[..n], self.media_ssrc))
+            {
+                self.last_sr = Some((lsr, Instant::now()));
+            }
+        }
+        if self.last_report.elapsed() < REPORT_EVERY {
+            return;
+        }
+        self.last_report = Instant::now();
+        let (lsr, dlsr) =
+            self.last_sr.map_or((0, 0), |(lsr, at)| (lsr, (at.elapsed().as_micros() * 65_536 / 1_000_000) as u32));
+        let mut rr = [0u8; rtcp::RECEIVER_REPORT_BYTES];
+        if rtcp::write_receiver_report(CLIENT_SSRC, self.media_ssrc, lsr, dlsr, &mut rr).is_ok() {
+            let _ = self.rtcp.send_to(&rr, self.server_rtcp);
+        }
     }
 
     /// Move a `/live` stream's light.

@@ -71,6 +71,10 @@ enum Command {
     /// Real players as clients: GStreamer receives hps-sim's RTSP streams
     /// (a fixed light, an orbit); every frame must be the model's.
     Players,
+    /// Many viewers at once: four real players of the emulated board (one
+    /// rendered frame for all), a fifth refused; hps-sim's shared and
+    /// separate streams.
+    Viewers,
     /// The hostile-input harnesses with many cases (frame server, MAC
     /// receive path).
     Fuzz(host::fuzz::FuzzArgs),
@@ -96,6 +100,7 @@ fn main() -> ExitCode {
         Command::Qemu(args) => images::firmware::qemu(&args),
         Command::Image(args) => images::firmware::image(&args),
         Command::QemuTest => suite::qemu_tests(),
+        Command::Viewers => suite::viewers(),
         Command::BenchFw(args) => emulated::bench_fw::run(&args),
         Command::Sdcard(args) => images::sdcard::run(&args),
         Command::SdcardTest => images::sdcard::suite_test(),

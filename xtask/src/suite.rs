@@ -92,6 +92,16 @@ pub fn run() -> Result<()> {
     Ok(())
 }
 
+/// `cargo xtask viewers`: many viewers of the emulated board at once.
+pub fn viewers() -> Result<()> {
+    ensure_qemu()?;
+    ensure_apt_packages(&crate::support::player::PLAYER_PACKAGES, None)?;
+    step("build rt-client (release)", cargo(&["build", "--release", "-p", "rt-client"]))?;
+    let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
+    println!("==> many viewers of the emulated board ({})", elf.display());
+    crate::emulated::viewers::run(&elf)
+}
+
 /// `cargo xtask players`' GStreamer checks against the emulated board.
 pub fn players_on_the_emulated_board(elf: &std::path::Path) -> Result<()> {
     let g = crate::images::firmware::Guest::boot(elf, &[])?;

@@ -180,6 +180,57 @@ pub fn round_trip(datagram: &[u8], media_ssrc: u32, now_ntp: u64) -> Option<Dura
     None
 }
 
+/// Bytes of a receiver report with one report block.
+pub const RECEIVER_REPORT_BYTES: usize = 32;
+
+/// Write a receiver report (RFC 3550 section 6.4.2) from `reporter` about
+/// `media` into the front of `out`: one report block whose loss, highest
+/// sequence number and jitter fields are left zero (this receiver repairs
+/// its losses and keeps no such counts), with `lsr`,
+/// the middle 32 bits of the last sender report's NTP timestamp, and
+/// `dlsr`, the time since it arrived in 1/65536 s (both 0 before one
+/// arrived), so the sender can measure the round trip ([`round_trip`]).
+/// Returns the bytes written.
+pub fn write_receiver_report(
+    reporter: u32,
+    media: u32,
+    lsr: u32,
+    dlsr: u32,
+    out: &mut [u8],
+) -> Result<usize, BufferTooShort> {
+    let out = front(out, RECEIVER_REPORT_BYTES)?;
+    out[0..4].copy_from_slice(&rtcp_header(1, RTCP_RR, RECEIVER_REPORT_BYTES));
+    out[4..8].copy_from_slice(&reporter.to_be_bytes());
+    out[8..12].copy_from_slice(&media.to_be_bytes());
+    // Fraction and cumulative lost, extended highest sequence number, jitter.
+    out[12..24].fill(0);
+    out[24..28].copy_from_slice(&lsr.to_be_bytes());
+    out[28..32].copy_from_slice(&dlsr.to_be_bytes());
+    Ok(RECEIVER_REPORT_BYTES)
+}
+
+/// The middle 32 bits of the NTP timestamp of the sender report of `ssrc`
+/// in `datagram`, what a receiver report's LSR echoes (RFC 3550 section
+/// 6.4.1).
+pub fn sender_report_lsr(datagram: &[u8], ssrc: u32) -> Option<u32> {
+    if !valid_compound(datagram) {
+        return None;
+    }
+    let mut rest = datagram;
+    while let Some(&[_, pt, hi, lo]) = rest.first_chunk::<4>() {
+        let len = (usize::from(u16::from_be_bytes([hi, lo])) + 1) * 4;
+        let packet = rest.get(..len)?;
+        rest = &rest[len..];
+        if pt == RTCP_SR && packet.len() >= SENDER_REPORT_BYTES {
+            let word = |i: usize| u32::from_be_bytes([packet[i], packet[i + 1], packet[i + 2], packet[i + 3]]);
+            if word(4) == ssrc {
+                return Some(word(8) << 16 | word(12) >> 16);
+            }
+        }
+    }
+    None
+}
+
 /// When to send the next RTCP report: the first [`REPORT_INTERVAL`] / 2
 /// after the stream starts (RFC 3550 section 6.2: "the initial delay ...
 /// MAY be set to half the minimum interval"), then every
@@ -626,5 +677,25 @@ mod tests {
             .collect();
         let expected: Vec<_> = lost.iter().map(|&i| (i / 360, sent[i])).collect();
         assert_eq!(resent, expected);
+    }
+
+    #[test]
+    fn a_receiver_report_echoing_the_sender_report_gives_the_round_trip() {
+        let p = Packetiser::new(0x1234_5678, 0, 0);
+        // An SR at wall time 10 s, answered 30 ms later, arriving 50 ms after it went.
+        let ntp = ntp_timestamp(Duration::from_secs(10));
+        let mut sr = [0u8; SENDER_REPORT_BYTES];
+        SenderReport::now(&p, ntp, 0).write(&mut sr).unwrap();
+        let lsr = sender_report_lsr(&sr, 0x1234_5678).unwrap();
+        assert_eq!(sender_report_lsr(&sr, 7), None, "another source's");
+        let mut rr = [0u8; RECEIVER_REPORT_BYTES];
+        let dlsr = 30 * 65_536 / 1_000;
+        write_receiver_report(9, 0x1234_5678, lsr, dlsr, &mut rr).unwrap();
+        let rtt = round_trip(&rr, 0x1234_5678, ntp_timestamp(Duration::from_millis(10_050))).unwrap();
+        assert!((19..=21).contains(&rtt.as_millis()), "{rtt:?}");
+        assert_eq!(round_trip(&rr, 0x999, ntp), None);
+        let mut zero = rr;
+        zero[24..28].fill(0);
+        assert_eq!(round_trip(&zero, 0x1234_5678, ntp), None, "no SR seen yet");
     }
 }

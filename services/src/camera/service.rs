@@ -546,7 +546,8 @@ impl<'c> CameraService<'c> {
                 return;
             };
             let _ = socket.send_slice(&self.response[..reply.len]);
-            let _ = writeln!(log, "rtsp: {} {}", reply.status.code(), reply.status.reason());
+            let sessions = self.server.sessions().len();
+            let _ = writeln!(log, "rtsp: {} {} ({sessions} sessions)", reply.status.code(), reply.status.reason());
             if reply.close {
                 sockets.get_mut::<tcp::Socket>(self.sockets[i].handle).close();
                 return;

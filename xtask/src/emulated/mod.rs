@@ -12,3 +12,4 @@ pub mod early_frames;
 pub mod lossy;
 pub mod qemu_e2e;
 pub mod soak;
+pub mod viewers;

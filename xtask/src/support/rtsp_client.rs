@@ -1,12 +1,13 @@
 //! A small RTSP/RTP client for the suite's checks of the network camera
-//! (the emulated board, the lossy relay): it sets a stream up as a player
-//! does, gathers frames by timestamp, asks for missing rows with generic
-//! NACKs (RFC 4585) once a frame's marker arrived, and counts what came by
-//! repair. Strict: anything off-spec in a packet is an error.
+//! (the emulated board, the lossy relay, hps-sim): it sets a stream up as a
+//! player does, over UDP, inside the RTSP connection (interleaved) or from
+//! a multicast group, gathers frames by timestamp, asks for missing rows
+//! with generic NACKs (RFC 4585) once a frame's marker arrived, and counts
+//! what came by repair. Strict: anything off-spec in a packet is an error.
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read, Write};
-use std::net::{SocketAddr, TcpStream, UdpSocket};
+use std::net::{Ipv4Addr, SocketAddr, TcpStream, UdpSocket};
 use std::time::{Duration, Instant};
 
 use super::Result;
@@ -15,6 +16,18 @@ const ROWS: usize = 360;
 const ROW_BYTES: usize = 1440;
 const HEADER: usize = 20;
 
+/// How the stream's packets come.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Transport {
+    /// UDP to our ports.
+    Udp,
+    /// Inside the RTSP connection (`RTP/AVP/TCP;interleaved=0-1`).
+    Tcp,
+    /// From the stream's multicast group, joined on the interface with this
+    /// address (NACKs go to the server's RTCP port, unicast).
+    Multicast(Ipv4Addr),
+}
+
 /// An RTSP session playing one stream.
 pub struct Stream {
     ctrl: TcpStream,
@@ -22,13 +35,23 @@ pub struct Stream {
     cseq: u32,
     url: String,
     session: String,
+    transport: Transport,
     rtp: UdpSocket,
     rtcp: UdpSocket,
     server_rtcp: SocketAddr,
     /// The SSRC the SETUP answer announced.
     pub ssrc: u32,
-    /// RTP-Info's `rtptime`: the timestamp of media time 0.
+    /// RTP-Info's `rtptime`: the timestamp of the media time `Range` starts
+    /// at ([`npt_ticks`](Self::npt_ticks)).
     pub rtptime: u32,
+    /// `Range`'s start, in 90 kHz ticks of media time (0 for a stream this
+    /// session started).
+    pub npt_ticks: u64,
+    /// The multicast group and port, for a multicast session.
+    pub group: Option<SocketAddr>,
+    /// When the last receiver report went (they keep the session alive,
+    /// as a player's do).
+    last_report: Instant,
     partial: BTreeMap<u32, Partial>,
     /// Rows received again after a NACK.
     pub repaired_rows: usize,
@@ -79,6 +102,11 @@ impl Stream {
     /// port); by default the announced `server_port` on the server's
     /// address.
     pub fn open(rtsp: SocketAddr, path: &str, rtcp: Option<SocketAddr>) -> Result<Stream> {
+        Stream::open_with(rtsp, path, rtcp, Transport::Udp)
+    }
+
+    /// [`open`](Self::open) over `transport`.
+    pub fn open_with(rtsp: SocketAddr, path: &str, rtcp: Option<SocketAddr>, transport: Transport) -> Result<Stream> {
         let ctrl =
             TcpStream::connect_timeout(&rtsp, Duration::from_secs(10)).map_err(|e| format!("RTSP {rtsp}: {e}"))?;
         ctrl.set_read_timeout(Some(Duration::from_secs(20))).map_err(|e| e.to_string())?;
@@ -90,11 +118,15 @@ impl Stream {
             cseq: 0,
             url: format!("rtsp://{rtsp}{path}"),
             session: String::new(),
+            transport,
             rtp,
             rtcp: rtcp_sock,
             server_rtcp: rtsp,
             ssrc: 0,
             rtptime: 0,
+            npt_ticks: 0,
+            group: None,
+            last_report: Instant::now(),
             partial: BTreeMap::new(),
             repaired_rows: 0,
             nacks: 0,
@@ -109,15 +141,41 @@ impl Stream {
             }
         }
         let port = s.rtp.local_addr().map_err(|e| e.to_string())?.port();
-        let transport = format!("RTP/AVP;unicast;client_port={port}-{}", port + 1);
-        let (h, _) = s.request("SETUP", &format!("{url}/trackID=0"), &[("Transport", &transport)], "")?;
+        let asked = match transport {
+            Transport::Udp => format!("RTP/AVP;unicast;client_port={port}-{}", port + 1),
+            Transport::Tcp => "RTP/AVP/TCP;unicast;interleaved=0-1".to_string(),
+            Transport::Multicast(_) => "RTP/AVP;multicast".to_string(),
+        };
+        let (h, _) = s.request("SETUP", &format!("{url}/trackID=0"), &[("Transport", &asked)], "")?;
         s.session = field(&h, "session")?.split(';').next().unwrap_or_default().to_string();
-        let transport = field(&h, "transport")?;
-        let param = |name: &str| transport.split(';').find_map(|p| p.strip_prefix(name)).map(str::to_string);
-        let ports = param("server_port=").ok_or(format!("no server_port in {transport:?}"))?;
-        let rtcp_port: u16 = ports.split('-').nth(1).and_then(|p| p.parse().ok()).ok_or("bad server_port")?;
-        s.server_rtcp = rtcp.unwrap_or(SocketAddr::new(rtsp.ip(), rtcp_port));
+        let answer = field(&h, "transport")?;
+        let param = |name: &str| answer.split(';').find_map(|p| p.strip_prefix(name)).map(str::to_string);
         s.ssrc = param("ssrc=").and_then(|x| u32::from_str_radix(&x, 16).ok()).ok_or("no ssrc in Transport")?;
+        match transport {
+            Transport::Udp => {
+                let ports = param("server_port=").ok_or(format!("no server_port in {answer:?}"))?;
+                let rtcp_port: u16 = ports.split('-').nth(1).and_then(|p| p.parse().ok()).ok_or("bad server_port")?;
+                s.server_rtcp = rtcp.unwrap_or(SocketAddr::new(rtsp.ip(), rtcp_port));
+            }
+            Transport::Tcp => {
+                if param("interleaved=").as_deref() != Some("0-1") {
+                    return Err(format!("not interleaved on 0-1: {answer:?}"));
+                }
+            }
+            Transport::Multicast(iface) => {
+                let group: Ipv4Addr =
+                    param("destination=").and_then(|d| d.parse().ok()).ok_or(format!("no destination: {answer:?}"))?;
+                let port: u16 = param("port=")
+                    .and_then(|p| p.split('-').next().and_then(|p| p.parse().ok()))
+                    .ok_or(format!("no port: {answer:?}"))?;
+                s.rtp = join_group(group, port, iface)?;
+                s.group = Some(SocketAddr::new(group.into(), port));
+                // Repairs are asked for unicast, at the server's RTCP port.
+                let ports = param("server_port=").ok_or(format!("no server_port in {answer:?}"))?;
+                let rtcp_port: u16 = ports.split('-').nth(1).and_then(|p| p.parse().ok()).ok_or("bad server_port")?;
+                s.server_rtcp = rtcp.unwrap_or(SocketAddr::new(rtsp.ip(), rtcp_port));
+            }
+        }
         let session = s.session.clone();
         let (h, _) = s.request("PLAY", &url, &[("Session", &session)], "")?;
         let info = field(&h, "rtp-info")?;
@@ -126,7 +184,23 @@ impl Stream {
             .find_map(|p| p.strip_prefix("rtptime="))
             .and_then(|t| t.parse().ok())
             .ok_or(format!("no rtptime in RTP-Info {info:?}"))?;
+        // `Range: npt=S.UUUUUU-`: the media time rtptime stands for.
+        let npt = field(&h, "range").unwrap_or_default();
+        let start = npt.strip_prefix("npt=").and_then(|r| r.split('-').next()).unwrap_or("0");
+        let (secs, frac) = start.split_once('.').unwrap_or((start, "0"));
+        let micros =
+            secs.parse::<u64>().unwrap_or(0) * 1_000_000 + format!("{frac:0<6}")[..6].parse::<u64>().unwrap_or(0);
+        s.npt_ticks = (micros * 9 + 50) / 100;
+        if transport == Transport::Tcp {
+            // The connection carries the packets from now on.
+            s.ctrl.set_read_timeout(Some(Duration::from_millis(50))).map_err(|e| e.to_string())?;
+        }
         Ok(s)
+    }
+
+    /// The media time of a frame of this session, in 90 kHz ticks.
+    pub fn media_ticks(&self, timestamp: u32) -> u64 {
+        self.npt_ticks + u64::from(timestamp.wrapping_sub(self.rtptime))
     }
 
     fn request(&mut self, method: &str, url: &str, headers: &[(&str, &str)], body: &str) -> Result<(Headers, String)> {
@@ -187,6 +261,12 @@ impl Stream {
             if now >= deadline {
                 return Err(format!("no whole frame within {timeout:?}"));
             }
+            if self.transport == Transport::Tcp {
+                if let Some(frame) = self.next_interleaved(&mut buf)? {
+                    return Ok(frame);
+                }
+                continue;
+            }
             self.rtp.set_read_timeout(Some(Duration::from_millis(50))).map_err(|e| e.to_string())?;
             match self.rtp.recv(&mut buf) {
                 Ok(n) => {
@@ -200,6 +280,33 @@ impl Stream {
                 Err(e) => return Err(format!("RTP: {e}")),
             }
             self.ask_for_missing()?;
+        }
+    }
+
+    /// One interleaved packet from the connection (RTCP on channel 1 is
+    /// skipped); a frame if it completed one.
+    fn next_interleaved(&mut self, buf: &mut [u8; 2048]) -> Result<Option<Frame>> {
+        let mut head = [0u8; 4];
+        match self.reader.read_exact(&mut head) {
+            Ok(()) => {}
+            Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
+                return Ok(None)
+            }
+            Err(e) => return Err(format!("interleaved: {e}")),
+        }
+        if head[0] != b'$' {
+            return Err(format!("interleaved data starts with {:#04x}, not '$'", head[0]));
+        }
+        let len = usize::from(u16::from_be_bytes([head[2], head[3]]));
+        let data = buf.get_mut(..len).ok_or(format!("an interleaved packet of {len} bytes"))?;
+        // The packet's rest arrives soon after its header: wait for it.
+        self.reader.get_ref().set_read_timeout(Some(Duration::from_secs(5))).map_err(|e| e.to_string())?;
+        let read = self.reader.read_exact(data);
+        self.reader.get_ref().set_read_timeout(Some(Duration::from_millis(50))).map_err(|e| e.to_string())?;
+        read.map_err(|e| format!("interleaved packet: {e}"))?;
+        match head[1] {
+            0 => self.take(&buf[..len]),
+            _ => Ok(None),
         }
     }
 
@@ -277,6 +384,16 @@ impl Stream {
 
     /// NACK the missing rows of marked frames (again every 100 ms).
     fn ask_for_missing(&mut self) -> Result<()> {
+        if self.transport == Transport::Tcp {
+            return Ok(()); // TCP loses nothing
+        }
+        if self.last_report.elapsed() >= Duration::from_millis(2_500) {
+            self.last_report = Instant::now();
+            let mut rr = [0u8; rt_services::camera::rtcp::RECEIVER_REPORT_BYTES];
+            if rt_services::camera::rtcp::write_receiver_report(0x0bad_cafe, self.ssrc, 0, 0, &mut rr).is_ok() {
+                self.rtcp.send_to(&rr, self.server_rtcp).map_err(|e| format!("RR: {e}"))?;
+            }
+        }
         let now = Instant::now();
         let mut lost = Vec::new();
         for f in self.partial.values_mut() {
@@ -321,6 +438,21 @@ fn udp_pair() -> Result<(UdpSocket, UdpSocket)> {
         }
     }
     Err("no free UDP port pair".into())
+}
+
+/// A socket receiving `group:port`, joined on the interface `iface`
+/// (several receivers on one host share the port).
+fn join_group(group: Ipv4Addr, port: u16, iface: Ipv4Addr) -> Result<UdpSocket> {
+    use socket2::{Domain, Protocol, Socket, Type};
+    let go = || -> std::io::Result<UdpSocket> {
+        let socket = Socket::new(Domain::IPV4, Type::DGRAM, Some(Protocol::UDP))?;
+        socket.set_reuse_address(true)?;
+        let _ = socket.set_recv_buffer_size(4 << 20);
+        socket.bind(&SocketAddr::from((group, port)).into())?;
+        socket.join_multicast_v4(&group, &iface)?;
+        Ok(socket.into())
+    };
+    go().map_err(|e| format!("joining {group}:{port} on {iface}: {e}"))
 }
 
 fn bind_rtp(port: u16) -> std::io::Result<UdpSocket> {

@@ -911,13 +911,17 @@ impl<const N: usize> Server<N> {
                 "Transport: {profile}/TCP;unicast;interleaved={rtp_channel}-{rtcp_channel};ssrc={:08X}\r\n",
                 s.ssrc
             ),
+            // server_port too: where a receiver sends its NACKs (unicast:
+            // the board joins no group, so RTCP to the group never reaches it).
             (Transport::Multicast, Some(g)) => write!(
                 out,
-                "Transport: {profile};multicast;destination={};port={}-{};ttl={};ssrc={:08X}\r\n",
+                "Transport: {profile};multicast;destination={};port={}-{};ttl={};server_port={}-{};ssrc={:08X}\r\n",
                 g.addr,
                 g.port,
                 g.port.wrapping_add(1),
                 g.ttl,
+                self.config.rtp_port,
+                self.config.rtp_port.wrapping_add(1),
                 s.ssrc
             ),
             // The sender gives a multicast session its group.

@@ -312,7 +312,9 @@ fn interleaved_and_multicast_setups_are_answered_with_their_parameters() {
     assert!(a.text.contains("interleaved=2-3;"), "{}", a.text);
     let a = r.ask(&request("SETUP", URL, 3, "Transport: RTP/AVP;multicast;ttl=127\r\n"));
     assert!(
-        a.text.contains("Transport: RTP/AVP;multicast;destination=239.255.42.1;port=5006-5007;ttl=1;ssrc="),
+        a.text.contains(
+            "Transport: RTP/AVP;multicast;destination=239.255.42.1;port=5006-5007;ttl=1;server_port=5004-5005;ssrc="
+        ),
         "the sender's group, whatever the client asked: {}",
         a.text
     );

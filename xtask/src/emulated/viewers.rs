@@ -1,0 +1,131 @@
+//! Many viewers of the emulated board at once (the network camera's
+//! sharing and admission, docs/streaming.md "Many viewers"): four real
+//! players of one stream (GStreamer over UDP and inside the RTSP
+//! connection, FFmpeg inside the RTSP connection, rt-client over UDP with
+//! NACK repair), every frame byte-exact and their summed rate at least 90%
+//! of one player's alone; a fifth is answered 453 and gets no RTP; once
+//! the four have torn down, a new player is served at once.
+
+use std::net::{SocketAddr, UdpSocket};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use super::qemu_e2e::expected_frame;
+use crate::images::firmware::Guest;
+use crate::support::player::{Kind, Played, Player};
+use crate::support::rtsp_client::Stream;
+use crate::support::tools::root;
+use crate::support::Result;
+
+/// The stream every viewer plays.
+const PATH: &str = "/light/3,4,-2?fps=max";
+
+/// Frames each player takes (the emulated board renders some four a
+/// second on its CPU).
+const FRAMES: usize = 12;
+
+/// The players, one of each kind the issue names and GStreamer over TCP.
+const PLAYERS: [Kind; 4] = [Kind::GstUdp, Kind::FfmpegTcp, Kind::RtClient, Kind::GstTcp];
+
+/// Run the test against the firmware `elf` (a frame-mode build).
+pub fn run(elf: &Path) -> Result<()> {
+    let mut g = Guest::boot(elf, &[])?;
+    let f = g.forwards.ok_or("the guest has no forwarded ports")?;
+    let rtsp = SocketAddr::from(([127, 0, 0, 1], f.rtsp));
+    let rtcp = SocketAddr::from(([127, 0, 0, 1], f.rtcp));
+    let want = expected_frame([3 << 10, 4 << 10, -(2 << 10)])?;
+    let url = format!("rtsp://{rtsp}{PATH}");
+    let dir = root().join("target/viewers/emulated");
+    let _ = std::fs::remove_dir_all(&dir);
+
+    // One player alone: the rate the others' sum is held against.
+    let mut alone = Stream::open(rtsp, PATH, Some(rtcp)).map_err(|e| with_uart(&g, e))?;
+    let mut times = Vec::new();
+    for i in 0..FRAMES {
+        let frame = alone.next_frame(Duration::from_secs(60)).map_err(|e| with_uart(&g, e))?;
+        if frame.bytes != want {
+            return Err(format!("the lone viewer's frame {i} is not the model's"));
+        }
+        times.push(Instant::now());
+    }
+    alone.teardown()?;
+    let alone_fps = (FRAMES - 1) as f64 / times[FRAMES - 1].duration_since(times[0]).as_secs_f64().max(1e-6);
+    println!("viewers: one viewer alone: {alone_fps:.2} frames/s, {FRAMES} frames byte-exact");
+
+    // Four at once.
+    let players: Vec<Player> = PLAYERS
+        .iter()
+        .enumerate()
+        .map(|(i, &kind)| Player::start(kind, &url, FRAMES, &dir.join(format!("{i}"))))
+        .collect::<Result<_>>()?;
+    // While they play (the board logs four sessions), a fifth is refused:
+    // 453, and no RTP.
+    let from = g.uart().len();
+    g.wait_for_line(from.saturating_sub(4096), &format!("({} sessions)", PLAYERS.len()), Duration::from_secs(60))
+        .map_err(|e| format!("the four players' sessions: {e}"))?;
+    let fifth = fifth_is_refused(rtsp).map_err(|e| with_uart(&g, e))?;
+    let mut summed = 0.0;
+    for p in players {
+        let played: Played = p.wait(Duration::from_secs(120)).map_err(|e| with_uart(&g, e))?;
+        if played.frames.len() != FRAMES {
+            return Err(format!("{} got {} frames, not {FRAMES}", played.kind.name(), played.frames.len()));
+        }
+        if let Some(k) = played.frames.iter().position(|(_, f)| *f != want) {
+            return Err(format!("{}: frame {k} is not the model's", played.kind.name()));
+        }
+        println!("viewers: {}: {FRAMES} frames byte-exact, {:.2} frames/s", played.kind.name(), played.fps);
+        summed += played.fps;
+    }
+    println!(
+        "viewers: four at once: {summed:.2} frames/s summed ({:.0}% of one alone); {fifth}",
+        100.0 * summed / alone_fps
+    );
+    if summed < 0.9 * alone_fps {
+        return Err(format!("four viewers summed {summed:.2} frames/s, under 90% of one alone ({alone_fps:.2})"));
+    }
+    // They tore down: a new viewer is served at once.
+    let started = Instant::now();
+    let mut next = Stream::open(rtsp, PATH, Some(rtcp)).map_err(|e| with_uart(&g, format!("after the four: {e}")))?;
+    let frame = next.next_frame(Duration::from_secs(10)).map_err(|e| with_uart(&g, e))?;
+    if frame.bytes != want {
+        return Err("the viewer after the four got a frame that is not the model's".into());
+    }
+    next.teardown()?;
+    println!(
+        "viewers: after the four tore down, a new viewer had its first frame in {:.1} s",
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// A fifth SETUP while four sessions play: 453, and nothing arrives on the
+/// ports it offered.
+fn fifth_is_refused(rtsp: SocketAddr) -> Result<String> {
+    use std::io::{BufRead, BufReader, Write};
+    let rtp = UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
+    let port = rtp.local_addr().map_err(|e| e.to_string())?.port();
+    let mut ctrl = std::net::TcpStream::connect_timeout(&rtsp, Duration::from_secs(10)).map_err(|e| e.to_string())?;
+    ctrl.set_read_timeout(Some(Duration::from_secs(10))).map_err(|e| e.to_string())?;
+    let setup = format!(
+        "SETUP rtsp://{rtsp}{PATH}/trackID=0 RTSP/1.0\r\nCSeq: 1\r\nTransport: RTP/AVP;unicast;client_port={port}-{}\r\n\r\n",
+        port + 1
+    );
+    ctrl.write_all(setup.as_bytes()).map_err(|e| e.to_string())?;
+    let mut status = String::new();
+    BufReader::new(&ctrl).read_line(&mut status).map_err(|e| format!("the fifth SETUP: {e}"))?;
+    if !status.starts_with("RTSP/1.0 453") {
+        return Err(format!("the fifth viewer's SETUP was answered {:?}, not 453", status.trim_end()));
+    }
+    rtp.set_read_timeout(Some(Duration::from_secs(2))).map_err(|e| e.to_string())?;
+    let mut buf = [0u8; 2048];
+    if let Ok(n) = rtp.recv(&mut buf) {
+        return Err(format!("the refused fifth viewer got a {n}-byte datagram"));
+    }
+    Ok("a fifth was answered 453 and got no RTP in 2 s".into())
+}
+
+fn with_uart(g: &Guest, e: String) -> String {
+    let uart = g.uart();
+    let tail: Vec<&str> = uart.lines().rev().take(40).collect();
+    format!("{e}\nthe emulated board's UART, last lines:\n{}", tail.into_iter().rev().collect::<Vec<_>>().join("\n"))
+}
