@@ -259,6 +259,8 @@ pub fn run<B: Board, P: RegisterPort>(
     let mac_moved = |m: &Dwmac<'_, _, _>| m.stats().tx_frames.wrapping_add(m.stats().rx_frames);
     // Idle since (µs), after having served someone.
     let mut idle_since: Option<u64> = None;
+    // When the camera's sessions were last reported (µs).
+    let mut camera_report = 0u64;
     loop {
         let iteration = crate::bench::Iteration::start(mac_moved(&mac));
         let now_us = timer.now_us();
@@ -296,6 +298,12 @@ pub fn run<B: Board, P: RegisterPort>(
             crate::bench::camera(|| c.poll(now, &mut sockets, &mut peers, &mut counted, &mut tx, entropy, &mut log));
         }
         frames.report(&mut log);
+        if let Some(c) = &camera {
+            if now_us.saturating_sub(camera_report) >= 1_000_000 {
+                camera_report = now_us;
+                c.report(&mut log);
+            }
+        }
         if let Some(d) = &mut display {
             let status = rt_services::monitor::Status {
                 link_up,
@@ -305,9 +313,12 @@ pub fn run<B: Board, P: RegisterPort>(
             };
             d.poll(rt_services::Instant::from_millis(now_us / 1000), frames, requests, &status, &mut log);
         }
-        // A second after the last client: say what is free, so a long run
-        // can show nothing leaked (cargo xtask soak reads this line).
-        if service.active_sessions() > 0 {
+        // A second after the last client (of either service): say what is
+        // free, so a long run can show nothing leaked (cargo xtask soak and
+        // the hostile-network test read this line).
+        let camera_busy =
+            camera.as_ref().is_some_and(|c| !c.server().sessions().is_empty() || c.listening(&sockets) < RTSP_SOCKETS);
+        if service.active_sessions() > 0 || camera_busy {
             idle_since = Some(now_us);
         } else if idle_since.is_some_and(|t| now_us.saturating_sub(t) >= 1_000_000) {
             idle_since = None;

@@ -178,6 +178,10 @@ struct Link {
     server_if: Interface,
     client_if: Interface,
     clients: SocketSet<'static>,
+    /// After its first poll (its sockets listen), the service is polled
+    /// again from this step on (a main loop busy elsewhere while the
+    /// client connects, sends and closes).
+    service_starts: u64,
 }
 
 impl Link {
@@ -189,7 +193,7 @@ impl Link {
         let (mut server_dev, mut client_dev) = cable_with(faults, seed);
         let server_if = interface(&mut server_dev, 1);
         let client_if = interface(&mut client_dev, 2);
-        Link { mode, server_dev, client_dev, server_if, client_if, clients: SocketSet::new(vec![]) }
+        Link { mode, server_dev, client_dev, server_if, client_if, clients: SocketSet::new(vec![]), service_starts: 0 }
     }
 
     fn connect(&mut self, port: u16, local_port: u16, send: Vec<u8>, close_after_send: bool) -> Client {
@@ -234,7 +238,9 @@ impl Link {
         for step in 0..max_steps {
             let now = Instant::from_millis(step as i64);
             self.server_if.poll(now, &mut self.server_dev, &mut server_sockets);
-            service.poll(now, &mut server_sockets, frames, &mut log);
+            if step == 0 || step >= self.service_starts {
+                service.poll(now, &mut server_sockets, frames, &mut log);
+            }
             self.server_if.poll(now, &mut self.server_dev, &mut server_sockets);
             self.client_if.poll(now, &mut self.client_dev, &mut self.clients);
             let mut open = 0;
@@ -581,4 +587,19 @@ fn the_camera_streams_a_frame_over_smoltcp_and_answers_a_nack_from_the_client() 
     assert_eq!(again.0[42..], tx.sent[100].0[42..], "RTP and RFC 4175 headers unchanged");
     assert_ne!(again.0[18..20], tx.sent[100].0[18..20], "a new IPv4 identification");
     assert_eq!(service.stats.rows_sent as usize, tx.sent.len());
+}
+
+#[test]
+fn a_request_sent_with_its_fin_is_still_answered() {
+    // The request and the FIN can arrive together, before the service
+    // sees the connection established: the socket is then in CloseWait,
+    // and must be served (and freed), not left hanging.
+    for mode in MODES {
+        let light = Light::from_world(3.0, 4.0, -2.0).unwrap();
+        let mut link = Link::new(mode);
+        link.service_starts = 200;
+        let mut clients = [link.connect(FRAME_PORT, 50_000, request(&light).to_vec(), true)];
+        let log = link.run(&mut clients, 20_000);
+        assert!(clients[0].received == frame(&light), "{} bytes ({mode:?}); log: {log}", clients[0].received.len());
+    }
 }

@@ -78,6 +78,17 @@ enum Command {
     /// The hostile-input harnesses with many cases (frame server, MAC
     /// receive path).
     Fuzz(host::fuzz::FuzzArgs),
+    /// One viewer that checks its frames (run inside a network namespace
+    /// by the multicast checks).
+    #[command(hide = true)]
+    Receive(host::viewers::ReceiveArgs),
+    /// The hostile-network test's client (run inside its namespace).
+    #[command(hide = true)]
+    HostileClient(emulated::hostile::ClientArgs),
+    /// The network camera on a hostile network: half-open connections,
+    /// random bytes, a NACK flood, a killed player, multicast counted on
+    /// the board's link.
+    Hostile,
     /// The client `lossy-bench` runs inside its network namespace.
     #[command(hide = true)]
     LossyClient(emulated::lossy::ClientArgs),
@@ -101,6 +112,9 @@ fn main() -> ExitCode {
         Command::Image(args) => images::firmware::image(&args),
         Command::QemuTest => suite::qemu_tests(),
         Command::Viewers => suite::viewers(),
+        Command::Receive(args) => host::viewers::receive(&args),
+        Command::HostileClient(args) => emulated::hostile::client(&args),
+        Command::Hostile => suite::hostile(),
         Command::BenchFw(args) => emulated::bench_fw::run(&args),
         Command::Sdcard(args) => images::sdcard::run(&args),
         Command::SdcardTest => images::sdcard::suite_test(),

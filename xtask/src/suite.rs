@@ -96,10 +96,20 @@ pub fn run() -> Result<()> {
 pub fn viewers() -> Result<()> {
     ensure_qemu()?;
     ensure_apt_packages(&crate::support::player::PLAYER_PACKAGES, None)?;
-    step("build rt-client (release)", cargo(&["build", "--release", "-p", "rt-client"]))?;
+    step("build rt-client and hps-sim (release)", cargo(&["build", "--release", "-p", "rt-client", "-p", "hps-sim"]))?;
+    println!("==> many viewers of hps-sim");
+    crate::host::viewers::run()?;
     let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
     println!("==> many viewers of the emulated board ({})", elf.display());
     crate::emulated::viewers::run(&elf)
+}
+
+/// `cargo xtask hostile`: the network camera on a hostile network.
+pub fn hostile() -> Result<()> {
+    ensure_qemu()?;
+    let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
+    println!("==> the network camera on a hostile network ({})", elf.display());
+    crate::emulated::hostile::run(&elf)
 }
 
 /// `cargo xtask players`' GStreamer checks against the emulated board.

@@ -238,6 +238,8 @@ pub struct OutputStats {
     pub over_budget: u32,
     /// Frames cut short: the output stalled, or paused, mid-frame.
     pub cut: u32,
+    /// NACK datagrams not read at all: the budget was spent.
+    pub nacks_unread: u32,
 }
 
 /// What a stream has done.
@@ -789,12 +791,30 @@ impl<const N: usize> Camera<N> {
         if matches!(o.dest, Dest::Interleaved { .. }) {
             return Some(session);
         }
+        // What the budget can still pay for, counting the resends queued:
+        // a NACK beyond it is not even read (a flood costs a look each).
+        let affordable = (o.budget / REPAIR_SHARE) as usize;
+        if affordable <= o.repairs.len() {
+            o.stats.nacks_unread += 1;
+            return Some(session);
+        }
+        let mut room = affordable - o.repairs.len();
+        let log = &mut self.resends[i];
         for seq in NackRequests::new(datagram, media.packetiser.ssrc(), media.packetiser.highest_seq()) {
-            if window.lookup(seq).is_none() || o.repairs.push_back(seq).is_err() {
+            if window.lookup(seq).is_none() {
                 o.stats.unrepairable += 1;
+            } else if !log.may_resend(seq, now, o.round_trip) {
+                // Resent (or queued to be) within the round trip.
+                o.stats.too_soon += 1;
+            } else if room > 0 && o.repairs.push_back(seq).is_ok() {
+                // Its time counts from now: the same NACK again waits.
+                log.resent(seq, now);
+                room -= 1;
+            } else {
+                o.stats.over_budget += 1;
             }
         }
-        send_repairs(o, window, &mut self.resends[i], &media.packetiser, now, source, sink);
+        send_repairs(o, window, &media.packetiser, source, sink);
         Some(session)
     }
 
@@ -890,10 +910,10 @@ impl<const N: usize> Camera<N> {
         }
         // Repairs first: a receiver waits for them more than for new rows.
         let mut repairs_left = false;
-        for (o, log) in self.outputs.iter_mut().zip(self.resends.iter_mut()) {
+        for o in self.outputs.iter_mut() {
             let Some(o) = o.as_mut().filter(|o| o.media == mi && !o.repairs.is_empty()) else { continue };
             let before = o.stats.resent;
-            repairs_left |= !send_repairs(o, window, log, &media.packetiser, now, source, sink);
+            repairs_left |= !send_repairs(o, window, &media.packetiser, source, sink);
             progress |= o.stats.resent != before;
         }
         if !media.running {
@@ -1083,28 +1103,25 @@ impl<const N: usize> Camera<N> {
 }
 
 /// Resend output `o`'s NACKed packets still waiting, oldest request first,
-/// while the sink takes them, within its limits; whether none is left.
+/// while the sink takes them; whether none is left.
 fn send_repairs<S: FrameSource<Frame = usize>, K: RtpSink>(
     o: &mut Output,
     window: &FrameRepairWindow,
-    log: &mut FrameResendLog,
     packetiser: &Packetiser,
-    now: Instant,
     source: &mut S,
     sink: &mut K,
 ) -> bool {
+    // Each was checked against the round trip and the budget when it was
+    // queued (`rtcp_received`).
     while let Some(&seq) = o.repairs.front() {
         match window.lookup(seq) {
             // Left the window while it waited.
             None => o.stats.unrepairable += 1,
-            Some(_) if !log.may_resend(seq, now, o.round_trip) => o.stats.too_soon += 1,
-            Some(_) if o.budget < REPAIR_SHARE => o.stats.over_budget += 1,
             Some(r) => {
                 if sink.send_rows(&o.dest, packetiser, &r.packet, 1, r.slot, source) == 0 {
                     return false;
                 }
-                o.budget -= REPAIR_SHARE;
-                log.resent(seq, now);
+                o.budget = o.budget.saturating_sub(REPAIR_SHARE);
                 o.stats.resent += 1;
             }
         }

@@ -377,6 +377,19 @@ impl<'c> CameraService<'c> {
         self.camera
     }
 
+    /// One line per session the sender serves: what its output did (for a
+    /// log a second: the hostile-network tests read the repair budget's
+    /// effect from it).
+    pub fn report(&self, log: &mut impl Write) {
+        for (session, s) in self.camera.sessions() {
+            let _ = writeln!(
+                log,
+                "camera: session {session}: {} frames, {} packets, {} resent ({} over budget, {} too soon, {} unrepairable, {} NACKs unread), {} cut",
+                s.frames, s.packets, s.resent, s.over_budget, s.too_soon, s.unrepairable, s.nacks_unread, s.cut
+            );
+        }
+    }
+
     /// RTSP sockets listening for a connection.
     pub fn listening(&self, sockets: &SocketSet<'_>) -> usize {
         self.sockets.iter().filter(|s| sockets.get::<tcp::Socket>(s.handle).state() == tcp::State::Listen).count()
@@ -489,7 +502,10 @@ impl<'c> CameraService<'c> {
             return;
         }
         if self.sockets[i].conn.is_none() {
-            if socket.state() != tcp::State::Established {
+            // Established, or already closed by a client that sent its
+            // bytes and its FIN at once (CloseWait): either way a
+            // connection to read, answer and close.
+            if !matches!(socket.state(), tcp::State::Established | tcp::State::CloseWait) {
                 return;
             }
             let Some(peer) = socket.remote_endpoint() else { return };

@@ -134,7 +134,9 @@ fn serve_slot<S: FrameSource>(
             if let Err(e) = socket.listen(slot.port()) {
                 let _ = writeln!(log, "[{index}] listen on {} failed: {e:?}", slot.port());
             }
-        } else if socket.state() == tcp::State::Established {
+        } else if matches!(socket.state(), tcp::State::Established | tcp::State::CloseWait) {
+            // CloseWait: a client that sent its request and its FIN at
+            // once; it still reads the frame.
             if let Some(peer) = socket.remote_endpoint() {
                 let _ = writeln!(log, "[{index}] port {}: client {peer}", slot.port());
             }

@@ -136,13 +136,31 @@ fn firmware_segment(frame: &[u8]) -> Option<(u16, u16, u32)> {
 pub struct Relay {
     stop: Arc<AtomicBool>,
     counts: Arc<Mutex<Counts>>,
+    multicast: Arc<Mutex<std::collections::HashMap<u32, u32>>>,
     threads: Vec<JoinHandle<()>>,
 }
 
+/// The RTP packet a frame from the board carries to a multicast group
+/// (Ethernet destination 01-00-5E-..., IPv4, UDP, RTP): its 16-bit
+/// sequence number and 32-bit timestamp, as one key.
+fn multicast_rtp(frame: &[u8]) -> Option<u32> {
+    if frame.len() < 14 + 20 + 8 + 12 || frame[..3] != [0x01, 0x00, 0x5e] || frame[12..14] != [0x08, 0x00] {
+        return None;
+    }
+    let ihl = usize::from(frame[14] & 0x0f) * 4;
+    if frame[23] != 17 {
+        return None;
+    }
+    let rtp = frame.get(14 + ihl + 8..)?;
+    (rtp.len() >= 12 && rtp[0] >> 6 == 2 && rtp[1] & 0x7f == 96)
+        .then(|| u32::from(u16::from_be_bytes([rtp[2], rtp[3]])))
+}
+
 impl Relay {
-    fn start(udp: UdpSocket, qemu: SocketAddr, tap: File, faults: Faults, seed: u64) -> Result<Relay> {
+    pub(crate) fn start(udp: UdpSocket, qemu: SocketAddr, tap: File, faults: Faults, seed: u64) -> Result<Relay> {
         let stop = Arc::new(AtomicBool::new(false));
         let counts = Arc::new(Mutex::new(Counts::default()));
+        let multicast = Arc::new(Mutex::new(std::collections::HashMap::new()));
         udp.set_read_timeout(Some(Duration::from_millis(50))).map_err(|e| e.to_string())?;
         let udp2 = udp.try_clone().map_err(|e| e.to_string())?;
         let mut tap_w = tap.try_clone().map_err(|e| e.to_string())?;
@@ -151,7 +169,7 @@ impl Relay {
         let mut threads = Vec::new();
         // Guest to peer.
         {
-            let (stop, counts) = (stop.clone(), counts.clone());
+            let (stop, counts, multicast) = (stop.clone(), counts.clone(), multicast.clone());
             let mut dir = Direction { faults, rng: Rng(seed), held: None };
             threads.push(thread::spawn(move || {
                 let mut seen: HashSet<(u16, u16, u32)> = HashSet::new();
@@ -159,6 +177,9 @@ impl Relay {
                 while !stop.load(Ordering::Relaxed) {
                     let Ok(n) = udp.recv(&mut buf) else { continue };
                     let frame = buf[..n].to_vec();
+                    if let (Some(seq), Ok(mut m)) = (multicast_rtp(&frame), multicast.lock()) {
+                        *m.entry(seq).or_insert(0) += 1;
+                    }
                     let Ok(mut c) = counts.lock() else { return };
                     c.from_board += 1;
                     if let Some(key) = firmware_segment(&frame) {
@@ -192,7 +213,13 @@ impl Relay {
                 }
             }));
         }
-        Ok(Relay { stop, counts, threads })
+        Ok(Relay { stop, counts, multicast, threads })
+    }
+
+    /// The multicast RTP packets the board sent so far: how many times
+    /// each sequence number went.
+    pub fn multicast_packets(&self) -> std::collections::HashMap<u32, u32> {
+        self.multicast.lock().map(|m| m.clone()).unwrap_or_default()
     }
 
     /// What happened so far.
@@ -223,7 +250,7 @@ fn set_nonblocking(f: &File) -> Result<()> {
 }
 
 /// A tap device `name` (no packet information header), as a file.
-fn open_tap(name: &str) -> Result<File> {
+pub(crate) fn open_tap(name: &str) -> Result<File> {
     let f = OpenOptions::new().read(true).write(true).open("/dev/net/tun").map_err(|e| format!("/dev/net/tun: {e}"))?;
     // struct ifreq: 16-byte name, then the flags (IFF_TAP | IFF_NO_PI).
     let mut ifr = [0u8; 40];
@@ -239,7 +266,7 @@ fn open_tap(name: &str) -> Result<File> {
     Ok(f)
 }
 
-fn ip(args: &[&str]) -> Result<()> {
+pub(crate) fn ip(args: &[&str]) -> Result<()> {
     let out = Command::new("ip").args(args).output().map_err(|e| format!("ip: {e}"))?;
     if out.status.success() {
         Ok(())
@@ -249,12 +276,12 @@ fn ip(args: &[&str]) -> Result<()> {
 }
 
 /// The network namespace of one run, removed on drop.
-struct Namespace(String);
+pub(crate) struct Namespace(pub(crate) String);
 
 impl Namespace {
     /// A namespace holding tap `tap` as 10.0.2.2/24 (slirp's gateway
     /// address, which the QEMU firmware build uses).
-    fn new(name: &str, tap: &str) -> Result<Namespace> {
+    pub(crate) fn new(name: &str, tap: &str) -> Result<Namespace> {
         let _ = ip(&["netns", "del", name]);
         ip(&["netns", "add", name])?;
         let ns = Namespace(name.to_string());
@@ -447,7 +474,7 @@ pub struct ClientArgs {
 /// (or sent before the interface is up), and it then fails the connect with
 /// EHOSTUNREACH at once instead of probing on, as a user's client would
 /// simply retry.
-fn connect_patiently(board: &str, port: u16) -> Result<TcpStream> {
+pub(crate) fn connect_patiently(board: &str, port: u16) -> Result<TcpStream> {
     let deadline = Instant::now() + Duration::from_secs(30);
     loop {
         match TcpStream::connect((board, port)) {

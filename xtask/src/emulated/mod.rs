@@ -9,6 +9,7 @@
 pub mod bench_fw;
 pub mod cost_model;
 pub mod early_frames;
+pub mod hostile;
 pub mod lossy;
 pub mod qemu_e2e;
 pub mod soak;

@@ -68,7 +68,12 @@ pub fn run(elf: &Path) -> Result<()> {
     for p in players {
         let played: Played = p.wait(Duration::from_secs(120)).map_err(|e| with_uart(&g, e))?;
         if played.frames.len() != FRAMES {
-            return Err(format!("{} got {} frames, not {FRAMES}", played.kind.name(), played.frames.len()));
+            return Err(format!(
+                "{} got {} frames, not {FRAMES}: {}",
+                played.kind.name(),
+                played.frames.len(),
+                played.log
+            ));
         }
         if let Some(k) = played.frames.iter().position(|(_, f)| *f != want) {
             return Err(format!("{}: frame {k} is not the model's", played.kind.name()));

@@ -11,3 +11,4 @@ pub mod fuzz;
 pub mod live_test;
 pub mod model_cmds;
 pub mod players;
+pub mod viewers;

@@ -53,11 +53,14 @@ impl Kind {
     }
 }
 
+/// Frames with the time each arrived.
+type Frames = Vec<(Instant, Vec<u8>)>;
+
 /// A player running.
 pub struct Player {
     kind: Kind,
     child: Option<Child>,
-    frames: Arc<Mutex<Vec<(Instant, Vec<u8>)>>>,
+    frames: Arc<Mutex<Frames>>,
     reader: Option<JoinHandle<()>>,
     dir: PathBuf,
     started: Instant,
@@ -83,6 +86,12 @@ impl Player {
     /// files go under `dir`. `rt-client` needs `light` (world units, the
     /// URL's light) and the server's RTSP address.
     pub fn start(kind: Kind, url: &str, frames: usize, dir: &Path) -> Result<Player> {
+        Player::start_in(None, kind, url, frames, dir)
+    }
+
+    /// [`start`](Self::start), inside the network namespace `netns` if one
+    /// is given (`ip netns exec`).
+    pub fn start_in(netns: Option<&str>, kind: Kind, url: &str, frames: usize, dir: &Path) -> Result<Player> {
         std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
         let mut cmd = match kind {
             Kind::GstUdp | Kind::GstTcp | Kind::GstMulticast => {
@@ -107,7 +116,10 @@ impl Player {
             Kind::FfmpegTcp | Kind::FfmpegUdp => {
                 let mut c = Command::new("ffmpeg");
                 let transport = if kind == Kind::FfmpegTcp { "tcp" } else { "udp" };
-                c.args(["-nostdin", "-loglevel", "error", "-rtsp_transport", transport]);
+                // No probing: the description says what the stream is, and
+                // a probe holds the first seconds of frames back.
+                c.args(["-nostdin", "-loglevel", "error", "-analyzeduration", "0", "-probesize", "32"]);
+                c.args(["-rtsp_transport", transport]);
                 if kind == Kind::FfmpegUdp {
                     c.args(["-buffer_size", "4194304"]);
                 }
@@ -124,6 +136,11 @@ impl Player {
                 c
             }
         };
+        if let Some(ns) = netns {
+            let mut wrapped = Command::new("ip");
+            wrapped.args(["netns", "exec", ns]).arg(cmd.get_program()).args(cmd.get_args());
+            cmd = wrapped;
+        }
         let command = format!("{cmd:?}");
         let err = std::fs::File::create(dir.join("stderr.log")).map_err(|e| e.to_string())?;
         cmd.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(err);

@@ -52,6 +52,10 @@ pub struct Stream {
     /// When the last receiver report went (they keep the session alive,
     /// as a player's do).
     last_report: Instant,
+    /// Datagrams on a multicast group that were not this stream's.
+    pub foreign: usize,
+    /// The newest extended sequence number received.
+    highest: u32,
     partial: BTreeMap<u32, Partial>,
     /// Rows received again after a NACK.
     pub repaired_rows: usize,
@@ -107,8 +111,18 @@ impl Stream {
 
     /// [`open`](Self::open) over `transport`.
     pub fn open_with(rtsp: SocketAddr, path: &str, rtcp: Option<SocketAddr>, transport: Transport) -> Result<Stream> {
-        let ctrl =
-            TcpStream::connect_timeout(&rtsp, Duration::from_secs(10)).map_err(|e| format!("RTSP {rtsp}: {e}"))?;
+        // A server with every connection taken refuses more for a moment:
+        // try again for up to 10 s, as a user would.
+        let deadline = Instant::now() + Duration::from_secs(10);
+        let ctrl = loop {
+            match TcpStream::connect_timeout(&rtsp, Duration::from_secs(10)) {
+                Ok(c) => break c,
+                Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused && Instant::now() < deadline => {
+                    std::thread::sleep(Duration::from_millis(200))
+                }
+                Err(e) => return Err(format!("RTSP {rtsp}: {e}")),
+            }
+        };
         ctrl.set_read_timeout(Some(Duration::from_secs(20))).map_err(|e| e.to_string())?;
         let reader = BufReader::new(ctrl.try_clone().map_err(|e| e.to_string())?);
         let (rtp, rtcp_sock) = udp_pair()?;
@@ -127,6 +141,8 @@ impl Stream {
             npt_ticks: 0,
             group: None,
             last_report: Instant::now(),
+            foreign: 0,
+            highest: 0,
             partial: BTreeMap::new(),
             repaired_rows: 0,
             nacks: 0,
@@ -198,9 +214,16 @@ impl Stream {
         Ok(s)
     }
 
-    /// The media time of a frame of this session, in 90 kHz ticks.
-    pub fn media_ticks(&self, timestamp: u32) -> u64 {
-        self.npt_ticks + u64::from(timestamp.wrapping_sub(self.rtptime))
+    /// A second handle on this session's RTCP socket, and where its
+    /// reports go: for a test that sends RTCP as this player would (or as
+    /// someone spoofing it would).
+    pub fn rtcp_endpoint(&self) -> Result<(UdpSocket, SocketAddr)> {
+        Ok((self.rtcp.try_clone().map_err(|e| e.to_string())?, self.server_rtcp))
+    }
+
+    /// The newest extended sequence number received.
+    pub fn highest_seq(&self) -> u32 {
+        self.highest
     }
 
     fn request(&mut self, method: &str, url: &str, headers: &[(&str, &str)], body: &str) -> Result<(Headers, String)> {
@@ -269,6 +292,11 @@ impl Stream {
             }
             self.rtp.set_read_timeout(Some(Duration::from_millis(50))).map_err(|e| e.to_string())?;
             match self.rtp.recv(&mut buf) {
+                // A group is open to any sender on the network: what is not
+                // this stream's RTP is someone else's, not the server's fault.
+                Ok(n) if matches!(self.transport, Transport::Multicast(_)) && !self.is_ours(&buf[..n]) => {
+                    self.foreign += 1;
+                }
                 Ok(n) => {
                     if let Some(frame) = self.take(&buf[..n])? {
                         return Ok(frame);
@@ -310,6 +338,11 @@ impl Stream {
         }
     }
 
+    /// Whether `p` looks like this stream's RTP (version 2, its SSRC).
+    fn is_ours(&self, p: &[u8]) -> bool {
+        p.len() >= 12 && p[0] >> 6 == 2 && p[8..12] == self.ssrc.to_be_bytes()
+    }
+
     /// One RTP packet; a frame if it completed one.
     fn take(&mut self, p: &[u8]) -> Result<Option<Frame>> {
         if p.len() != HEADER + ROW_BYTES || p[0] != 0x80 || p[1] & 0x7f != 96 {
@@ -322,6 +355,9 @@ impl Stream {
         }
         let (seq, ts, marker) = (u32::from(be16(12)) << 16 | u32::from(be16(2)), be32(4), p[1] & 0x80 != 0);
         let line = usize::from(be16(16) & 0x7fff);
+        if seq.wrapping_sub(self.highest) < 1 << 31 {
+            self.highest = seq;
+        }
         if line >= ROWS || marker != (line == ROWS - 1) {
             return Err(format!("line {line} with marker {marker}"));
         }
