@@ -101,7 +101,10 @@ pub fn viewers() -> Result<()> {
     crate::host::viewers::run()?;
     let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
     println!("==> many viewers of the emulated board ({})", elf.display());
-    crate::emulated::viewers::run(&elf)
+    crate::emulated::viewers::run(&elf)?;
+    ensure_apt_packages(&crate::emulated::viewers::RELAY_PACKAGES, None)?;
+    println!("==> players through a relay (tools/rtsp-relay.py) from one session of the emulated board");
+    crate::emulated::viewers::relay(&elf)
 }
 
 /// `cargo xtask hostile`: the network camera on a hostile network.

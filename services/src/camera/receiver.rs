@@ -82,16 +82,21 @@ pub struct ReceiverConfig {
 }
 
 impl ReceiverConfig {
-    /// The defaults, NACKs sent as `ssrc`: three NACKs 15 ms apart and 50 ms
-    /// of waiting, well inside the sender's repair hold of at least
-    /// [`crate::camera::sender::MIN_REPAIR_HOLD`], and a few frame times at 60 fps.
+    /// The defaults, NACKs sent as `ssrc`: four NACKs 25 ms apart and 300
+    /// ms of waiting, within the sender's repair hold (its window keeps the
+    /// frame before the one it sends, and at least
+    /// [`crate::camera::sender::MIN_REPAIR_HOLD`] once it stops). 300 ms,
+    /// not a frame time: a board rendering in software, or serving four
+    /// viewers, sends a frame's rows in runs with pauses between (the
+    /// emulated board's frames take half a second), and a frame closed at
+    /// a pause asks for rows that are still on their way.
     pub const fn new(ssrc: u32) -> ReceiverConfig {
         ReceiverConfig {
             ssrc,
             payload_type: PAYLOAD_TYPE,
-            nack_interval: Duration::from_millis(15),
-            max_nacks: 3,
-            repair_wait: Duration::from_millis(50),
+            nack_interval: Duration::from_millis(25),
+            max_nacks: 4,
+            repair_wait: Duration::from_millis(300),
         }
     }
 }
@@ -683,8 +688,20 @@ mod tests {
     }
 
     impl Rx {
+        /// A receiver with short timings: 3 NACKs 15 ms apart, 50 ms of
+        /// waiting (what these tests' times are written for).
         fn new() -> Rx {
-            let r = Receiver::new(ReceiverConfig::new(OURS), [vec![0; FRAME_BYTES], vec![0; FRAME_BYTES]]).unwrap();
+            let config = ReceiverConfig {
+                nack_interval: Duration::from_millis(15),
+                max_nacks: 3,
+                repair_wait: Duration::from_millis(50),
+                ..ReceiverConfig::new(OURS)
+            };
+            Rx::with(config)
+        }
+
+        fn with(config: ReceiverConfig) -> Rx {
+            let r = Receiver::new(config, [vec![0; FRAME_BYTES], vec![0; FRAME_BYTES]]).unwrap();
             Rx { r, got: vec![], check_rows: true }
         }
 
@@ -936,6 +953,20 @@ mod tests {
         assert_eq!(asked(&rx.nack(50).unwrap(), 359), [359]);
         rx.feed(51, &f0[359]);
         assert_eq!(rx.got, [Got { quality: Quality::Repaired, ..exact(0) }]);
+    }
+
+    #[test]
+    fn by_default_a_frame_sent_in_slow_runs_is_not_asked_for_before_its_rows_come() {
+        // A board rendering in software (or sending to four viewers) sends
+        // a frame in runs with pauses of a hundred milliseconds and more.
+        let (mut s, mut rx) = (Sender::new(0), Rx::with(ReceiverConfig::new(OURS)));
+        let f0 = s.frame();
+        for (k, run) in f0.chunks(32).enumerate() {
+            rx.feed_all(200 * k as u64, run);
+            rx.poll(200 * k as u64 + 199);
+            assert_eq!(rx.nack(200 * k as u64 + 199), None, "run {k}: nothing asked for yet");
+        }
+        assert_eq!(rx.got, [exact(0)]);
     }
 
     #[test]

@@ -23,7 +23,8 @@
 //! is due (`fps=N`: every 1/N s; `fps=max`: as soon as every output has
 //! the one before), with the light of its media time
 //! ([`StreamSpec::light_at`]). Rows go to every output as they land, in
-//! runs; an output that cannot take rows for [`OUTPUT_STALL`] is cut from
+//! runs; an output that cannot take rows for [`OUTPUT_STALL`]
+//! ([`TCP_OUTPUT_STALL`] inside an RTSP connection) is cut from
 //! the frame and joins the next, so a slow client never holds the others
 //! back for long. When every output has the frame it is ended, and its
 //! packets stay in the stream's repair window until the frame after next
@@ -118,10 +119,15 @@ pub const MIN_ROUND_TRIP: Duration = Duration::from_millis(5);
 /// sending again.
 pub const MAX_ROUND_TRIP: Duration = Duration::from_secs(1);
 
-/// An output that takes no row for this long is cut from the frame it is
-/// on and joins the next (a UDP path whose transmitter stays full, a TCP
-/// client that stopped reading).
+/// A UDP or multicast output that takes no row for this long is cut from
+/// the frame it is on and joins the next (a transmitter that stays full).
 pub const OUTPUT_STALL: Duration = Duration::from_millis(500);
+
+/// The same for an output inside an RTSP connection: longer than TCP's
+/// retransmission timeout (smoltcp's is a second at least), so that one
+/// lost segment does not cost its viewer a frame; a client that stopped
+/// reading is cut after it.
+pub const TCP_OUTPUT_STALL: Duration = Duration::from_secs(3);
 
 /// A UDP client that has sent RTCP and then sends none (nor an RTSP
 /// request) for this long is gone: four times the 5 s report interval
@@ -356,6 +362,16 @@ struct Output {
     last_rtcp: Option<Instant>,
     unreachable: u8,
     stats: OutputStats,
+}
+
+impl Output {
+    /// How long it may take no rows before it is cut from its frame.
+    fn stall_limit(&self) -> Duration {
+        match self.dest {
+            Dest::Interleaved { .. } => TCP_OUTPUT_STALL,
+            _ => OUTPUT_STALL,
+        }
+    }
 }
 
 /// A session: which output it goes through, and whether it plays.
@@ -1044,7 +1060,7 @@ impl<const N: usize> Camera<N> {
                 }
                 Cursor::Sending { .. } if failed => o.cursor = Cursor::Waiting { from: next_frame },
                 Cursor::Sending { .. }
-                    if o.stalled_since.is_some_and(|t| now.saturating_duration_since(t) >= OUTPUT_STALL) =>
+                    if o.stalled_since.is_some_and(|t| now.saturating_duration_since(t) >= o.stall_limit()) =>
                 {
                     o.cursor = Cursor::Waiting { from: next_frame };
                     o.stats.cut += 1;

@@ -108,7 +108,9 @@ impl Player {
                     .arg("rtspsrc")
                     .arg(format!("location={url}"))
                     .arg(format!("protocols={protocols}"))
-                    .args(["latency=300", "!", "rtpvrawdepay", "!", "identity"])
+                    // A second of jitter buffer: time for its NACKs (AVPF) to be
+                    // answered by a board that renders on its CPU.
+                    .args(["latency=1000", "!", "rtpvrawdepay", "!", "identity"])
                     .arg(format!("eos-after={}", frames + 1))
                     .args(["!", "fdsink", "fd=1", "sync=false"]);
                 c
@@ -123,7 +125,10 @@ impl Player {
                 if kind == Kind::FfmpegUdp {
                     c.args(["-buffer_size", "4194304"]);
                 }
-                c.args(["-i", url, "-frames:v", &frames.to_string(), "-f", "rawvideo", "pipe:1"]);
+                // Each frame as it came: without passthrough FFmpeg repeats
+                // frames to a constant rate (fps=max announces none).
+                c.args(["-i", url, "-fps_mode", "passthrough", "-frames:v", &frames.to_string()]);
+                c.args(["-f", "rawvideo", "pipe:1"]);
                 c
             }
             Kind::RtClient => {
