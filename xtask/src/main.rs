@@ -65,6 +65,9 @@ enum Command {
     /// The emulated board behind a lossy link, the kernel's TCP as the
     /// peer: clean, 2% and 10% loss; times, faults, retransmissions.
     LossyBench(emulated::lossy::BenchArgs),
+    /// The suite's lossy-link checks on their own: frames through 2% loss
+    /// over TCP, RTP with NACK repair at 2% and 10% loss.
+    LossyTest,
     /// A long run of the emulated board: 1,000 frames in one boot, every
     /// one checked, nothing leaked.
     Soak(emulated::soak::SoakArgs),
@@ -115,6 +118,7 @@ fn main() -> ExitCode {
         Command::Receive(args) => host::viewers::receive(&args),
         Command::HostileClient(args) => emulated::hostile::client(&args),
         Command::Hostile => suite::hostile(),
+        Command::LossyTest => support::tools::ensure_qemu().and_then(|()| emulated::lossy::suite_test()),
         Command::BenchFw(args) => emulated::bench_fw::run(&args),
         Command::Sdcard(args) => images::sdcard::run(&args),
         Command::SdcardTest => images::sdcard::suite_test(),
