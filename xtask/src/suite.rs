@@ -53,10 +53,16 @@ pub fn run() -> Result<()> {
     }
     // Plain `cargo test`: every default member, i.e. every host crate.
     step("host tests", cargo(&["test"]))?;
-    // Real players as clients of hps-sim's RTSP server: GStreamer, from
-    // Debian's packages (docs/streaming.md).
-    ensure_apt_packages(&crate::host::players::GSTREAMER_PACKAGES, None)?;
+    // Real players as clients of hps-sim's RTSP server: GStreamer and
+    // FFmpeg from Debian's packages (docs/streaming.md); then many viewers
+    // of hps-sim at once (shared and separate streams, multicast in a
+    // namespace of its own).
+    ensure_apt_packages(&crate::support::player::PLAYER_PACKAGES, None)?;
     crate::host::players::run()?;
+    println!("==> many viewers of hps-sim");
+    crate::host::viewers::run()?;
+    // The network camera's hostile-input harnesses, a million cases each.
+    crate::host::fuzz::camera(1_000_000, 1_000_000)?;
     // The workspace run enables the model's `std` feature (fast float paths);
     // this runs the arithmetic properties against the pure-integer paths the
     // firmware uses.
@@ -92,19 +98,28 @@ pub fn run() -> Result<()> {
     Ok(())
 }
 
-/// `cargo xtask viewers`: many viewers of the emulated board at once.
+/// `cargo xtask viewers`: many viewers of hps-sim and of the emulated
+/// board at once, and players through a relay.
 pub fn viewers() -> Result<()> {
     ensure_qemu()?;
     ensure_apt_packages(&crate::support::player::PLAYER_PACKAGES, None)?;
-    step("build rt-client and hps-sim (release)", cargo(&["build", "--release", "-p", "rt-client", "-p", "hps-sim"]))?;
+    step("build hps-sim (release)", cargo(&["build", "--release", "-p", "hps-sim"]))?;
     println!("==> many viewers of hps-sim");
     crate::host::viewers::run()?;
     let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
-    println!("==> many viewers of the emulated board ({})", elf.display());
-    crate::emulated::viewers::run(&elf)?;
+    many_viewers(&elf)
+}
+
+/// Many viewers of the emulated board running `elf`, then players through
+/// a relay from one of its sessions.
+fn many_viewers(elf: &std::path::Path) -> Result<()> {
+    ensure_apt_packages(&crate::support::player::PLAYER_PACKAGES, None)?;
     ensure_apt_packages(&crate::emulated::viewers::RELAY_PACKAGES, None)?;
+    step("build rt-client (release)", cargo(&["build", "--release", "-p", "rt-client"]))?;
+    println!("==> many viewers of the emulated board ({})", elf.display());
+    crate::emulated::viewers::run(elf)?;
     println!("==> players through a relay (tools/rtsp-relay.py) from one session of the emulated board");
-    crate::emulated::viewers::relay(&elf)
+    crate::emulated::viewers::relay(elf)
 }
 
 /// `cargo xtask hostile`: the network camera on a hostile network.
@@ -155,6 +170,11 @@ pub fn qemu_tests() -> Result<()> {
     // forwarded RTSP port (the rows leave through two-buffer descriptors).
     let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
     players_on_the_emulated_board(&elf)?;
+    // Many viewers of the emulated board, players through a relay, and the
+    // camera on a hostile network.
+    many_viewers(&elf)?;
+    println!("==> the network camera on a hostile network ({})", elf.display());
+    crate::emulated::hostile::run(&elf)?;
     for (features, renderer, uart, display) in [
         (&["row-mode"][..], "row mode, software renderer", skipped, false),
         (&["sim-accelerator"][..], "frame mode, FPGA frame DMA into the ring (software fallback)", pass.clone(), true),

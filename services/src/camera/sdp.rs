@@ -35,7 +35,7 @@ impl Profile {
 }
 
 /// A stream's multicast destination.
-#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+#[derive(Clone, Copy, PartialEq, Eq, Hash, Debug)]
 pub struct Group {
     /// The group address.
     pub addr: Ipv4Addr,

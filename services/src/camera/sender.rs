@@ -147,7 +147,7 @@ pub const MIN_REPAIR_HOLD: Duration = Duration::from_secs(1);
 pub const CNAME: &[u8] = b"raytracer@board";
 
 /// Where an output's packets go.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Dest {
     /// UDP to the client that set the session up.
     Udp {
