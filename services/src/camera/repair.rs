@@ -22,7 +22,7 @@ pub const MAX_SLOTS: usize = 32;
 /// its row still is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Repair {
-    /// The packet's header fields, for [`Packetiser::emit`].
+    /// The packet's header fields, for [`Packetiser::emit`](super::rtp::Packetiser::emit).
     pub packet: RowPacket,
     /// The frame slot holding its row.
     pub slot: usize,
@@ -81,7 +81,7 @@ const SPANS: usize = 8;
 
 /// Retransmission bookkeeping (RFC 4585 section 3.1's "repair"): for each
 /// of the last `N` packets sent, its header fields and the frame slot and
-/// row its bytes are in, so a NACKed packet ([`NackRequests`]) is sent
+/// row its bytes are in, so a NACKed packet ([`NackRequests`](super::rtcp::NackRequests)) is sent
 /// again exactly as it was (same SSRC, payload type, sequence number and
 /// timestamp: RFC 4585 leaves the repair to the sender, and a plain resend
 /// is what a jitter buffer without RFC 4588 takes), its row read from the
@@ -335,8 +335,8 @@ impl<const N: usize> RepairWindow<N> {
     }
 
     /// The packet numbered `seq` (an extended sequence number, as
-    /// [`NackRequests`] yields them), if still in the window: resend it
-    /// with [`Packetiser::emit`] and its row from the slot.
+    /// [`NackRequests`](super::rtcp::NackRequests) yields them), if still in the window: resend it
+    /// with [`Packetiser::emit`](super::rtp::Packetiser::emit) and its row from the slot.
     pub fn lookup(&self, seq: u32) -> Option<Repair> {
         match self.entries[seq as usize % N] {
             Some(e) if e.packet.seq == seq => Some(Repair { packet: e.packet, slot: usize::from(e.slot) }),

@@ -34,15 +34,15 @@
 //!
 //! * [`Packetiser`]: one RTP session's sender state: SSRC, payload type,
 //!   the extended sequence counter, frame timestamps, and the packet and
-//!   octet counts for [`SenderReport`]s. It writes the 20 RTP + RFC 4175
+//!   octet counts for [`SenderReport`](super::rtcp::SenderReport)s. It writes the 20 RTP + RFC 4175
 //!   header bytes of a row ([`Packetiser::write_header`]).
 //! * `HeaderTemplate` (feature `smoltcp`): the 62-byte Ethernet + IPv4 +
 //!   UDP + RTP + RFC 4175 header of a row.
-//! * RTCP (RFC 3550 section 6): [`SenderReport`], an SDES CNAME
-//!   ([`write_sdes_cname`]), when to send them ([`ReportTimer`]), and the
+//! * RTCP (RFC 3550 section 6): [`SenderReport`](super::rtcp::SenderReport), an SDES CNAME
+//!   ([`write_sdes_cname`](super::rtcp::write_sdes_cname)), when to send them ([`ReportTimer`](super::rtcp::ReportTimer)), and the
 //!   receiver's generic NACKs (RFC 4585 section 6.2.1) read out of any
-//!   compound packet by [`NackRequests`].
-//! * [`RepairWindow`]: which frame slot and row each recent packet came
+//!   compound packet by [`NackRequests`](super::rtcp::NackRequests).
+//! * [`RepairWindow`](super::repair::RepairWindow): which frame slot and row each recent packet came
 //!   from, so a NACKed packet can be sent again unchanged (same SSRC, PT,
 //!   sequence number and timestamp) from the frame ring, and which ring
 //!   slots must therefore stay out of reuse.
@@ -71,7 +71,7 @@ pub const PAYLOAD_HEADER_BYTES: usize = 8;
 pub const HEADER_BYTES: usize = RTP_HEADER_BYTES + PAYLOAD_HEADER_BYTES;
 
 /// Bytes of RTP payload per packet: the RFC 4175 payload header and the row
-/// (what a [`SenderReport`]'s octet count adds up, RFC 3550 section 6.4.1).
+/// (what a [`SenderReport`](super::rtcp::SenderReport)'s octet count adds up, RFC 3550 section 6.4.1).
 pub const PAYLOAD_BYTES: usize = PAYLOAD_HEADER_BYTES + ROW_BYTES;
 
 /// Bytes of a whole RTP packet (the UDP payload): 20 + 1,440 = 1,460.
@@ -183,7 +183,7 @@ impl From<BufferTooShort> for PacketError {
 
 /// The sender side of one RTP session (RFC 3550 section 5.1 and 6.4.1):
 /// one SSRC, one payload type, the extended sequence counter, the frame
-/// timestamps, and the counts a [`SenderReport`] carries.
+/// timestamps, and the counts a [`SenderReport`](super::rtcp::SenderReport) carries.
 ///
 /// RFC 3550 asks for random initial values of the sequence number and of
 /// the timestamp (section 5.1) and a random SSRC (section 8.1); the crate
@@ -240,7 +240,7 @@ impl Packetiser {
     }
 
     /// The extended sequence number of the newest packet numbered so far
-    /// (what a NACK's 16-bit PID is resolved against, [`NackRequests`]), or
+    /// (what a NACK's 16-bit PID is resolved against, [`NackRequests`](super::rtcp::NackRequests)), or
     /// `None` before the first.
     pub const fn highest_seq(&self) -> Option<u32> {
         if self.sent_any {
@@ -524,7 +524,7 @@ impl HeaderTemplate {
     }
 
     /// The padded header of `packet` (new, or one resent from a
-    /// [`RepairWindow`]) of `session`'s stream, as transmit-buffer words,
+    /// [`RepairWindow`](super::repair::RepairWindow)) of `session`'s stream, as transmit-buffer words,
     /// valid until the next call. Every call takes the next IPv4
     /// identification (a resent packet is a new IP datagram) and fills in
     /// the IPv4 header checksum, which the MAC may insert again. The RTP

@@ -1,6 +1,6 @@
 //! The network camera's RTP sender: what the RTSP server's sessions set
 //! going ([`Camera`], through [`Bound`] as the server's
-//! [`Streams`](crate::camera::rtsp::Streams)).
+//! [`Streams`]).
 //!
 //! # Render once, send to many
 //!

@@ -132,9 +132,9 @@ impl StreamSpec {
     }
 
     /// The stream's light `t` into the stream (media time: the RTP
-    /// timestamp's advance since `PLAY` over [`RTP_CLOCK_HZ`], pauses left
+    /// timestamp's advance since `PLAY` over [`RTP_CLOCK_HZ`](super::sdp::RTP_CLOCK_HZ), pauses left
     /// out); `live` is the light `SET_PARAMETER` set last (or
-    /// [`Config::live_light`]), used by [`Stream::Live`].
+    /// [`Config::live_light`](super::sender::Config::live_light)), used by [`Stream::Live`].
     pub fn light_at(&self, t: Duration, live: Light) -> Light {
         match self.stream {
             Stream::Light(l) => l,
