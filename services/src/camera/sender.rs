@@ -402,6 +402,9 @@ pub struct Camera<const N: usize = MAX_SESSIONS> {
     byes: heapless::Deque<(Dest, u32), N>,
     /// Where RTCP packets are built.
     rtcp: [u8; RTCP_BYTES],
+    /// Frames begun over all streams (wrapping), for callers that give
+    /// the rest of their loop a turn between frames.
+    frames_begun: u32,
 }
 
 impl<const N: usize> Default for Camera<N> {
@@ -426,6 +429,7 @@ impl<const N: usize> Camera<N> {
             ended: heapless::Deque::new(),
             byes: heapless::Deque::new(),
             rtcp: [0; RTCP_BYTES],
+            frames_begun: 0,
         }
     }
 
@@ -953,6 +957,7 @@ impl<const N: usize> Camera<N> {
                     let stamp = media.packetiser.begin_frame(ticks);
                     let first_seq = media.packetiser.next_seq();
                     media.current = Some(Frame { slot, stamp, first_seq, landed: 0 });
+                    self.frames_begun = self.frames_begun.wrapping_add(1);
                     if let Some(iv) = interval {
                         // Keep the rate; after a stall, start afresh.
                         media.due =
@@ -1107,6 +1112,11 @@ impl<const N: usize> Camera<N> {
             [reports, silence]
         });
         frames.chain(outputs.flatten()).min()
+    }
+
+    /// Frames begun over all streams since the camera was made (wrapping).
+    pub fn frames_begun(&self) -> u32 {
+        self.frames_begun
     }
 
     /// Whether any stream is sending a frame, or has repairs or goodbyes
