@@ -402,9 +402,9 @@ pub struct Camera<const N: usize = MAX_SESSIONS> {
     byes: heapless::Deque<(Dest, u32), N>,
     /// Where RTCP packets are built.
     rtcp: [u8; RTCP_BYTES],
-    /// Frames begun over all streams (wrapping), for callers that give
-    /// the rest of their loop a turn between frames.
-    frames_begun: u32,
+    /// Frames begun or ended over all streams (wrapping), for callers
+    /// that give the rest of their loop a turn between frames.
+    frame_edges: u32,
 }
 
 impl<const N: usize> Default for Camera<N> {
@@ -429,7 +429,7 @@ impl<const N: usize> Camera<N> {
             ended: heapless::Deque::new(),
             byes: heapless::Deque::new(),
             rtcp: [0; RTCP_BYTES],
-            frames_begun: 0,
+            frame_edges: 0,
         }
     }
 
@@ -702,6 +702,7 @@ impl<const N: usize> Camera<N> {
             self.windows[media].restart_hold(f.first_seq, now);
             m.previous_first = Some(f.first_seq);
             m.stats.failed += 1;
+            self.frame_edges = self.frame_edges.wrapping_add(1);
         }
         m.media_at_resume = m.media_ticks(now) + 1;
         m.running = false;
@@ -957,7 +958,7 @@ impl<const N: usize> Camera<N> {
                     let stamp = media.packetiser.begin_frame(ticks);
                     let first_seq = media.packetiser.next_seq();
                     media.current = Some(Frame { slot, stamp, first_seq, landed: 0 });
-                    self.frames_begun = self.frames_begun.wrapping_add(1);
+                    self.frame_edges = self.frame_edges.wrapping_add(1);
                     if let Some(iv) = interval {
                         // Keep the rate; after a stall, start afresh.
                         media.due =
@@ -1086,6 +1087,7 @@ impl<const N: usize> Camera<N> {
             }
             media.previous_first = Some(frame.first_seq);
             media.current = None;
+            self.frame_edges = self.frame_edges.wrapping_add(1);
             progress = true;
         } else {
             media.current = Some(frame);
@@ -1114,9 +1116,11 @@ impl<const N: usize> Camera<N> {
         frames.chain(outputs.flatten()).min()
     }
 
-    /// Frames begun over all streams since the camera was made (wrapping).
-    pub fn frames_begun(&self) -> u32 {
-        self.frames_begun
+    /// Frames begun plus frames ended (sent or abandoned) over all
+    /// streams since the camera was made (wrapping): a caller that stops
+    /// polling when it changes handles one frame edge a turn.
+    pub fn frame_edges(&self) -> u32 {
+        self.frame_edges
     }
 
     /// Whether any stream is sending a frame, or has repairs or goodbyes

@@ -456,15 +456,16 @@ impl<'c> CameraService<'c> {
             }
         }
         // Rounds until nothing moves, a frame was received (NACKs arrive
-        // only through the next `Interface::poll`) or a stream began a
-        // frame: the rest of the main loop (the seed port, the display)
-        // gets a turn at least once a frame, even where the transmitter
-        // never fills (QEMU's MAC sends as soon as it is handed a frame).
-        let begun = self.camera.frames_begun();
+        // only through the next `Interface::poll`) or a stream began or
+        // ended a frame: the rest of the main loop (the seed port, the
+        // display) gets a turn at every frame edge, even where the
+        // transmitter never fills (QEMU's MAC sends as soon as it is
+        // handed a frame).
+        let edges = self.camera.frame_edges();
         for _ in 0..MAX_POLLS {
             if !self.camera.poll(now_ms, wall, source, &mut sink)
                 || sink.tx.receive_waiting()
-                || self.camera.frames_begun() != begun
+                || self.camera.frame_edges() != edges
             {
                 break;
             }
