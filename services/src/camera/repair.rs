@@ -59,10 +59,28 @@ impl core::fmt::Display for RecordError {
     }
 }
 
+/// Consecutive packets recorded together: sequence numbers, rows and
+/// one slot and timestamp (a frame's rows, while nothing breaks the run).
 #[derive(Clone, Copy, Debug)]
-struct Entry {
-    packet: RowPacket,
+struct Run {
+    /// The sequence number of its first packet.
+    first: u32,
+    /// Packets in it (never 0 while it is in the window).
+    count: u32,
+    /// The row of its first packet.
+    row: u16,
+    timestamp: u32,
     slot: u8,
+}
+
+impl Run {
+    /// Whether `packet` from `slot` continues this run.
+    fn continued_by(&self, slot: u8, packet: &RowPacket) -> bool {
+        self.slot == slot
+            && self.timestamp == packet.timestamp
+            && packet.seq == self.first.wrapping_add(self.count)
+            && u32::from(packet.row) == u32::from(self.row) + self.count
+    }
 }
 
 /// Packets from `first` on (up to the next span's `first`) whose hold
@@ -79,6 +97,12 @@ struct Span {
 /// later one's time: their packets are then held longer, never shorter.
 const SPANS: usize = 8;
 
+/// Runs a [`RepairWindow`] keeps: a frame's rows are one run (a stream's
+/// numbers run on across frames, but each frame has its own timestamp),
+/// so a window of two frames holds two or three. Should they run out, the
+/// oldest run leaves early (its packets can no longer be repaired).
+const RUNS: usize = 32;
+
 /// Retransmission bookkeeping (RFC 4585 section 3.1's "repair"): for each
 /// of the last `N` packets sent, its header fields and the frame slot and
 /// row its bytes are in, so a NACKed packet ([`NackRequests`](super::rtcp::NackRequests)) is sent
@@ -89,24 +113,24 @@ const SPANS: usize = 8;
 ///
 /// A slot is *held* while any of its packets is in the window: the caller
 /// keeps it out of reuse meanwhile ([`FrameRing::pin`]). Packets leave the
-/// window when `N` newer ones were recorded, or when they are older than
+/// window when `N` newer ones were recorded, when a new frame begins
+/// ([`forget_before`](Self::forget_before)), or when they are older than
 /// the hold time ([`expire`](Self::expire)), so an idle stream lets its
-/// slots go. `N` must be a power of two (sequence numbers index a ring);
-/// [`REPAIR_ENTRIES`] covers two frames and slack. The times are kept per
-/// run of packets (a span), not per packet: recording a packet and
-/// restarting a frame's hold touch no other entry.
+/// slots go. Packets are kept as runs (consecutive numbers and rows of
+/// one slot and timestamp) and hold times per span of packets, not per
+/// packet: recording a run, dropping a frame and restarting a frame's
+/// hold each cost a few steps, not one a packet (the board sends a frame
+/// in a dozen runs of up to 32 rows).
 ///
 /// [`FrameRing::pin`]: crate::frames::FrameRing::pin
 #[derive(Clone, Debug)]
 pub struct RepairWindow<const N: usize> {
-    /// Entry of sequence number `s` at `s % N`: present exactly for the
-    /// packets recorded in `oldest..next`.
-    entries: [Option<Entry>; N],
+    /// The packets in `oldest..next` that were recorded, oldest first (a
+    /// number skipped by the sender is in none).
+    runs: heapless::Deque<Run, RUNS>,
     oldest: u32,
     next: u32,
     started: bool,
-    /// Entries per slot.
-    refs: [u32; MAX_SLOTS],
     held: u32,
     hold: Duration,
     /// The hold times, oldest first; the first covers `oldest` (its
@@ -118,13 +142,12 @@ impl<const N: usize> RepairWindow<N> {
     /// An empty window keeping packets for `hold` at most (at least two
     /// frame times; it also keeps no more than `N`).
     pub const fn new(hold: Duration) -> RepairWindow<N> {
-        const { assert!(N.is_power_of_two() && N <= 1 << 16, "N indexes a ring by sequence number") };
+        const { assert!(N.is_power_of_two() && N <= 1 << 16, "N bounds a window of sequence numbers") };
         RepairWindow {
-            entries: [None; N],
+            runs: heapless::Deque::new(),
             oldest: 0,
             next: 0,
             started: false,
-            refs: [0; MAX_SLOTS],
             held: 0,
             hold,
             spans: heapless::Deque::new(),
@@ -132,11 +155,10 @@ impl<const N: usize> RepairWindow<N> {
     }
 
     /// Empty the window (a new stream) and keep packets for `hold` from now
-    /// on; in place, as the window is large.
+    /// on.
     pub fn clear(&mut self, hold: Duration) {
-        self.entries.fill(None);
+        self.runs.clear();
         (self.oldest, self.next, self.started) = (0, 0, false);
-        self.refs = [0; MAX_SLOTS];
         self.held = 0;
         self.hold = hold;
         self.spans.clear();
@@ -154,7 +176,7 @@ impl<const N: usize> RepairWindow<N> {
 
     /// Packets in the window.
     pub fn len(&self) -> usize {
-        self.refs.iter().map(|&r| r as usize).sum()
+        self.runs.iter().map(|r| r.count as usize).sum()
     }
 
     /// Whether the window holds no packet.
@@ -166,41 +188,12 @@ impl<const N: usize> RepairWindow<N> {
     /// sequence number must be newer than every one recorded before (at
     /// most 2^31 ahead); the oldest packets leave the window to make room.
     pub fn record(&mut self, now: Instant, slot: usize, packet: RowPacket) -> Result<SlotChanges, RecordError> {
-        let slot8 =
-            u8::try_from(slot).ok().filter(|&s| usize::from(s) < MAX_SLOTS).ok_or(RecordError::BadSlot(slot))?;
-        let s = packet.seq;
-        if !self.started {
-            (self.oldest, self.next, self.started) = (s, s, true);
-        } else if s.wrapping_sub(self.next) >= 1 << 31 {
-            return Err(RecordError::NotNewer(s));
-        }
-        let before = self.held;
-        let n = N as u32;
-        if s.wrapping_sub(self.oldest) >= n {
-            // Keep s - N + 1 ..= s: drop what is older.
-            let keep_from = s.wrapping_sub(n - 1);
-            let drop = self.next.wrapping_sub(self.oldest).min(keep_from.wrapping_sub(self.oldest));
-            for i in 0..drop {
-                self.remove(self.oldest.wrapping_add(i));
-            }
-            self.oldest = keep_from;
-        }
-        if !Self::before(self.oldest, self.next) {
-            // Nothing older is left (the first packet, or a jump past the
-            // window): no span covers anything.
-            self.spans.clear();
-        }
-        self.entries[s as usize % N] = Some(Entry { packet, slot: slot8 });
-        self.refs[usize::from(slot8)] += 1;
-        self.held |= 1 << slot8;
-        self.next = s.wrapping_add(1);
-        self.hold_from(s, now);
-        Ok(SlotChanges { held: self.held & !before, released: before & !self.held })
+        self.record_run(now, slot, packet, 1)
     }
 
-    /// Record a run of `n` packets sent at `now` from `slot`: `first` and
-    /// the `n - 1` after it ([`RowPacket::nth`]). The same as
-    /// [`record`](Self::record) for each, checked once.
+    /// Record `n` packets sent at `now`: `first` and the consecutive rows
+    /// after it ([`RowPacket::nth`]), all from `slot`: the same as
+    /// recording each with [`record`](Self::record), in a few steps.
     pub fn record_run(
         &mut self,
         now: Instant,
@@ -208,52 +201,70 @@ impl<const N: usize> RepairWindow<N> {
         first: RowPacket,
         n: u16,
     ) -> Result<SlotChanges, RecordError> {
+        let slot8 =
+            u8::try_from(slot).ok().filter(|&s| usize::from(s) < MAX_SLOTS).ok_or(RecordError::BadSlot(slot))?;
         if n == 0 {
             return Ok(SlotChanges::default());
         }
+        let s = first.seq;
+        if !self.started {
+            (self.oldest, self.next, self.started) = (s, s, true);
+        } else if s.wrapping_sub(self.next) >= 1 << 31 {
+            return Err(RecordError::NotNewer(s));
+        }
         let before = self.held;
-        self.record(now, slot, first)?;
-        // `slot` passed the check; each later number is newer than the
-        // one before: the checks in `record` hold for the rest, and the
-        // span `record` opened at `first` covers them.
-        let slot8 = slot as u8;
-        // Counted first: a run longer than the window pushes out its own.
-        self.refs[usize::from(slot8)] += u32::from(n - 1);
-        let mut oldest = self.oldest;
-        for k in 1..n {
-            let s = first.seq.wrapping_add(u32::from(k));
-            let entry = &mut self.entries[s as usize % N];
-            if s.wrapping_sub(oldest) >= N as u32 {
-                // The window is full (it always is past the first N): the
-                // oldest leaves, as `record` would; numbers run on, so
-                // its entry is the one this packet takes.
-                if let Some(old) = entry {
-                    let old = usize::from(old.slot);
-                    self.refs[old] -= 1;
-                    if self.refs[old] == 0 {
-                        self.held &= !(1 << old);
+        let n32 = u32::from(n);
+        match self.runs.back_mut() {
+            Some(r) if r.continued_by(slot8, &first) => r.count += n32,
+            _ => {
+                if self.runs.is_full() {
+                    // Never expected (module docs): the oldest run leaves.
+                    if let Some(r) = self.runs.pop_front() {
+                        self.oldest = r.first.wrapping_add(r.count);
                     }
                 }
-                oldest = oldest.wrapping_add(1);
+                let run = Run { first: s, count: n32, row: first.row, timestamp: first.timestamp, slot: slot8 };
+                let _ = self.runs.push_back(run);
             }
-            *entry = Some(Entry { packet: first.nth(k), slot: slot8 });
         }
-        self.oldest = oldest;
-        self.next = first.seq.wrapping_add(u32::from(n));
-        self.held |= 1 << slot8;
-        self.drop_passed_spans();
+        if !Self::before(self.oldest, self.next) {
+            // Nothing older is left (the first packet, or a jump past the
+            // window): no span covers anything.
+            self.spans.clear();
+        }
+        let last = s.wrapping_add(n32 - 1);
+        self.next = last.wrapping_add(1);
+        if self.next.wrapping_sub(self.oldest) > N as u32 {
+            // Keep the newest N: last - N + 1 ..= last.
+            self.oldest = last.wrapping_sub(N as u32 - 1);
+        }
+        // The run's packets count their hold from `now`, as recorded one
+        // by one (the span of the first stands for all of them).
+        let from = if self.next.wrapping_sub(s) > self.next.wrapping_sub(self.oldest) { self.oldest } else { s };
+        self.hold_from(from, now);
+        self.trim();
         Ok(SlotChanges { held: self.held & !before, released: before & !self.held })
     }
 
-    /// Drop the packet numbered `seq`, if present.
-    fn remove(&mut self, seq: u32) {
-        if let Some(e) = self.entries[seq as usize % N].take() {
-            let slot = usize::from(e.slot);
-            self.refs[slot] -= 1;
-            if self.refs[slot] == 0 {
-                self.held &= !(1 << slot);
+    /// Drop the runs' packets before `oldest`, forget the spans that
+    /// covered only those, and work out the slots still held.
+    fn trim(&mut self) {
+        while let Some(r) = self.runs.front_mut() {
+            let end = r.first.wrapping_add(r.count);
+            if !Self::before(self.oldest, end) {
+                self.runs.pop_front();
+            } else {
+                if Self::before(r.first, self.oldest) {
+                    let gone = self.oldest.wrapping_sub(r.first);
+                    r.first = self.oldest;
+                    r.row = r.row.wrapping_add(gone as u16);
+                    r.count -= gone;
+                }
+                break;
             }
         }
+        self.drop_passed_spans();
+        self.held = self.runs.iter().fold(0, |m, r| m | 1 << r.slot);
     }
 
     /// Whether `a` comes before `b` (sequence numbers a window apart at
@@ -304,19 +315,17 @@ impl<const N: usize> RepairWindow<N> {
     /// Drop the packets numbered before `seq` (a new frame begins: the
     /// window keeps the frame before it and no older one, so a stream
     /// never holds more than two slots); returns the slots released.
-    /// Bounded: at most `N` entries.
     pub fn forget_before(&mut self, seq: u32) -> SlotChanges {
         let before = self.held;
-        while self.oldest != self.next && Self::before(self.oldest, seq) {
-            self.remove(self.oldest);
-            self.oldest = self.oldest.wrapping_add(1);
+        if self.oldest != self.next && Self::before(self.oldest, seq) {
+            self.oldest = if Self::before(seq, self.next) { seq } else { self.next };
+            self.trim();
         }
-        self.drop_passed_spans();
         SlotChanges { held: 0, released: before & !self.held }
     }
 
     /// Drop the packets recorded longer than the hold time before `now`;
-    /// returns the slots released (bounded: at most `N` entries).
+    /// returns the slots released.
     pub fn expire(&mut self, now: Instant) -> SlotChanges {
         let before = self.held;
         self.drop_passed_spans();
@@ -324,13 +333,10 @@ impl<const N: usize> RepairWindow<N> {
             if now.saturating_duration_since(span.at) < self.hold {
                 break;
             }
-            let end = self.spans.get(1).map_or(self.next, |b| b.first);
-            while self.oldest != end {
-                self.remove(self.oldest);
-                self.oldest = self.oldest.wrapping_add(1);
-            }
+            self.oldest = self.spans.get(1).map_or(self.next, |b| b.first);
             self.spans.pop_front();
         }
+        self.trim();
         SlotChanges { held: 0, released: before & !self.held }
     }
 
@@ -338,10 +344,16 @@ impl<const N: usize> RepairWindow<N> {
     /// [`NackRequests`](super::rtcp::NackRequests) yields them), if still in the window: resend it
     /// with [`Packetiser::emit`](super::rtp::Packetiser::emit) and its row from the slot.
     pub fn lookup(&self, seq: u32) -> Option<Repair> {
-        match self.entries[seq as usize % N] {
-            Some(e) if e.packet.seq == seq => Some(Repair { packet: e.packet, slot: usize::from(e.slot) }),
-            _ => None,
+        if Self::before(seq, self.oldest) || !Self::before(seq, self.next) {
+            return None;
         }
+        self.runs.iter().find_map(|r| {
+            let k = seq.wrapping_sub(r.first);
+            (k < r.count).then(|| Repair {
+                packet: RowPacket { seq, timestamp: r.timestamp, row: r.row.wrapping_add(k as u16) },
+                slot: usize::from(r.slot),
+            })
+        })
     }
 }
 

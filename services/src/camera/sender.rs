@@ -285,6 +285,10 @@ struct Frame {
     first_seq: u32,
     /// Rows landed (and numbered) so far.
     landed: u16,
+    /// Rows recorded in the repair window so far: landed rows are
+    /// recorded in one run just before any of them is sent, not a look
+    /// at a time (a look often lands a single row).
+    recorded: u16,
 }
 
 impl Frame {
@@ -957,7 +961,7 @@ impl<const N: usize> Camera<N> {
                     }
                     let stamp = media.packetiser.begin_frame(ticks);
                     let first_seq = media.packetiser.next_seq();
-                    media.current = Some(Frame { slot, stamp, first_seq, landed: 0 });
+                    media.current = Some(Frame { slot, stamp, first_seq, landed: 0, recorded: 0 });
                     self.frame_edges = self.frame_edges.wrapping_add(1);
                     if let Some(iv) = interval {
                         // Keep the rate; after a stall, start afresh.
@@ -992,6 +996,20 @@ impl<const N: usize> Camera<N> {
         // waits for a later one that is not on its way.
         let mut failed = false;
         let mut seen = frame.landed;
+        // The furthest-behind output's next row; it changes only when rows
+        // go, so it is worked out again only then.
+        let behind_of = |outputs: &[Option<Output>; N]| {
+            outputs
+                .iter()
+                .flatten()
+                .filter(|o| o.media == mi)
+                .filter_map(|o| match o.cursor {
+                    Cursor::Sending { next } => Some(next),
+                    _ => None,
+                })
+                .min()
+        };
+        let mut behind = behind_of(&self.outputs);
         loop {
             let ready = match source.rows_ready(frame.slot) {
                 Ok(r) => r.min(ROWS),
@@ -1002,25 +1020,20 @@ impl<const N: usize> Camera<N> {
             };
             let landing = ready > seen;
             seen = ready;
+            // Rows still landing, not yet a run's worth for the output
+            // furthest behind: look again at once (the common case, kept
+            // to a compare or two: a frame takes a few hundred looks).
+            if landing && ready < ROWS && behind.is_some_and(|b| ready < b + MIN_RUN) {
+                continue;
+            }
             if ready > frame.landed {
-                let n = ready - frame.landed;
-                media.packetiser.advance(n);
-                let _ = window.record_run(now, frame.slot, frame.packet(frame.landed), n);
+                media.packetiser.advance(ready - frame.landed);
                 frame.landed = ready;
             }
-            let behind = self
-                .outputs
-                .iter()
-                .flatten()
-                .filter(|o| o.media == mi)
-                .filter_map(|o| match o.cursor {
-                    Cursor::Sending { next } => Some(next),
-                    _ => None,
-                })
-                .min();
             let mut refused = false;
-            if let Some(behind) = behind.filter(|&b| ready > b) {
-                if ready - behind >= MIN_RUN || ready == ROWS || !landing {
+            if let Some(b) = behind.filter(|&b| ready > b) {
+                if ready - b >= MIN_RUN || ready == ROWS || !landing {
+                    record_landed(window, &mut frame, now);
                     for o in self.outputs.iter_mut().flatten().filter(|o| o.media == mi) {
                         let Cursor::Sending { next } = o.cursor else { continue };
                         if next >= ready {
@@ -1043,6 +1056,7 @@ impl<const N: usize> Camera<N> {
                             o.stalled_since.get_or_insert(now);
                         }
                     }
+                    behind = behind_of(&self.outputs);
                     if sink.should_yield() {
                         break;
                     }
@@ -1056,6 +1070,7 @@ impl<const N: usize> Camera<N> {
                 break;
             }
         }
+        record_landed(window, &mut frame, now);
         // Outputs done with the frame, or stalled too long, wait for the next.
         let next_frame = frame.first_seq.wrapping_add(u32::from(ROWS));
         for o in self.outputs.iter_mut().flatten().filter(|o| o.media == mi) {
@@ -1129,6 +1144,15 @@ impl<const N: usize> Camera<N> {
         !self.byes.is_empty()
             || self.media.iter().flatten().any(|m| m.current.is_some())
             || self.outputs.iter().flatten().any(|o| !o.repairs.is_empty())
+    }
+}
+
+/// Record `frame`'s rows landed since the last call in `window`, in one
+/// run.
+fn record_landed(window: &mut FrameRepairWindow, frame: &mut Frame, now: Instant) {
+    if frame.landed > frame.recorded {
+        let _ = window.record_run(now, frame.slot, frame.packet(frame.recorded), frame.landed - frame.recorded);
+        frame.recorded = frame.landed;
     }
 }
 

@@ -74,6 +74,10 @@ pub const TCP_TIMEOUT: NetDuration = NetDuration::from_secs(30);
 /// something.
 pub const MAX_POLLS: usize = 2 * crate::frames::ROWS as usize;
 
+/// Largest RTCP datagram read (an Ethernet MTU's worth; longer ones are
+/// cut, and a cut compound packet fails its length checks).
+pub const RTCP_DATAGRAM_BYTES: usize = 1500;
+
 /// Peers remembered by [`Snooped`].
 pub const PEERS: usize = 8;
 
@@ -321,6 +325,10 @@ pub struct CameraService<'c> {
     rng: SessionRng,
     next_conn: u32,
     response: [u8; MAX_RESPONSE_BYTES],
+    /// Where a received RTCP datagram is read (a field, not a local: a
+    /// zeroed local would cost the main loop 1,500 bytes of stores every
+    /// pass).
+    datagram: [u8; RTCP_DATAGRAM_BYTES],
     /// What it has done.
     pub stats: ServiceStats,
 }
@@ -363,6 +371,7 @@ impl<'c> CameraService<'c> {
             rng: SessionRng::new(entropy),
             next_conn: 0,
             response: [0; MAX_RESPONSE_BYTES],
+            datagram: [0; RTCP_DATAGRAM_BYTES],
             stats: ServiceStats::default(),
         })
     }
@@ -441,16 +450,15 @@ impl<'c> CameraService<'c> {
             rtsp: &self.sockets,
             stats: &mut self.stats,
         };
-        let mut datagram = [0u8; 1500];
         loop {
             let socket = sink.sockets.get_mut::<udp::Socket>(sink.rtcp);
-            let Ok((n, meta)) = socket.recv_slice(&mut datagram) else { break };
+            let Ok((n, meta)) = socket.recv_slice(&mut self.datagram) else { break };
             let IpAddr::V4(from) = IpAddr::from(meta.endpoint.addr) else { continue };
             let from = IpAddr::V4(from);
             let port = meta.endpoint.port;
             if self.server.rtcp_received(now_ms, from, port).is_some() {
                 let from = core::net::SocketAddr::new(from, port);
-                self.camera.rtcp_received(from, &datagram[..n], now_ms, wall, source, &mut sink);
+                self.camera.rtcp_received(from, &self.datagram[..n], now_ms, wall, source, &mut sink);
             } else {
                 sink.stats.stray_rtcp = sink.stats.stray_rtcp.wrapping_add(1);
             }

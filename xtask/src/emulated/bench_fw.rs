@@ -183,56 +183,198 @@ fn measure(features: &[&str], frames: usize) -> Result<Measured> {
     Ok(Measured { counts: Counts::mean(counted), frames: counted.len() })
 }
 
+/// How the RTP bench's viewers watch one stream.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Viewers {
+    /// `n` unicast UDP viewers of the stream (one of them checks frames).
+    Unicast(usize),
+    /// `n` receivers of the stream's multicast group, in a network
+    /// namespace of the bench's own.
+    Multicast(usize),
+    /// One viewer with RTP inside its RTSP connection (smoltcp TCP).
+    Interleaved,
+}
+
+impl Viewers {
+    fn name(self) -> String {
+        match self {
+            Viewers::Unicast(1) => "RTP (frame mode, rows zero-copy through two-buffer descriptors)".into(),
+            Viewers::Unicast(n) => format!("RTP, {n} unicast viewers of one stream (one frame rendered, {n} copies)"),
+            Viewers::Multicast(n) => format!("RTP, {n} multicast sessions of one stream (one copy to the group)"),
+            Viewers::Interleaved => "RTP inside the RTSP connection (interleaved, smoltcp TCP)".into(),
+        }
+    }
+
+    /// Row packets one rendered frame makes.
+    fn copies(self) -> usize {
+        match self {
+            Viewers::Unicast(n) => n,
+            _ => 1,
+        }
+    }
+}
+
 /// The frame-mode bench build over RTSP/RTP: a fixed-light stream at
-/// `fps=max`, `frames` frames checked against the model; the counts of all
-/// but the first and the last frame the firmware rendered meanwhile.
-fn measure_rtp(frames: usize) -> Result<Measured> {
+/// `fps=max` watched as `viewers` say, `frames` frames checked against the
+/// model (where a viewer here receives); the counts of all but the first
+/// and the last frame the firmware rendered meanwhile, per frame rendered.
+fn measure_rtp(frames: usize, viewers: Viewers) -> Result<Measured> {
+    use crate::support::rtsp_client::{Stream, Transport};
+    if let Viewers::Multicast(n) = viewers {
+        return measure_multicast(frames, n);
+    }
     let elf = build("qemu-npcm750", &["bench", "sim-accelerator"])?;
     let mut g = Guest::boot(&elf, &["-icount", "shift=0"])?;
     let f = g.forwards.ok_or("the guest has no forwarded RTSP port")?;
     let rtcp = std::net::SocketAddr::from(([127, 0, 0, 1], f.rtcp));
     let rtsp = std::net::SocketAddr::from(([127, 0, 0, 1], f.rtsp));
-    let mut stream = crate::support::rtsp_client::Stream::open(rtsp, "/light/3,4,-2?fps=max", Some(rtcp))?;
+    let path = "/light/3,4,-2?fps=max";
     let want = super::qemu_e2e::expected_frame([3072, 4096, -2048])?;
+    let mut sessions = Vec::new();
+    let from = g.uart().len();
+    match viewers {
+        Viewers::Interleaved => sessions.push(Stream::open_with(rtsp, path, Some(rtcp), Transport::Tcp)?),
+        _ => {
+            for _ in 0..viewers.copies() {
+                sessions.push(Stream::open(rtsp, path, Some(rtcp))?);
+            }
+        }
+    }
+    let s = &mut sessions[0];
     for i in 0..frames {
-        let frame = stream.next_frame(Duration::from_secs(600))?;
+        let frame = s.next_frame(Duration::from_secs(600))?;
         if frame.bytes != want {
             return Err(format!("RTP: frame {i} differs from model::render_frame"));
         }
     }
-    let repaired = stream.repaired_rows;
-    stream.teardown()?;
+    let repaired = s.repaired_rows;
+    for s in sessions {
+        s.teardown()?;
+    }
     if repaired > 0 {
         println!("bench-fw: RTP: {repaired} rows came by repair (the counts include the resends)");
     }
-    g.wait_for_log("session", Duration::from_secs(5))?;
+    counted(&mut g, from, frames, viewers)
+}
+
+/// Multicast: slirp would hand the group's packets to the host's own
+/// network, so the board's MAC goes through the relay into a network
+/// namespace of the bench's own (as the hostile-network test does), where
+/// `n` receivers (`cargo xtask receive`) join the group and check their
+/// `frames` frames.
+fn measure_multicast(frames: usize, n: usize) -> Result<Measured> {
+    use super::lossy::{self, ip, open_tap, Faults, Namespace, Relay};
+    use crate::images::firmware::free_udp_port;
+    lossy::available().map_err(|why| format!("the multicast bench needs network namespaces: {why}"))?;
+    let elf = build("qemu-npcm750", &["bench", "sim-accelerator"])?;
+    let tap = format!("rtb{}", std::process::id() % 100_000);
+    let tap_file = open_tap(&tap)?;
+    let ns = Namespace::new(&tap, &tap)?;
+    ip(&["-n", &ns.0, "route", "add", "224.0.0.0/4", "dev", &tap])?;
+    let (qemu_port, relay_port) = (free_udp_port()?, free_udp_port()?);
+    let udp = std::net::UdpSocket::bind(("127.0.0.1", relay_port)).map_err(|e| e.to_string())?;
+    let remote = std::net::SocketAddr::from(([127, 0, 0, 1], qemu_port));
+    let _relay = Relay::start(udp, remote, tap_file, Faults::default(), 1)?;
+    let netdev = format!(
+        "dgram,id=n0,local.type=inet,local.host=127.0.0.1,local.port={qemu_port},\
+         remote.type=inet,remote.host=127.0.0.1,remote.port={relay_port}"
+    );
+    let mut g = Guest::boot_netdev(&elf, &netdev, &["-icount", "shift=0"])?;
+    g.wait_for_log("link up", Duration::from_secs(120))?;
+    let from = g.uart().len();
+    let xtask = std::env::current_exe().map_err(|e| e.to_string())?;
+    let frames_arg = frames.to_string();
+    let receivers: Vec<std::process::Child> = (0..n)
+        .map(|_| {
+            std::process::Command::new("ip")
+                .args(["netns", "exec", &ns.0])
+                .arg(&xtask)
+                .args(["receive", "--rtsp", "10.0.2.15:8554", "--path", "/light/3,4,-2?fps=max&multicast"])
+                .args(["--frames", &frames_arg, "--light", "3,4,-2", "--multicast", "10.0.2.2"])
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .map_err(|e| e.to_string())
+        })
+        .collect::<Result<_>>()?;
+    for (i, c) in receivers.into_iter().enumerate() {
+        let o = c.wait_with_output().map_err(|e| e.to_string())?;
+        if !o.status.success() {
+            let said = String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
+            return Err(format!("multicast receiver {i}: {said}"));
+        }
+    }
+    counted(&mut g, from, frames, Viewers::Multicast(n))
+}
+
+/// The counts lines the guest printed since UART offset `from`, once its
+/// sessions ended: all but the first and the last frame's, per frame
+/// rendered.
+fn counted(g: &mut Guest, from: usize, frames: usize, viewers: Viewers) -> Result<Measured> {
+    g.wait_for_line(from, "session", Duration::from_secs(5))?;
     let uart = g.uart();
-    let lines: Vec<Counts> =
-        uart.lines().filter_map(|l| l.trim().strip_prefix("bench: counts")).filter_map(Counts::parse).collect();
+    let lines: Vec<Counts> = uart
+        .get(from..)
+        .unwrap_or("")
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("bench: counts"))
+        .filter_map(Counts::parse)
+        .collect();
     // Frames rendered before the stream (the display's attract mode) send
     // nothing: count from the stream's frames on.
-    let sent: Vec<Counts> = lines.into_iter().skip_while(|c| c.tx_frames < model::HEIGHT as u64 / 2).collect();
+    let copies = viewers.copies() as u64;
+    let sent: Vec<Counts> = lines.into_iter().skip_while(|c| c.tx_frames < copies * model::HEIGHT as u64 / 2).collect();
     if sent.len() < frames - 1 {
         return Err(format!("RTP: expected {} counts lines of whole frames, got {}:\n{uart}", frames - 1, sent.len()));
     }
     let counted = &sent[1..frames - 1];
-    // The lines come once per frame rendered; with a fixed light at
-    // fps=max they held 384 rows each, not 360 (16 frames sent per 15
-    // "frame rendered" lines): scale the means to one frame sent.
+    // The lines come once per frame rendered; rows of a frame may fall in
+    // the next line (384 rows in one, 336 in the next): scale the means to
+    // one frame's copies.
     let mut mean = Counts::mean(counted);
-    let rows = mean.mac_tx_zero_copy / model::ROW_BYTES as f64;
-    if rows > 0.0 {
-        let per_frame = model::HEIGHT as f64 / rows;
+    let rows = match viewers {
+        Viewers::Interleaved => mean.tx_frames, // segments, not rows: no scaling
+        _ => mean.mac_tx_zero_copy / model::ROW_BYTES as f64,
+    };
+    if rows > 0.0 && viewers != Viewers::Interleaved {
+        let per_frame = (copies as f64 * model::HEIGHT as f64) / rows;
         for f in mean.fields_mut() {
             *f *= per_frame;
         }
-        println!("bench-fw: RTP: {rows:.0} rows per counts line, scaled to {} per frame sent", model::HEIGHT);
+        println!(
+            "bench-fw: {}: {rows:.0} rows per counts line, scaled to {} per frame rendered",
+            viewers.name(),
+            copies as usize * model::HEIGHT
+        );
     }
     let camera: Vec<&str> = uart.lines().filter(|l| l.contains("bench: camera")).collect();
     if let Some(l) = camera.get(camera.len() / 2) {
         println!("{}", l.trim());
     }
     Ok(Measured { counts: mean, frames: counted.len() })
+}
+
+/// The RTP cases beyond one viewer: four unicast viewers of one stream,
+/// multicast, interleaved. Prints each case's figures and estimate; per
+/// stream, the instructions a viewer costs.
+fn rtp_cases(frames: usize) -> Result<()> {
+    for viewers in [Viewers::Unicast(4), Viewers::Multicast(3), Viewers::Interleaved] {
+        let m = measure_rtp(frames, viewers)?;
+        print_mode(&viewers.name(), &m);
+        let p = print_estimate(&viewers.name(), &m, cost_model::FPGA_FRAME_CYCLES.value);
+        let n = match viewers {
+            Viewers::Unicast(n) | Viewers::Multicast(n) => n,
+            Viewers::Interleaved => 1,
+        };
+        let per_viewer = if matches!(viewers, Viewers::Unicast(_)) { m.streaming() / n as f64 } else { m.streaming() };
+        println!(
+            "bench-fw: {}: {:.0} instructions per frame rendered, {per_viewer:.0} per viewer's frame; {p:.0} frames/s rendered, {:.0} frames/s summed over {n} viewers",
+            viewers.name(),
+            m.streaming(),
+            p * n as f64
+        );
+    }
+    Ok(())
 }
 
 fn print_mode(name: &str, m: &Measured) {
@@ -284,16 +426,16 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     crate::support::tools::ensure_qemu()?;
     let frames = args.frames.max(4);
     if args.rtp_only {
-        let rtp = measure_rtp(frames)?;
-        print_mode("RTP (frame mode, rows zero-copy through two-buffer descriptors)", &rtp);
+        let rtp = measure_rtp(frames, Viewers::Unicast(1))?;
+        print_mode(&Viewers::Unicast(1).name(), &rtp);
         let p = print_estimate("RTP", &rtp, cost_model::FPGA_FRAME_CYCLES.value);
         println!("goals, RTP: <= 100,000 instructions/frame: {:.0}; >= 220 frames/s: {p:.0}", rtp.streaming());
-        return Ok(());
+        return rtp_cases(frames);
     }
     let frame_mode = measure(&["sim-accelerator"], frames)?;
     let row_mode = measure(&["sim-accelerator", "row-mode"], frames)?;
     let software = measure(&[], frames)?;
-    let rtp = measure_rtp(frames)?;
+    let rtp = measure_rtp(frames, Viewers::Unicast(1))?;
     println!("bench-fw: QEMU npcm750-evb, -icount shift=0, {frames} pipelined frames per mode on the persistent port");
     print_mode("frame mode (simulated frame DMA into the ring)", &frame_mode);
     print_mode("row mode (simulated accelerator, a row per start)", &row_mode);
@@ -325,7 +467,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         verdict(rtp.streaming() <= 100_000.0),
         verdict(p >= 220.0)
     );
-    Ok(())
+    rtp_cases(frames)
 }
 
 fn verdict(ok: bool) -> &'static str {

@@ -238,6 +238,9 @@ impl Stream {
         req += "\r\n";
         req += body;
         self.ctrl.write_all(req.as_bytes()).map_err(|e| format!("{method}: {e}"))?;
+        if self.transport == Transport::Tcp {
+            self.skip_interleaved().map_err(|e| format!("{method}: {e}"))?;
+        }
         let mut status = String::new();
         self.reader.read_line(&mut status).map_err(|e| format!("{method}: {e}"))?;
         let mut h = Headers::new();
@@ -255,6 +258,10 @@ impl Stream {
         let len: usize = h.get("content-length").and_then(|v| v.parse().ok()).unwrap_or(0);
         let mut body = vec![0; len];
         self.reader.read_exact(&mut body).map_err(|e| format!("{method} body: {e}"))?;
+        if self.transport == Transport::Tcp {
+            // Back to the short waits `next_frame` polls with.
+            self.reader.get_ref().set_read_timeout(Some(Duration::from_millis(50))).map_err(|e| e.to_string())?;
+        }
         if !status.starts_with("RTSP/1.0 200") {
             return Err(format!("{method} {url}: {}", status.trim_end()));
         }
@@ -335,6 +342,34 @@ impl Stream {
         match head[1] {
             0 => self.take(&buf[..len]),
             _ => Ok(None),
+        }
+    }
+
+    /// Skip the interleaved packets (`$`) in front of a response, which
+    /// keep coming on the connection until the server has the request.
+    fn skip_interleaved(&mut self) -> std::io::Result<()> {
+        use std::io::ErrorKind;
+        let deadline = Instant::now() + Duration::from_secs(10);
+        loop {
+            let first = match self.reader.fill_buf() {
+                Ok([]) => return Ok(()),
+                Ok(b) => b[0],
+                Err(e)
+                    if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) && Instant::now() < deadline =>
+                {
+                    continue
+                }
+                Err(e) => return Err(e),
+            };
+            if first != b'$' {
+                // The response: read it with a patient timeout.
+                return self.reader.get_ref().set_read_timeout(Some(Duration::from_secs(10)));
+            }
+            let mut head = [0u8; 4];
+            self.reader.get_ref().set_read_timeout(Some(Duration::from_secs(5)))?;
+            self.reader.read_exact(&mut head)?;
+            let mut rest = vec![0u8; usize::from(u16::from_be_bytes([head[2], head[3]]))];
+            self.reader.read_exact(&mut rest)?;
         }
     }
 
