@@ -6,9 +6,9 @@ use core::time::Duration;
 use super::rtp::RowPacket;
 use crate::time::Instant;
 
-/// Entries of a [`FrameRepairWindow`]: two frames of 360 rows and slack, up
-/// to the next power of two (which keeps the ring of entries continuous
-/// where the 32-bit sequence number wraps).
+/// Packets a [`FrameRepairWindow`] keeps at most: two frames of 360 rows
+/// and slack, a power of two like the resend log's entries, which it
+/// indexes by sequence number.
 pub const REPAIR_ENTRIES: usize = 1_024;
 
 /// A [`RepairWindow`] holding the packets of at least the last two frames.

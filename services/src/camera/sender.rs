@@ -419,8 +419,8 @@ impl<const N: usize> Default for Camera<N> {
 
 impl<const N: usize> Camera<N> {
     /// No streams, not configured. `const`, so a board can keep it in a
-    /// `static` (its repair windows and resend logs are some 30 KiB a
-    /// session).
+    /// `static` (some 60 KiB for four sessions, most of it the resend
+    /// logs: 12 KiB a session).
     pub const fn new() -> Camera<N> {
         const { assert!(N <= 32, "streams' slots live in 32-bit masks") };
         Camera {
