@@ -14,6 +14,9 @@
 //! `cargo test -p rt-services --test fuzz_rtcp` runs proptest's default 256
 //! cases; `cargo xtask fuzz` runs a million (release build).
 
+mod common;
+
+use common::Slots;
 use std::collections::HashMap;
 
 use std::net::{IpAddr, Ipv4Addr, SocketAddr};
@@ -26,46 +29,13 @@ use rt_services::camera::rtsp::{
     Client, ConnId, EndReason, Fps, Fresh, Profile, SessionId, Stream as Kind, StreamSpec, Streams, Transport,
 };
 use rt_services::camera::sender::{
-    self, Bound, Camera, Dest, Multicast, RtpSink, SlotSource, CAMERA_SLOTS, MIN_ROUND_TRIP, REPAIR_BURST,
-    REPAIR_SHARE, SLOTS_PER_STREAM,
+    self, Bound, Camera, Dest, Multicast, RtpSink, CAMERA_SLOTS, MIN_ROUND_TRIP, REPAIR_BURST, REPAIR_SHARE,
+    SLOTS_PER_STREAM,
 };
-use rt_services::frames::ROWS;
 use rt_services::{FrameSource, Instant};
 
 const CLIENTS: [IpAddr; 2] = [IpAddr::V4(Ipv4Addr::new(10, 0, 0, 1)), IpAddr::V4(Ipv4Addr::new(10, 0, 0, 2))];
 const STRANGER: IpAddr = IpAddr::V4(Ipv4Addr::new(10, 0, 0, 66));
-
-/// Frames that take a slot each and land at once.
-#[derive(Default)]
-struct Slots {
-    begun: u32,
-    held: u32,
-}
-
-impl FrameSource for Slots {
-    type Frame = usize;
-    type Error = &'static str;
-    fn begin(&mut self, _: &Light) -> Result<Option<usize>, &'static str> {
-        let Some(slot) = (0..32).find(|&s| (self.begun | self.held) & (1 << s) == 0) else { return Ok(None) };
-        self.begun |= 1 << slot;
-        Ok(Some(slot))
-    }
-    fn rows_ready(&mut self, frame: usize) -> Result<u16, &'static str> {
-        Ok(if self.begun & (1 << frame) != 0 { ROWS } else { 0 })
-    }
-    fn copy_row(&mut self, _: usize, _: u16, _: usize, out: &mut [u8]) -> usize {
-        out.len()
-    }
-    fn end(&mut self, frame: usize) {
-        self.begun &= !(1 << frame);
-    }
-}
-
-impl SlotSource for Slots {
-    fn set_held(&mut self, mask: u32) {
-        self.held = mask;
-    }
-}
 
 /// Packets remembered per output (more than a repair window's worth).
 const KEPT: usize = 4096;

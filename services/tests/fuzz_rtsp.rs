@@ -19,6 +19,9 @@
 //! cases (the suite's short run); `cargo xtask fuzz` runs a million
 //! (release build).
 
+mod common;
+
+use common::Slots;
 use std::collections::HashSet;
 use std::net::{IpAddr, Ipv4Addr};
 
@@ -30,8 +33,7 @@ use rt_services::camera::rtsp::{
     State, Status, StreamSpec, Streams, Transport, MAX_REQUEST_BYTES, MAX_RESPONSE_BYTES, MAX_SESSIONS,
     REQUEST_DEADLINE, SERVER_RTP_PORT, SESSION_TIMEOUT,
 };
-use rt_services::camera::sender::{self, Bound, Camera, Dest, Multicast, RtpSink, SlotSource, CAMERA_SLOTS};
-use rt_services::frames::ROWS;
+use rt_services::camera::sender::{self, Bound, Camera, Dest, Multicast, RtpSink, CAMERA_SLOTS};
 use rt_services::{FrameSource, Instant};
 
 const PEERS: [IpAddr; 3] = [
@@ -342,46 +344,6 @@ fn check_response(bytes: &[u8], status: Status) -> Result<Option<String>, TestCa
     }
     prop_assert_eq!(body.len(), length, "body of {:?}", text);
     Ok(cseq)
-}
-
-/// Frames that take a slot each and land at once, counting what is held;
-/// no memory behind them (the lifecycle is what is fuzzed, not pixels).
-#[derive(Default)]
-struct Slots {
-    begun: u32,
-    held: u32,
-    high: u32,
-}
-
-impl FrameSource for Slots {
-    type Frame = usize;
-    type Error = &'static str;
-    fn begin(&mut self, _: &Light) -> Result<Option<usize>, &'static str> {
-        let Some(slot) = (0..32).find(|&s| (self.begun | self.held) & (1 << s) == 0) else { return Ok(None) };
-        self.begun |= 1 << slot;
-        self.high = self.high.max((self.begun | self.held).count_ones());
-        Ok(Some(slot))
-    }
-    fn rows_ready(&mut self, frame: usize) -> Result<u16, &'static str> {
-        Ok(if self.begun & (1 << frame) != 0 { ROWS } else { 0 })
-    }
-    fn copy_row(&mut self, frame: usize, _: u16, _: usize, out: &mut [u8]) -> usize {
-        if self.begun & (1 << frame) != 0 {
-            out.len()
-        } else {
-            0
-        }
-    }
-    fn end(&mut self, frame: usize) {
-        self.begun &= !(1 << frame);
-    }
-}
-
-impl SlotSource for Slots {
-    fn set_held(&mut self, mask: u32) {
-        self.held = mask;
-        self.high = self.high.max((self.begun | self.held).count_ones());
-    }
 }
 
 /// A sink that takes every packet and counts them.
