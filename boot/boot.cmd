@@ -17,8 +17,11 @@ else
 fi
 load ${devtype} ${devnum}:${distro_bootpart} 0x00100040 firmware.bin
 # The firmware's entry cleans and turns off the caches itself; hand over
-# with them clean and off anyway.
+# with them clean and off anyway. `go` only branches: the I-cache may still
+# hold lines of what was at the load address before (an earlier firmware
+# after a reload), so invalidate it once the new image is in memory.
 dcache flush
 dcache off
+icache flush
 echo raytracer: starting the firmware at 0x00100040
 go 0x00100040

@@ -9,9 +9,12 @@
 //! the device wrote, inner before outer when the CPU did):
 //!
 //! * before the CPU reads what a device wrote ([`invalidate_for_cpu`]):
-//!   invalidate L2 by address, cache sync, invalidate L1 by address, `dsb`.
-//!   Invalidating L1 first would let a speculative line fill between the two
-//!   steps bring the stale L2 copy back into L1.
+//!   invalidate L2 by address, cache sync, `dsb`, invalidate L1 by address,
+//!   `dsb`. Invalidating L1 first would let a speculative line fill between
+//!   the two steps bring the stale L2 copy back into L1; the `dsb` after the
+//!   sync makes the L2 operations complete before the first L1 invalidate
+//!   (a CP15 operation is not ordered after an earlier store to the L2C's
+//!   registers without one: ARM DDI 0406C, B2.2.9).
 //! * after the CPU wrote what a device reads, or overwrites ([`clean_for_device`]):
 //!   clean L1 by address, `dsb`, clean L2 by address, cache sync. A dirty
 //!   line left behind could be evicted over the device's later writes.
@@ -90,6 +93,7 @@ pub unsafe fn invalidate_for_cpu(ops: &impl CacheOps, lines: &Lines) {
         ops.l2_invalidate(a);
     }
     ops.l2_sync();
+    ops.dsb();
     for a in lines.addrs() {
         ops.l1_invalidate(a);
     }
@@ -167,7 +171,7 @@ mod tests {
         // SAFETY: a recording fake; no cache is touched.
         unsafe { invalidate_for_cpu(&r, &Lines::exact(0x40, 64).expect("whole lines")) };
         use Op::*;
-        assert_eq!(*r.0.borrow(), [L2Inv(0x40), L2Inv(0x60), Sync, L1Inv(0x40), L1Inv(0x60), Dsb]);
+        assert_eq!(*r.0.borrow(), [L2Inv(0x40), L2Inv(0x60), Sync, Dsb, L1Inv(0x40), L1Inv(0x60), Dsb]);
     }
 
     #[test]

@@ -488,8 +488,19 @@ pub fn check_boot_script(script: &str) -> Result<()> {
         return Err(format!("boot script writes the SDRAM controller itself: {l:?}"));
     }
     match (at("fpga load"), at("bridge enable")) {
-        (Some(load), Some(enable)) if load < enable => Ok(()),
-        (load, enable) => Err(format!("boot script: fpga load at {load:?}, bridge enable at {enable:?}")),
+        (Some(load), Some(enable)) if load < enable => {}
+        (load, enable) => return Err(format!("boot script: fpga load at {load:?}, bridge enable at {enable:?}")),
+    }
+    // The I-cache invalidated between the firmware's load and `go`, which
+    // only branches (U-Boot cmd/cache.c: `icache flush` runs
+    // invalidate_icache_all).
+    let firmware = lines.iter().position(|l| l.starts_with("load") && l.contains("firmware.bin"));
+    let flush = lines.iter().rposition(|l| *l == "icache flush");
+    match (firmware, flush, at("go ")) {
+        (Some(load), Some(flush), Some(go)) if load < flush && flush < go => Ok(()),
+        (load, flush, go) => {
+            Err(format!("boot script: firmware load at {load:?}, icache flush at {flush:?}, go at {go:?}"))
+        }
     }
 }
 
@@ -503,10 +514,16 @@ pub fn check_bridge_applycfg(misc_gen5_c: &str) -> Result<()> {
     if apply > release {
         return Err("bridge enable releases the ports before it applies staticcfg".into());
     }
-    if !misc_gen5_c.contains(".balign 32") {
+    let Some(line) = misc_gen5_c.find(".balign 32") else {
         return Err("the applycfg routine is not aligned to an I-cache line".into());
+    };
+    // Buffered writes drained before the line: a dsb, then the L2C-310's
+    // cache sync.
+    let before = &misc_gen5_c[..line];
+    match (before.rfind("asm volatile(\"dsb\""), before.rfind("pl310->pl310_cache_sync")) {
+        (Some(dsb), Some(sync)) if dsb < sync => Ok(()),
+        _ => Err("the applycfg routine does not drain the write buffers (dsb, then L2 cache sync) first".into()),
     }
-    Ok(())
 }
 
 /// The handoff value the patched source carries.
@@ -675,16 +692,35 @@ mod tests {
         );
         assert!(check_boot_script(&script.replace("bridge enable", "echo no bridges")).is_err());
         assert!(check_boot_script("bridge enable\nfpga load 0 0 0\n").is_err(), "order");
-        assert_eq!(check_boot_script("# mw 0xffc2505c 0xa\nfpga load 0 0 0\nbridge enable\n"), Ok(()), "comments");
+        let tail = "load mmc 0:1 0x00100040 firmware.bin\nicache flush\ngo 0x00100040\n";
+        assert_eq!(
+            check_boot_script(&format!("# mw 0xffc2505c 0xa\nfpga load 0 0 0\nbridge enable\n{tail}")),
+            Ok(()),
+            "comments"
+        );
+    }
+
+    #[test]
+    fn the_boot_script_invalidates_the_icache_between_the_firmware_load_and_go() {
+        let script = std::fs::read_to_string(root().join("boot/boot.cmd")).expect("boot.cmd");
+        assert_eq!(check_boot_script(&script), Ok(()));
+        assert!(check_boot_script(&script.replace("icache flush\n", "")).is_err(), "no flush");
+        let early = script.replace("icache flush\n", "").replace("bridge enable\n", "bridge enable\n\ticache flush\n");
+        assert!(check_boot_script(&early).is_err(), "flushed before the load");
+        assert!(check_boot_script(&script.replace("icache flush", "# icache flush")).is_err(), "commented out");
     }
 
     #[test]
     fn bridge_enable_applies_staticcfg_before_the_port_release() {
         let good = "void do_bridge_reset(int enable, unsigned int mask)\n{\n\tif (enable) {\n\t\tsocfpga_sdram_apply_static_cfg();\n\
                     \t\twritel(iswgrp_handoff[3], &sdr_ctrl->fpgaport_rst);\n\t} else {\n\t\twritel(0, &sdr_ctrl->fpgaport_rst);\n\t}\n}\n";
-        let routine = "asm volatile(\".balign 32\\n\"";
+        let routine = "asm volatile(\"dsb\" : : : \"memory\");\nwritel(0, &pl310->pl310_cache_sync);\nasm volatile(\".balign 32\\n\"";
         assert_eq!(check_bridge_applycfg(&format!("{routine}\n{good}")), Ok(()));
         assert!(check_bridge_applycfg(good).is_err(), "not aligned");
+        let undrained = "asm volatile(\".balign 32\\n\"";
+        assert!(check_bridge_applycfg(&format!("{undrained}\n{good}")).is_err(), "no dsb and sync first");
+        let unsynced = "asm volatile(\"dsb\" : : : \"memory\");\nasm volatile(\".balign 32\\n\"";
+        assert!(check_bridge_applycfg(&format!("{unsynced}\n{good}")).is_err(), "no L2 sync");
         let late = good.replace(
             "\t\tsocfpga_sdram_apply_static_cfg();\n\t\twritel(iswgrp_handoff[3], &sdr_ctrl->fpgaport_rst);",
             "\t\twritel(iswgrp_handoff[3], &sdr_ctrl->fpgaport_rst);\n\t\tsocfpga_sdram_apply_static_cfg();",
