@@ -249,6 +249,26 @@ pub fn ksz9021_ext_write(mdio: &mut impl Mdio, phy: u8, reg: u16, value: u16) ->
     mdio.write(phy, KSZ_EXT_WRITE, value)
 }
 
+/// KSZ9021 extended register read data (reg 0x0d).
+pub const KSZ_EXT_READ: u8 = 0x0d;
+
+/// Read KSZ9021 extended register `reg` (write `reg` without the write
+/// bit to 0x0b, then read 0x0d; KSZ9021RN data sheet, "Extended Register"
+/// access; U-Boot's `ksz9021_phy_extended_read` does the same).
+pub fn ksz9021_ext_read(mdio: &mut impl Mdio, phy: u8, reg: u16) -> Result<u16, MdioTimeout> {
+    mdio.write(phy, KSZ_EXT_CTRL, reg)?;
+    mdio.read(phy, KSZ_EXT_READ)
+}
+
+/// The KSZ9021's three RGMII pad skew registers as they are: 0x104
+/// (clock and control), 0x105 (RX data), 0x106 (TX data), for the boot
+/// log. The board writes 0x104 and 0x105 ([`PhyConfig::ksz9021_skews`]);
+/// 0x106 keeps its reset value, as U-Boot and Linux leave it for a device
+/// tree without `txd*-skew-ps` (the DE1-SoC's: docs/platform.md).
+pub fn ksz9021_skews(mdio: &mut impl Mdio, phy: u8) -> Result<[u16; 3], MdioTimeout> {
+    Ok([ksz9021_ext_read(mdio, phy, 0x104)?, ksz9021_ext_read(mdio, phy, 0x105)?, ksz9021_ext_read(mdio, phy, 0x106)?])
+}
+
 /// The link, if it is up and negotiated.
 pub fn link_status(mdio: &mut impl Mdio, phy: PhyId) -> Result<Option<Link>, MdioTimeout> {
     let a = phy.addr;
@@ -447,6 +467,46 @@ mod tests {
         assert_eq!(&w[1..5], &[(1, 0x0b, 0x8104), (1, 0x0c, 0xe3f0), (1, 0x0b, 0x8105), (1, 0x0c, 0x3333)]);
         assert!(w.contains(&(1, CTRL1000, CTRL1000_FULL | CTRL1000_HALF | CTRL1000_MS_MANUAL | CTRL1000_MASTER)));
         assert_eq!(*w.last().unwrap(), (1, BMCR, BMCR_ANENABLE | BMCR_ANRESTART));
+    }
+
+    #[test]
+    fn ksz9021_skews_are_read_back_through_the_extended_register_window() {
+        /// A bus whose extended registers answer through 0x0b / 0x0d.
+        struct Ext {
+            bus: FakeBus,
+            selected: u16,
+        }
+        impl Mdio for Ext {
+            fn read(&mut self, phy: u8, reg: u8) -> Result<u16, MdioTimeout> {
+                if reg == KSZ_EXT_READ {
+                    return Ok(match self.selected {
+                        0x104 => 0xe3f0,
+                        0x105 => 0x3333,
+                        0x106 => 0x0000,
+                        _ => 0xdead,
+                    });
+                }
+                self.bus.read(phy, reg)
+            }
+            fn write(&mut self, phy: u8, reg: u8, value: u16) -> Result<(), MdioTimeout> {
+                if reg == KSZ_EXT_CTRL {
+                    self.selected = value;
+                }
+                self.bus.write(phy, reg, value)
+            }
+        }
+        impl DelayNs for Ext {
+            fn delay_ns(&mut self, ns: u32) {
+                self.bus.delay_ns(ns)
+            }
+        }
+        let mut ext = Ext { bus: FakeBus::with_phy(1, 0x0022, 0x1611), selected: 0 };
+        assert_eq!(ksz9021_skews(&mut ext, 1), Ok([0xe3f0, 0x3333, 0x0000]));
+        assert_eq!(
+            ext.bus.writes,
+            [(1, KSZ_EXT_CTRL, 0x104), (1, KSZ_EXT_CTRL, 0x105), (1, KSZ_EXT_CTRL, 0x106)],
+            "each register selected for reading (bit 15 clear), in order"
+        );
     }
 
     #[test]

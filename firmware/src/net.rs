@@ -151,6 +151,7 @@ pub fn run<B: Board, P: RegisterPort>(
     // uses it.
     let regs = unsafe { Regs::new(crate::platform::register_block(B::EMAC)) };
     let mut mac = Dwmac::new(regs, dma, caches, TimerDelay(timer));
+    mac.set_poll_each_frame(B::TX_POLL_EACH_FRAME);
     let _ = writeln!(
         log,
         "eth: DWMAC at {:#010x}, version {:#06x}, {:?} descriptors, checksum insertion {:?}",
@@ -165,6 +166,17 @@ pub fn run<B: Board, P: RegisterPort>(
         "phy: {phy}{}; PHY reset, then DMA reset: done",
         if phy.is_ksz9021() { " (KSZ9021)" } else { "" }
     );
+    if phy.is_ksz9021() {
+        // The RGMII skews as the PHY holds them (docs/board-bring-up.md).
+        match dwmac::phy::ksz9021_skews(&mut mac, phy.addr) {
+            Ok([clk, rxd, txd]) => {
+                let _ = writeln!(log, "phy: KSZ9021 skews 0x104={clk:#06x} 0x105={rxd:#06x} 0x106={txd:#06x}");
+            }
+            Err(e) => {
+                let _ = writeln!(log, "phy: KSZ9021 skews unreadable: {e}");
+            }
+        }
+    }
     let mut link = LinkMonitor::new(phy);
     log::flush();
 
