@@ -43,7 +43,7 @@ use model::{row_to_rgb888, Light, ROW_BYTES, WIDTH};
 use rt_services::{FrameMemory, RowSource};
 
 use crate::driver::{Accelerator, Error, PollTimeout};
-use crate::map::{LINE_WORDS, ROWS};
+use crate::map::{FABRIC_HZ, FRAME_STALL_CYCLES, LINE_WORDS, ROWS};
 use crate::port::RegisterPort;
 
 /// What the self-test renders and checks.
@@ -176,7 +176,18 @@ pub struct SelfTestReport<'a> {
     pub plan: &'a Plan<'a>,
     /// What happened.
     pub outcome: Outcome,
+    /// Whether the frame half's abort went unconfirmed (busy never
+    /// cleared): the test then waited [`UNCONFIRMED_ABORT_WAIT_NS`], past
+    /// the frame DMA's own stall limit, before returning.
+    pub abort_unconfirmed: bool,
 }
+
+/// How long the self-test waits after an abort that was not confirmed
+/// before it gives the frame's slot back: the frame DMA stops by itself
+/// within two stall periods of its last transfer (register map, "Stall
+/// limit": `2 * FRAME_STALL_CYCLES` fabric clocks), doubled for margin;
+/// about 10.5 ms at 50 MHz, once, and only on a failing accelerator.
+pub const UNCONFIRMED_ABORT_WAIT_NS: u32 = (4 * FRAME_STALL_CYCLES as u64 * 1_000_000_000 / FABRIC_HZ as u64) as u32;
 
 impl SelfTestReport<'_> {
     /// Whether the accelerator passed.
@@ -258,7 +269,15 @@ impl fmt::Display for SelfTestReport<'_> {
                         write!(f, "light {light}: frame done with ROWS_DONE {rows} of {ROWS}")
                     }
                     Problem::BadLight => write!(f, "light {light} is out of range"),
+                }?;
+                if self.abort_unconfirmed {
+                    write!(
+                        f,
+                        "; the frame's abort was not confirmed: waited {} us, past the DMA's stall limit, before giving its slot back",
+                        UNCONFIRMED_ABORT_WAIT_NS / 1000
+                    )?;
                 }
+                Ok(())
             }
         }
     }
@@ -286,11 +305,12 @@ where
     R: RowSource<Error = Infallible>,
     W: DelayNs,
 {
-    let outcome = match check(accel, mem, reference, delay, plan) {
+    let mut abort_unconfirmed = false;
+    let outcome = match check(accel, mem, reference, delay, plan, &mut abort_unconfirmed) {
         Ok(outcome) => outcome,
         Err(failure) => Outcome::Fail(failure),
     };
-    SelfTestReport { plan, outcome }
+    SelfTestReport { plan, outcome, abort_unconfirmed }
 }
 
 fn light_of(mode: Mode, raw: [i32; 3]) -> Result<Light, Failure> {
@@ -303,6 +323,7 @@ fn check<P, D, M, R, W>(
     reference: &mut R,
     delay: &mut W,
     plan: &Plan<'_>,
+    abort_unconfirmed: &mut bool,
 ) -> Result<Outcome, Failure>
 where
     P: RegisterPort,
@@ -335,7 +356,7 @@ where
     if !caps.frames() {
         return Ok(Outcome::Pass { frame: false, pixels });
     }
-    pixels += check_frame(accel, mem, reference, delay, plan)?;
+    pixels += check_frame(accel, mem, reference, delay, plan, abort_unconfirmed)?;
     Ok(Outcome::Pass { frame: true, pixels })
 }
 
@@ -346,6 +367,7 @@ fn check_frame<P, D, M, R, W>(
     reference: &mut R,
     delay: &mut W,
     plan: &Plan<'_>,
+    abort_unconfirmed: &mut bool,
 ) -> Result<usize, Failure>
 where
     P: RegisterPort,
@@ -364,8 +386,12 @@ where
         // A frame that failed or timed out is stopped before the slot is
         // used again. Should even the abort time out, the DMA's own stall
         // limit ends any frame that still writes within two stall periods
-        // of its last transfer (register map, "Stopping a frame").
-        let _ = accel.abort_frame();
+        // of its last transfer (register map, "Stall limit"): wait that
+        // out before the slot goes to the software renderer.
+        if accel.abort_frame().is_err() {
+            *abort_unconfirmed = true;
+            delay.delay_ns(UNCONFIRMED_ABORT_WAIT_NS);
+        }
     }
     result
 }

@@ -78,6 +78,9 @@ struct Hooked {
     id: Option<u32>,
     /// FRAME_CONTROL writes with the abort bit.
     aborts: u32,
+    /// Aborts are ignored: a stalled frame stays busy (a port left in
+    /// reset, a wedged design).
+    deaf_to_aborts: bool,
 }
 
 impl RegisterPort for Hooked {
@@ -112,8 +115,11 @@ impl RegisterPort for Hooked {
             }
         }
         if csr == Csr::FrameControl && value & FRAME_CONTROL_ABORT != 0 {
-            // A stalled frame still obeys an abort.
             self.aborts += 1;
+            if self.deaf_to_aborts {
+                return;
+            }
+            // A stalled frame still obeys an abort.
             self.sim.set_fault(None);
         }
         self.sim.write(csr, value);
@@ -140,7 +146,15 @@ impl Bench {
             Rc::new(RefCell::new(Shared { bytes: vec![0xa5; SLOTS * FRAME_BYTES], ..Shared::default() }));
         let mem = Memory(shared.clone());
         let sim = SimAccelerator::with_memory(mem.clone(), 2);
-        let port = Hooked { sim, shared: shared.clone(), lagged: None, stall_frames: false, id: None, aborts: 0 };
+        let port = Hooked {
+            sim,
+            shared: shared.clone(),
+            lagged: None,
+            stall_frames: false,
+            id: None,
+            aborts: 0,
+            deaf_to_aborts: false,
+        };
         Bench {
             accel: Accelerator::new(port, CountingDelay::default(), PollTimeout::new(100, 1_000)),
             mem,
@@ -261,6 +275,23 @@ fn a_frame_that_never_finishes_times_out_within_the_bound() {
     assert!(report.to_string().contains("frame not done after 200 polls 5000 ns apart"), "{report}");
     assert_eq!(b.accel.port().aborts, 1, "the timed-out frame is aborted");
     assert_eq!(b.accel.port_mut().sim.read(Csr::FrameStatus), FRAME_STATUS_ABORTED, "idle: the slot is free");
+}
+
+#[test]
+fn a_frame_whose_abort_is_not_confirmed_keeps_its_slot_past_the_dma_stall_limit() {
+    let mut b = Bench::new();
+    b.accel.port_mut().stall_frames = true;
+    b.accel.port_mut().deaf_to_aborts = true;
+    let plan = Plan { frame_wait: PollTimeout::new(200, 5_000), ..PLAN };
+    let report = b.run(&plan);
+    assert!(matches!(report.failure().map(|f| f.problem), Some(Problem::FrameTimeout { .. })), "{report}");
+    assert!(b.accel.port().aborts >= 1, "the abort was tried");
+    assert!(report.abort_unconfirmed, "{report}");
+    // The progress waits, then the stall limit's wait, in full: the slot
+    // goes to the software renderer only after the DMA stopped by itself.
+    assert!(b.delay.total_ns >= 199 * 5_000 + u64::from(selftest::UNCONFIRMED_ABORT_WAIT_NS), "{}", b.delay.total_ns);
+    const { assert!(selftest::UNCONFIRMED_ABORT_WAIT_NS >= 2 * 2_621_440, "two stall periods at 50 MHz at least") };
+    assert!(report.to_string().contains("abort was not confirmed"), "{report}");
 }
 
 #[test]
