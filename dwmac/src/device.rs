@@ -177,44 +177,23 @@ impl TxState {
     pub(crate) fn hand_over_descriptor<S: DmaSync>(
         &mut self,
         shared: &Shared<'_, S>,
-        control: [u32; 2],
+        [tdes0, tdes1]: [u32; 2],
         buf1: u32,
         buf2: u32,
         split: bool,
     ) {
-        let i = self.fill_descriptor(shared, control, buf1, buf2, split);
-        // The buffer and the control words in memory before OWN.
-        shared.publish();
-        self.give(shared, i, control[0]);
-        shared.publish();
-        shared.regs.tx_poll_demand();
-    }
-
-    /// Write descriptor `next`'s TDES1-3 (not OWN) and step on; its index.
-    /// The caller publishes, then [`give`](Self::give)s it.
-    #[inline(always)]
-    pub(crate) fn fill_descriptor<S: DmaSync>(
-        &mut self,
-        shared: &Shared<'_, S>,
-        [_, tdes1]: [u32; 2],
-        buf1: u32,
-        buf2: u32,
-        split: bool,
-    ) -> usize {
         let i = self.next;
         let desc = shared.area.tx_descriptor(i);
         desc.set_word(1, tdes1);
         desc.set_word(2, buf1);
         desc.set_word(3, buf2);
+        // Buffer and control words before OWN; OWN visible before the poll.
+        shared.sync.dsb();
+        desc.set_word(0, tdes0 | OWN);
+        shared.publish();
+        shared.regs.tx_poll_demand();
         self.split[i] = split;
         self.next = (i + 1) % TX_RING;
-        i
-    }
-
-    /// Hand filled descriptor `i` to the DMA: TDES0 with OWN.
-    #[inline(always)]
-    pub(crate) fn give<S: DmaSync>(&self, shared: &Shared<'_, S>, i: usize, tdes0: u32) {
-        shared.area.tx_descriptor(i).set_word(0, tdes0 | OWN);
     }
 }
 

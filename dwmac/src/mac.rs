@@ -171,9 +171,6 @@ pub(crate) struct TxState {
     pub(crate) split_frames: u32,
     pub(crate) split_full: u32,
     pub(crate) split_payload_bytes: u64,
-    /// A poll demand after each frame of a run, not one for the run
-    /// ([`Dwmac::set_poll_each_frame`]).
-    pub(crate) poll_each_frame: bool,
 }
 
 impl TxState {
@@ -191,7 +188,6 @@ impl TxState {
             split_frames: 0,
             split_full: 0,
             split_payload_bytes: 0,
-            poll_each_frame: true,
         }
     }
 
@@ -202,7 +198,6 @@ impl TxState {
         let mut t = TxState::new();
         t.split_sent = self.split_sent;
         t.split_done = self.split_sent;
-        t.poll_each_frame = self.poll_each_frame;
         t
     }
 }
@@ -228,16 +223,6 @@ impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
             tx: TxState::new(),
             delay,
         }
-    }
-
-    /// Whether a run of split frames ([`send_split_run`](Self::send_split_run))
-    /// writes the transmit poll demand after each frame (the default) or
-    /// once, after the last. The hardware walks the ring until it meets a
-    /// descriptor it does not own, so one is enough; QEMU's model of this
-    /// MAC up to 10.0.2 sends a wrong second frame when one poll demand
-    /// finds two (docs/streaming.md), so its board keeps one a frame.
-    pub fn set_poll_each_frame(&mut self, each: bool) {
-        self.tx.poll_each_frame = each;
     }
 
     /// Bring the MAC up to the point where only the link is missing: find

@@ -151,37 +151,17 @@ impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
         }
         let control = desc::tx_control_split(shared.format, header_len, payload_len, false, cic);
         let last = desc::tx_control_split(shared.format, header_len, payload_len, true, cic);
-        // Every header and TDES1-3 of the run first, then one dsb and L2
-        // cache sync, so that no descriptor is owned by the DMA (which may
-        // already be walking the ring) before its words and header are in
-        // memory (docs in `crate::sync`).
-        let first = tx.next;
         for k in 0..n {
             let i = tx.next;
             let slot = shared.area.tx_buffer(i);
             // SAFETY: descriptor `i` is outside the pending ones (at most
             // `TX_RING - pending` are taken here), so the CPU owns it and
             // its buffer (OWN seen clear, then a dmb, when it was
-            // reclaimed) until it is given below; this is the only slice.
+            // reclaimed) until the hand-over below; this is the only slice.
             fill(k, unsafe { slot.words_mut(header_words) });
             let control = if i == TX_RING - 1 { last } else { control };
             let buf2 = payload.wrapping_add((k as u32).wrapping_mul(stride));
-            tx.fill_descriptor(shared, control, slot.bus_address() + TX_SKEW as u32, buf2, true);
-        }
-        shared.publish();
-        // Then OWN in ring order, and the poll demand: once for the run,
-        // or once a frame where the MAC's model needs it (`poll_each_frame`).
-        for k in 0..n {
-            let i = (first + k) % TX_RING;
-            tx.give(shared, i, if i == TX_RING - 1 { last[0] } else { control[0] });
-            if tx.poll_each_frame {
-                shared.publish();
-                shared.regs.tx_poll_demand();
-            }
-        }
-        if !tx.poll_each_frame {
-            shared.publish();
-            shared.regs.tx_poll_demand();
+            tx.hand_over_descriptor(shared, control, slot.bus_address() + TX_SKEW as u32, buf2, true);
         }
         tx.count_split(n, header_len, payload_len);
         Ok((n, Some(SplitSeq(tx.split_sent - 1))))

@@ -5,17 +5,11 @@
 //! or, with an L2C-310 outer cache, in the L2C's, after the instruction that
 //! made it. Handing a descriptor to the MAC therefore takes, in this order:
 //!
-//! 1. the descriptor's other words and the buffer, then `dsb`, an outer
-//!    cache sync (L2C-310 register 0x730) and another `dsb`, so they are
-//!    in memory before the DMA can own the descriptor (it may already be
-//!    walking the ring and read it the moment OWN lands);
-//! 2. the word with OWN, then `dsb`, outer cache sync, `dsb` again, so the
-//!    OWN store has left every buffer before
+//! 1. the descriptor's other words and the buffer, then `dsb`;
+//! 2. the word with OWN, then `dsb`, then an outer cache sync (L2C-310
+//!    register 0x730) and another `dsb`, so the OWN store has left every
+//!    buffer before
 //! 3. the poll-demand register write.
-//!
-//! A run of frames fills every descriptor first, syncs once, then sets
-//! OWN in ring order, syncs and demands a poll (once, or once a frame
-//! where QEMU's model needs it: `Dwmac::set_poll_each_frame`).
 //!
 //! Linux does the same on this SoC: `wmb()` is `dsb(st)` followed by
 //! `outer_sync()` when an outer cache is configured

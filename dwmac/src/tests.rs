@@ -268,7 +268,7 @@ fn link_up_resumes_receive_and_link_down_leaves_it() {
 }
 
 #[test]
-fn transmit_hands_over_in_order_words_synced_then_own_synced_then_poll() {
+fn transmit_hands_over_in_order_own_dsb_cache_sync_dsb_poll() {
     let mut rig = Rig::new(QEMU_HW_FEATURE);
     let mut mac = rig.mac(true);
     started(&mut mac);
@@ -278,13 +278,11 @@ fn transmit_hands_over_in_order_words_synced_then_own_synced_then_poll() {
     assert_eq!(
         mac.events(),
         [
-            seen("dmb", false, false),  // OWN seen clear, then the buffer is written
-            seen("dsb", false, false),  // buffer and control words drained from the CPU ...
-            seen("sync", false, false), // ... and from the L2C-310 store buffer ...
-            seen("dsb", false, false),  // ... before OWN
-            seen("dsb", true, false),   // OWN written, drained from the CPU ...
-            seen("sync", true, false),  // ... and from the L2C-310 store buffer ...
-            seen("dsb", true, false),   // ... before the poll demand
+            seen("dmb", false, false), // OWN seen clear, then the buffer is written
+            seen("dsb", false, false), // buffer and control words, before OWN
+            seen("dsb", true, false),  // OWN written, drained from the CPU ...
+            seen("sync", true, false), // ... and from the L2C-310 store buffer ...
+            seen("dsb", true, false),  // ... before the poll demand
         ]
     );
     drop(mac);

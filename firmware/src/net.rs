@@ -151,7 +151,6 @@ pub fn run<B: Board, P: RegisterPort>(
     // uses it.
     let regs = unsafe { Regs::new(crate::platform::register_block(B::EMAC)) };
     let mut mac = Dwmac::new(regs, dma, caches, TimerDelay(timer));
-    mac.set_poll_each_frame(B::TX_POLL_EACH_FRAME);
     let _ = writeln!(
         log,
         "eth: DWMAC at {:#010x}, version {:#06x}, {:?} descriptors, checksum insertion {:?}",

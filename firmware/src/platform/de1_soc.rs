@@ -67,11 +67,6 @@ impl Board for De1Soc {
     /// verify on the board). Master mode forced, as U-Boot does for the
     /// KSZ9021's erratum.
     const PHY: PhyConfig = PhyConfig { ksz9021_skews: Some((0xe3f0, 0x3333)), ksz9021_force_master: true };
-    // The transmit DMA goes on fetching descriptors until it meets one it
-    // does not own, then suspends: one poll demand a run (Linux's stmmac
-    // relies on the same, one demand for a frame of several descriptors,
-    // stmmac_xmit in drivers/net/ethernet/stmicro/stmmac/stmmac_main.c).
-    const TX_POLL_EACH_FRAME: bool = false;
 
     fn timer_hz(log: &mut impl Write) -> u32 {
         let mpu = managers().mpu_clock_hz(DE1_SOC_OSC1_HZ);

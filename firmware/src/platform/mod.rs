@@ -86,10 +86,6 @@ pub trait Board {
     const DEFAULT_GATEWAY: &'static str;
     /// PHY settings.
     const PHY: PhyConfig;
-    /// Whether a run of row packets demands a transmit poll after each
-    /// frame (`dwmac::Dwmac::set_poll_each_frame`): QEMU's model of the MAC
-    /// up to 10.0.2 needs it; the hardware walks the ring on one.
-    const TX_POLL_EACH_FRAME: bool;
 
     /// The global timer's rate (PERIPHCLK), from the clocks where the board
     /// can read them.

@@ -40,9 +40,6 @@ impl Board for QemuNpcm750 {
     const DEFAULT_GATEWAY: &'static str = "10.0.2.2";
     /// QEMU's PHY (address 0, ID 0x0362/0x5e6a) needs no skews.
     const PHY: PhyConfig = PhyConfig { ksz9021_skews: None, ksz9021_force_master: false };
-    // QEMU up to 10.0.2 (hw/net/npcm_gmac.c) sends a wrong second frame
-    // when one poll demand finds two split frames (docs/streaming.md).
-    const TX_POLL_EACH_FRAME: bool = true;
 
     fn timer_hz(_log: &mut impl Write) -> u32 {
         Self::TIMER_HZ
