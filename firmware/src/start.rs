@@ -23,8 +23,10 @@
 //!   (Cortex-A9 TRM DDI 0388, "Cache operations"; L2C-310 TRM DDI 0246
 //!   3.3.10) and what U-Boot's `cleanup_before_linux` does in C.
 //! * `_asm_secondary_core_park`: QEMU starts both cores at the ELF entry;
-//!   the second one sleeps in `wfe` forever (on the DE1-SoC the preloader
-//!   keeps core 1 in reset).
+//!   `_start` sends every core but core 0 there before it touches memory
+//!   or a cache (a second core running the rest late would overwrite the
+//!   entry record and could turn off the L2 under core 0), and it sleeps in
+//!   `wfe` forever (on the DE1-SoC the preloader keeps core 1 in reset).
 
 use core::fmt::Write;
 use core::mem::offset_of;
@@ -50,6 +52,12 @@ _start:
     @ is built with movw/movt (a literal-pool load after the D-cache is off
     @ would read DRAM under a dirty line). `cargo xtask image` checks this
     @ in the disassembly (xtask/src/images/entry_check.rs).
+    @ 0. Only core 0 goes on: QEMU starts every core at the ELF entry, and a
+    @    late core 1 would overwrite the entry record and could turn off an
+    @    L2 that core 0 has since enabled.
+    mrc     p15, 0, r0, c0, c0, 5       @ MPIDR
+    ands    r0, r0, #0xff               @ Aff0: the core within the cluster
+    bne     _asm_secondary_core_park
     mrc     p15, 0, r0, c1, c0, 0       @ SCTLR
     movw    r1, #:lower16:{entry_sctlr} @ kept for the boot log (.uninit:
     movt    r1, #:upper16:{entry_sctlr} @ the start-up code does not zero it)

@@ -8,6 +8,10 @@
 //! * between the SCTLR write that turns the D-cache off and the L2C-310's
 //!   clean-and-invalidate-by-way (offset 0x7FC), every load is from the
 //!   L2C-310's registers (the base built with `movw`/`movt`);
+//! * before its first store or CP15 write, `_start` reads MPIDR and sends
+//!   every core but core 0 to `_asm_secondary_core_park` (QEMU starts all
+//!   cores at the ELF entry: a late second core would overwrite the entry
+//!   record and could turn the L2 off under core 0);
 //! * the L2C-310's control register (offset 0x100) is read on every path:
 //!   the branch taken when SCTLR has the D-cache and MMU off lands at or
 //!   before that read (U-Boot's `dcache off` leaves the L2 on).
@@ -98,6 +102,7 @@ pub fn check(disasm: &str, l2c: u32) -> Result<()> {
             return Err(format!("_start loads a literal at {:#x}: {} {}", i.addr, i.mnemonic, i.operands));
         }
     }
+    secondary_cores_park_first(&insns)?;
     // The register movw/movt set to the L2C-310's base.
     let mut lo: Vec<(String, u32)> = vec![];
     let mut base = None;
@@ -154,6 +159,27 @@ pub fn check(disasm: &str, l2c: u32) -> Result<()> {
     Ok(())
 }
 
+/// Before the first store or CP15 write: MPIDR read, then a conditional
+/// branch to the park for any core but 0.
+fn secondary_cores_park_first(insns: &[Insn]) -> Result<()> {
+    let first_write = insns
+        .iter()
+        .position(|i| i.mnemonic.starts_with("str") || i.mnemonic.starts_with("stm") || i.mnemonic == "mcr")
+        .unwrap_or(insns.len());
+    let before = &insns[..first_write];
+    let mpidr = before
+        .iter()
+        .position(|i| i.mnemonic == "mrc" && i.operands.replace(' ', "").ends_with("c0,c0,#5"))
+        .ok_or("_start does not read MPIDR before its first store or CP15 write")?;
+    let parks = before[mpidr + 1..].iter().any(|i| {
+        i.mnemonic.starts_with('b') && i.mnemonic.len() > 1 && i.operands.contains("<_asm_secondary_core_park>")
+    });
+    if !parks {
+        return Err("_start does not send the other cores to _asm_secondary_core_park before its first store".into());
+    }
+    Ok(())
+}
+
 /// Disassemble `_start` of `elf` with llvm-objdump and check it.
 pub fn check_elf(elf: &Path, l2c: u32) -> Result<()> {
     let out = Command::new("llvm-objdump")
@@ -175,7 +201,10 @@ mod tests {
 
     /// The entry as built (llvm-objdump 14 output, trimmed).
     const NOW: &str = "
-00106bb0 <_start>:
+00106ba4 <_start>:
+  106ba4:      \tmrc\tp15, #0, r0, c0, c0, #5
+  106ba8:      \tands\tr0, r0, #255
+  106bac:      \tbne\t0x106c90 <_asm_secondary_core_park> @ imm = #220
   106bb0:      \tmrc\tp15, #0, r0, c1, c0, #0
   106bb4:      \tmovw\tr1, #40992
   106bb8:      \tmovt\tr1, #42
@@ -206,6 +235,17 @@ mod tests {
     fn the_entry_as_built_passes() {
         assert_eq!(check(NOW, L2C), Ok(()));
         assert!(check(NOW, 0xf03f_c000).is_err(), "another board's L2C base is not built");
+    }
+
+    #[test]
+    fn an_entry_that_lets_every_core_through_fails() {
+        // The entry before: core 1, started at the ELF entry by QEMU,
+        // stored its SCTLR over core 0's record.
+        let old = NOW.replace("\tbne\t0x106c90 <_asm_secondary_core_park> @ imm = #220", "\tnop");
+        let e = check(&old, L2C).expect_err("no park");
+        assert!(e.contains("_asm_secondary_core_park"), "{e}");
+        let late = NOW.replace("\tmrc\tp15, #0, r0, c0, c0, #5", "\tnop");
+        assert!(check(&late, L2C).expect_err("no MPIDR").contains("MPIDR"));
     }
 
     #[test]

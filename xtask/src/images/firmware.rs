@@ -248,7 +248,7 @@ pub fn image(args: &ImageArgs) -> Result<()> {
     // llvm-objdump (Debian's llvm: it knows the Arm encodings).
     ensure_apt_packages(&["llvm"], None)?;
     super::entry_check::check_elf(&elf_path, super::entry_check::DE1_SOC_L2C)?;
-    println!("reset entry: constants by movw/movt, the L2C-310 checked whatever SCTLR says");
+    println!("reset entry: other cores parked first, constants by movw/movt, the L2C-310 checked whatever SCTLR says");
     let elf = std::fs::read(&elf_path).map_err(|e| format!("{}: {e}", elf_path.display()))?;
     let (start, bin, entry) = uimage::elf32_to_binary(&elf)?;
     if start != LOAD_ADDRESS {
