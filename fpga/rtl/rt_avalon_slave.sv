@@ -19,7 +19,9 @@
 //   0x2C VGA_CONTROL RW bit0 enable, bit1 letterbox.
 //   0x30 VGA_BASE    RW bits 31:3 (bits 2:0 read 0).
 //   0x34 VGA_STATUS  R, W1C bits 15:0 frames since enable (wrapping), bit16
-//                   sticky underrun (write 1 clears); enabling clears both.
+//                   sticky underrun, bit17 sticky read error (SLVERR or
+//                   DECERR), bit18 sticky stall limit (write 1 clears each);
+//                   enabling clears all.
 //   0x38 KEYS        R, W1C bits 3:0 keys down (debounced), bits 7:4 sticky
 //                   went down (write 1 clears).
 //   0x3C SWITCHES    R bits 9:0.
@@ -63,6 +65,8 @@ module rt_avalon_slave
   output logic [31:3] vga_base_o,
   input  logic        vga_frame_i,     // a frame was scanned out
   input  logic        vga_underrun_i,  // a line was cut
+  input  logic        vga_read_error_i,  // a read beat came back with an error
+  input  logic        vga_stall_i,     // the reader gave up on its reads
   input  logic [3:0]  keys_down_i,
   input  logic [3:0]  keys_went_i,
   input  logic [9:0]  switches_i,
@@ -104,7 +108,7 @@ module rt_avalon_slave
   logic [1:0] vga_ctl_q;
   logic [31:3] vga_base_q;
   logic [15:0] vga_frames_q;
-  logic vga_underrun_q;
+  logic vga_underrun_q, vga_read_error_q, vga_stall_q;
   logic [3:0] keys_went_q;
   logic [9:0] leds_q;
   logic [31:0] hex_lo_q;
@@ -119,6 +123,8 @@ module rt_avalon_slave
   assign frame_start_o = fctl_write && writedata_i[0] && !writedata_i[2] && !busy_i;
   assign frame_clear_done_o = fctl_write && !writedata_i[0] && writedata_i[1] && !writedata_i[2];
   // Enabling the scan-out (bit 0 rising) clears VGA_STATUS.
+  logic [2:0] vga_status_w1c;  // VGA_STATUS bits 18:16 written with 1
+  assign vga_status_w1c = (write_i && address_i == AddrVgaStatus) ? writedata_i[18:16] : 3'd0;
   assign vga_enable_now = write_i && (address_i == AddrVgaControl) && writedata_i[0] && !vga_ctl_q[0];
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
@@ -131,6 +137,8 @@ module rt_avalon_slave
       vga_base_q     <= '0;
       vga_frames_q   <= '0;
       vga_underrun_q <= 1'b0;
+      vga_read_error_q <= 1'b0;
+      vga_stall_q    <= 1'b0;
       keys_went_q    <= '0;
       leds_q         <= '0;
       hex_lo_q       <= '0;
@@ -151,14 +159,21 @@ module rt_avalon_slave
           default: ;
         endcase
       end
-      // VGA_STATUS: counts and sticky underrun; W1C; enabling clears it.
+      // VGA_STATUS: counts and sticky flags; W1C (a new event wins);
+      // enabling clears them.
       if (vga_enable_now) begin
         vga_frames_q <= '0;
         vga_underrun_q <= 1'b0;
+        vga_read_error_q <= 1'b0;
+        vga_stall_q <= 1'b0;
       end else begin
         if (vga_frame_i) vga_frames_q <= vga_frames_q + 16'd1;
         if (vga_underrun_i) vga_underrun_q <= 1'b1;
-        else if (write_i && address_i == AddrVgaStatus && writedata_i[16]) vga_underrun_q <= 1'b0;
+        else if (vga_status_w1c[0]) vga_underrun_q <= 1'b0;
+        if (vga_read_error_i) vga_read_error_q <= 1'b1;
+        else if (vga_status_w1c[1]) vga_read_error_q <= 1'b0;
+        if (vga_stall_i) vga_stall_q <= 1'b1;
+        else if (vga_status_w1c[2]) vga_stall_q <= 1'b0;
       end
       // KEYS bits 7:4: sticky went-down, W1C (a new press wins).
       keys_went_q <= keys_went_i
@@ -215,7 +230,7 @@ module rt_avalon_slave
         AddrRowsDone:    csr_rdata_q <= {23'd0, rows_landed_i};
         AddrVgaControl:  csr_rdata_q <= {30'd0, vga_ctl_q};
         AddrVgaBase:     csr_rdata_q <= {vga_base_q, 3'b000};
-        AddrVgaStatus:   csr_rdata_q <= {15'd0, vga_underrun_q, vga_frames_q};
+        AddrVgaStatus:   csr_rdata_q <= {13'd0, vga_stall_q, vga_read_error_q, vga_underrun_q, vga_frames_q};
         AddrKeys:        csr_rdata_q <= {24'd0, keys_went_q, keys_down_i};
         AddrSwitches:    csr_rdata_q <= {22'd0, switches_i};
         AddrLeds:        csr_rdata_q <= {22'd0, leds_q};

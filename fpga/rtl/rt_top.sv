@@ -89,7 +89,7 @@ module rt_top
   rgb_t [LANES-1:0] lb_wdata, lb_rdata;
   logic [IdxW-1:0] slave_raddr;
   logic [BankAw-1:0] dma_raddr, lb_raddr;
-  logic vga_enable, vga_letterbox, vga_frame, vga_underrun;
+  logic vga_enable, vga_letterbox, vga_frame, vga_underrun, vga_read_error, vga_stall;
   logic [31:3] vga_base;
   logic [3:0] keys_down, keys_went;
   logic [9:0] switches, leds;
@@ -108,6 +108,7 @@ module rt_top
     .frame_aborted_i(frame_aborted), .rows_landed_i(rows_landed),
     .vga_enable_o(vga_enable), .vga_letterbox_o(vga_letterbox), .vga_base_o(vga_base),
     .vga_frame_i(vga_frame), .vga_underrun_i(vga_underrun),
+    .vga_read_error_i(vga_read_error), .vga_stall_i(vga_stall),
     .keys_down_i(keys_down), .keys_went_i(keys_went), .switches_i(switches),
     .leds_o(leds), .hex_lo_o(hex_lo), .hex_hi_o(hex_hi),
     .lb_raddr_o(slave_raddr), .lb_rdata_i(lb_rdata)
@@ -116,7 +117,7 @@ module rt_top
   rt_vga u_vga (
     .clk_i, .rst_ni,
     .enable_i(vga_enable), .letterbox_i(vga_letterbox), .base_i(vga_base),
-    .frame_o(vga_frame), .underrun_o(vga_underrun),
+    .frame_o(vga_frame), .underrun_o(vga_underrun), .read_error_o(vga_read_error), .stall_o(vga_stall),
     .araddr_o(axm_araddr_o), .arlen_o(axm_arlen_o), .arsize_o(axm_arsize_o), .arburst_o(axm_arburst_o),
     .arcache_o(axm_arcache_o), .arprot_o(axm_arprot_o), .arvalid_o(axm_arvalid_o), .arready_i(axm_arready_i),
     .rdata_i(axm_rdata_i), .rresp_i(axm_rresp_i), .rlast_i(axm_rlast_i), .rvalid_i(axm_rvalid_i),

@@ -4,9 +4,11 @@
 // line buffer and the output registers for the ADV7123 DAC.
 //
 // * Pixel clock: 25 MHz as a clock enable of clk_i, exactly two clk_i
-//   cycles a pixel. vga_clk_o comes from a register; every other output
-//   changes on the clk_i edge where vga_clk_o falls, so all are stable
-//   around its rising edge (where the DAC latches).
+//   cycles a pixel. vga_clk_o comes from a register that toggles from reset
+//   on, enabled or not (the ADV7123 latches only on its rising edges: a
+//   stopped clock would hold the last pixel on the monitor); every other
+//   output changes on the clk_i edge where vga_clk_o falls, so all are
+//   stable around its rising edge (where the DAC latches).
 // * Timing: 800 x 525; H 640 visible, 16 front porch, 96 sync, 48 back
 //   porch; V 480, 10, 2, 33; both syncs active low; blank_n low and RGB
 //   black outside the visible area.
@@ -14,7 +16,9 @@
 //   (floor(3X/4), floor(3Y/4)); letterbox, frame pixel (X-80, Y-60) inside
 //   [80,560)x[60,420), black elsewhere. Computed with adders, no DSP.
 // * The reader fetches whole frame rows (1,440 bytes, 180 beats) in bursts
-//   of at most 16 beats that never cross 4 KiB, unpacks the bytes into
+//   of at most 16 beats that never cross 4 KiB, at most READS_IN_FLIGHT
+//   bursts outstanding (counted from AR to the RLAST beat: the read issuing
+//   capability rt_accel_hw.tcl declares), unpacks the bytes into
 //   12-byte words (four pixels) as they arrive (RREADY stays high) and
 //   writes them to slot row % 2 of the line buffer. Row k may be fetched
 //   once the display has finished every line of row k-2 (at the end of
@@ -24,13 +28,25 @@
 //   (frame_o pulses) the base and the layout are latched and the reader
 //   starts over: it waits for the bursts still outstanding (discarding
 //   their data), then fetches the new frame from row 0.
+// * A beat answered SLVERR or DECERR counts as an underrun: its data is not
+//   shown, nor anything after it in that frame (lines cut, underrun_o), and
+//   read_error_o pulses; the reader stops fetching until the next frame.
+// * Stall limit: STALL_CYCLES clocks with bursts outstanding and no AR or R
+//   handshake (a port that never answers, e.g. left in reset) and the reader
+//   gives up on them, as the frame DMA does: ARVALID is withdrawn (the
+//   documented last resort), the outstanding count forgotten, stall_o
+//   pulses, and the rest of the frame is black; the next frame tries again.
 // * Disabled: the timing rests at the start of vertical blanking (outputs
-//   blank, black, syncs inactive); enabling starts a frame there (latched
+//   blank, black, syncs inactive, latched by the DAC on the still-running
+//   vga_clk_o); enabling starts a frame there (latched
 //   without a frame_o pulse), so the first frame_o comes one whole frame
 //   later.
 module rt_vga
   import rt_pkg::*;
-(
+#(
+  parameter int unsigned READS_IN_FLIGHT = 4,        // rt_accel_hw.tcl readIssuingCapability
+  parameter int unsigned STALL_CYCLES = 1 << 17       // hal-avalon VGA_STALL_CYCLES
+) (
   input  logic        clk_i,
   input  logic        rst_ni,
   input  logic        enable_i,
@@ -38,6 +54,8 @@ module rt_vga
   input  logic [31:3] base_i,
   output logic        frame_o,      // a frame was scanned out (start of vertical blanking)
   output logic        underrun_o,   // a line was cut
+  output logic        read_error_o, // a read beat came back SLVERR/DECERR
+  output logic        stall_o,      // outstanding reads given up (stall limit)
   // AXI3 read master
   output logic [31:0] araddr_o,
   output logic [3:0]  arlen_o,
@@ -80,6 +98,8 @@ module rt_vga
   localparam int unsigned WordW = $clog2(RowWords);         // 7
   localparam int unsigned LbAw = WordW + 1;
   localparam int unsigned OutW = 10;                        // outstanding beats, 0..1023
+  localparam int unsigned BurstsW = $clog2(READS_IN_FLIGHT + 1);
+  localparam int unsigned StallW = $clog2(STALL_CYCLES) + 1;
 
   logic en_q, new_frame, frame_tick, pix_edge;
   logic phase_q;              // vga_clk_o; pixel edges where it falls
@@ -102,12 +122,11 @@ module rt_vga
       base_q      <= '0;
     end else begin
       en_q <= enable_i;
+      phase_q <= !phase_q;
       if (!en_q) begin
-        phase_q <= 1'b0;
         h_q <= '0;
         v_q <= 10'(VVisible);
       end else begin
-        phase_q <= !phase_q;
         if (pix_edge) begin
           if (h_q == 10'(HTotal - 1)) begin
             h_q <= '0;
@@ -180,6 +199,9 @@ module rt_vga
   logic [7:0] ar_beat_q;      // beats of that row already requested
   logic [31:3] ar_addr_q;     // address of the next burst
   logic [OutW-1:0] out_q;     // beats requested, not yet received
+  logic [BurstsW-1:0] bursts_q;  // bursts issued (ARVALID raised), RLAST not yet received
+  logic bad_q;                // an error beat or the stall limit: nothing more this frame
+  logic [StallW-1:0] stall_q; // clocks with reads outstanding and no handshake
   logic arvalid_q;
   logic [31:3] araddr_q;
   logic [3:0] arlen_q;
@@ -200,11 +222,20 @@ module rt_vga
     if (page_left < 10'(blen)) blen = page_left[4:0];
   end
 
-  logic can_issue, ar_fire, r_fire;
-  assign can_issue = en_q && !flush_q && !new_frame && (ar_row_q <= allowed_q)
-                     && (ar_row_q < row_t'(Height)) && (out_q < OutW'(512));
+  logic can_issue, ar_fire, r_fire, r_last, r_error, stalled, waiting;
+  assign can_issue = en_q && !flush_q && !bad_q && !new_frame && (ar_row_q <= allowed_q)
+                     && (ar_row_q < row_t'(Height)) && (bursts_q < BurstsW'(READS_IN_FLIGHT));
   assign ar_fire = arvalid_q && arready_i;
   assign r_fire = rvalid_i;  // rready_o is always high
+  // Counted only while something is outstanding: beats of bursts given up
+  // at the stall limit, should a slave still send them, cannot wrap the
+  // counters (and lock the reader out).
+  logic r_counted;
+  assign r_counted = r_fire && (out_q != '0);
+  assign r_last = r_fire && rlast_i && (bursts_q != '0);
+  assign r_error = r_fire && rresp_i[1];  // SLVERR (2) or DECERR (3)
+  assign waiting = arvalid_q || (bursts_q != '0);
+  assign stalled = waiting && !(ar_fire || r_fire) && (stall_q == StallW'(STALL_CYCLES - 1));
 
   // Unpacking: a beat appends 8 bytes; 12 bytes make a word.
   logic [127:0] acc_new;
@@ -221,7 +252,9 @@ module rt_vga
   logic lb_we;
   logic [LbAw-1:0] lb_waddr, lb_raddr;
   logic [8*WordBytes-1:0] lb_rdata;
-  assign lb_we = r_fire && !flush_q && (acc_new_n >= 5'(WordBytes));
+  logic keep;  // the beat's data goes to the line buffer
+  assign keep = r_fire && !flush_q && !bad_q && !r_error;
+  assign lb_we = keep && (acc_new_n >= 5'(WordBytes));
   assign lb_waddr = {rx_row_q[0], rx_word_q};
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
@@ -232,6 +265,11 @@ module rt_vga
       ar_beat_q <= '0;
       ar_addr_q <= '0;
       out_q     <= '0;
+      bursts_q  <= '0;
+      bad_q     <= 1'b0;
+      stall_q   <= '0;
+      read_error_o <= 1'b0;
+      stall_o   <= 1'b0;
       arvalid_q <= 1'b0;
       araddr_q  <= '0;
       arlen_q   <= '0;
@@ -242,7 +280,12 @@ module rt_vga
     end else begin
       // AR: the payload holds until ARREADY.
       if (ar_fire) arvalid_q <= 1'b0;
-      if ((!arvalid_q || ar_fire) && can_issue) begin
+      if (stalled) begin
+        // The stall limit: withdraw the request, forget what is outstanding.
+        arvalid_q <= 1'b0;
+        out_q <= '0;
+        bursts_q <= '0;
+      end else if ((!arvalid_q || ar_fire) && can_issue) begin
         arvalid_q <= 1'b1;
         araddr_q <= ar_addr_q;
         arlen_q <= 4'(blen - 5'd1);
@@ -253,13 +296,21 @@ module rt_vga
         end else begin
           ar_beat_q <= ar_beat_q + 8'(blen);
         end
-        out_q <= out_q + OutW'(blen) - OutW'(r_fire);
+        out_q <= out_q + OutW'(blen) - OutW'(r_counted);
+        bursts_q <= bursts_q + BurstsW'(1) - BurstsW'(r_last);
       end else begin
-        out_q <= out_q - OutW'(r_fire);
+        out_q <= out_q - OutW'(r_counted);
+        bursts_q <= bursts_q - BurstsW'(r_last);
       end
+      if (!waiting || ar_fire || r_fire || stalled) stall_q <= '0;
+      else stall_q <= stall_q + StallW'(1);
+      // An error beat of this frame (not a discarded one of the last).
+      if ((r_error && !flush_q) || stalled) bad_q <= 1'b1;
+      read_error_o <= r_error && !flush_q;
+      stall_o <= stalled;
 
-      // R: unpack into the line buffer (discarded while flushing).
-      if (r_fire && !flush_q) begin
+      // R: unpack into the line buffer (discarded while flushing or bad).
+      if (keep) begin
         if (acc_new_n >= 5'(WordBytes)) begin
           acc_q <= {32'd0, acc_new[127:96]};
           acc_n_q <= 4'(acc_new_n - 5'(WordBytes));
@@ -282,6 +333,7 @@ module rt_vga
       // A new frame (or disabled): start over once nothing is outstanding.
       if (new_frame || !en_q) begin
         flush_q <= 1'b1;
+        bad_q <= 1'b0;
         allowed_q <= row_t'(1);
         rx_row_q <= '0;
         rx_word_q <= '0;
@@ -304,10 +356,10 @@ module rt_vga
   assign arvalid_o = arvalid_q;
   assign rready_o = 1'b1;
 
-  // Responses and RLAST carry nothing the reader needs: it counts beats.
+  // RRESP bit 0 (EXOKAY) means nothing for a read that is not exclusive.
   /* verilator lint_off UNUSEDSIGNAL */
   logic unused_r;
-  assign unused_r = ^{rresp_i, rlast_i};
+  assign unused_r = rresp_i[0];
   /* verilator lint_on UNUSEDSIGNAL */
 
   rt_line_buffer #(.DEPTH(2 * 128), .WIDTH(8 * WordBytes)) u_lb (
@@ -339,7 +391,7 @@ module rt_vga
       default: px = '{r: lb_rdata[7:0],   g: lb_rdata[15:8],  b: lb_rdata[23:16]};
     endcase
     show = in_x && in_y;
-    late = show && (!word_ok_q || flush_q);
+    late = show && (!word_ok_q || flush_q || bad_q);
   end
 
   always_ff @(posedge clk_i or negedge rst_ni) begin
@@ -357,11 +409,15 @@ module rt_vga
       lane_q <= fx[1:0];
       underrun_o <= 1'b0;
       if (!en_q) begin
+        // Blank and black, changed where vga_clk_o falls like every pixel,
+        // so the DAC latches them at its next rising edge.
         cut_q <= 1'b0;
-        hs_q <= 1'b1;
-        vs_q <= 1'b1;
-        blank_n_q <= 1'b0;
-        rgb_q <= '0;
+        if (phase_q) begin
+          hs_q <= 1'b1;
+          vs_q <= 1'b1;
+          blank_n_q <= 1'b0;
+          rgb_q <= '0;
+        end
       end else if (pix_edge) begin
         hs_q <= !((h_q >= 10'(HSyncStart)) && (h_q < 10'(HSyncEnd)));
         vs_q <= !((v_q >= 10'(VSyncStart)) && (v_q < 10'(VSyncEnd)));

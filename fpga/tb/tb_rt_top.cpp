@@ -54,6 +54,12 @@ constexpr uint32_t kFrameBusy = 1, kFrameDone = 2, kFrameError = 4, kFrameAborte
 constexpr uint32_t kVgaControl = 0x2C, kVgaBase = 0x30, kVgaStatus = 0x34, kKeys = 0x38, kSwitches = 0x3C;
 constexpr uint32_t kLeds = 0x40, kHexLo = 0x44, kHexHi = 0x48;
 constexpr uint32_t kVgaEnable = 1, kVgaLetterbox = 2, kVgaUnderrun = 1u << 16;
+constexpr uint32_t kVgaReadError = 1u << 17, kVgaStall = 1u << 18;
+// The VGA reader's bursts in flight: rt_accel_hw.tcl's readIssuingCapability.
+constexpr int kReadIssuing = 4;
+// hal-avalon VGA_STALL_CYCLES: the reader gives up on a port that answers
+// nothing for this long.
+constexpr uint64_t kVgaStallCycles = 1u << 17;
 constexpr uint32_t kIdValue = 0x52540003u;
 constexpr uint32_t kKeyDebounce = 1u << 20;  // hal-avalon KEY_DEBOUNCE_CLOCKS
 constexpr int kWidth = 480, kHeight = 360;
@@ -178,6 +184,9 @@ class AxiChecker {
   // VALID fall without its READY (a documented last resort).
   void allow_withdraw(bool on) { allow_withdraw_ = on; }
   uint64_t violations() const { return violations_; }
+  int max_reads_in_flight() const { return max_reads_out_; }
+  // A read slave that was reset forgets its bursts (the stall-limit test).
+  void forget_reads() { reads_out_ = 0; }
 
   template <class T> void sample(T *top, bool awready, bool wready, bool bvalid, bool arready, bool rvalid) {
     if (!top->rst_ni) {
@@ -203,7 +212,13 @@ class AxiChecker {
       if (ar.addr % 8) report("ARADDR 0x%08x not 8-byte aligned", ar.addr);
     }
     if (rvalid && !top->axm_rready_o) report("RREADY low while RVALID");
-    ar_wait_ = top->axm_arvalid_o && !arready;
+    // Bursts in flight, AR handshake to RLAST beat, within the declared
+    // read issuing capability.
+    if (top->axm_arvalid_o && arready) ++reads_out_;
+    if (rvalid && top->axm_rready_o && top->axm_rlast_i) --reads_out_;
+    if (reads_out_ > max_reads_out_) max_reads_out_ = reads_out_;
+    if (reads_out_ > kReadIssuing) report("%d read bursts in flight, the declared capability is %d", reads_out_, kReadIssuing);
+    ar_wait_ = top->axm_arvalid_o && !arready && !allow_withdraw_;
     ar_ = ar;
     AwPayload aw = aw_payload(top);
     WPayload w = w_payload(top);
@@ -250,6 +265,7 @@ class AxiChecker {
   AwPayload aw_{};
   WPayload w_{};
   uint64_t b_wait_ = 0, violations_ = 0;
+  int reads_out_ = 0, max_reads_out_ = 0;
 };
 
 // An AXI3 write slave in front of a byte array: takes AW and W as its
@@ -299,6 +315,14 @@ class AxiMemory {
   // The read channels answer nothing (a stall long enough to starve a
   // reader); bursts already accepted wait.
   void set_read_stall(bool on) { read_stall_ = on; }
+  // The read port is held in reset: nothing answers, and when it comes
+  // back it has forgotten every burst.
+  void set_read_dead(bool on) {
+    read_stall_ = on;
+    if (!on) rq_.clear();
+  }
+  // Beats read from [addr, addr + len) answer SLVERR with garbage data.
+  void set_read_error_range(uint32_t addr, uint32_t len) { rerr_lo_ = addr, rerr_hi_ = addr + len; }
   uint64_t read_bursts() const { return read_bursts_; }
   uint64_t read_beats() const { return read_beats_; }
 
@@ -349,15 +373,18 @@ class AxiMemory {
     top->axm_wready_i = wready_;
     top->axm_bvalid_i = bvalid_;
     top->axm_bresp_i = bvalid_ ? b_.front().resp : 0;
-    // Reads: bursts answered in order, beat by beat, from the memory.
-    arready_ = !read_stall_ && rroll(ar_stall_) && rq_.size() < 8;
+    // Reads: bursts answered in order, beat by beat, from the memory; any
+    // number accepted (the checker holds the master to its declared limit).
+    arready_ = !read_stall_ && rroll(ar_stall_);
     rvalid_ = !read_stall_ && !rq_.empty() && rq_.front().due <= now && rroll(r_gap_);
     uint64_t data = 0;
-    bool last = false;
+    bool last = false, error = false;
     if (rvalid_) {
       const ReadBurst &r = rq_.front();
       uint32_t at = r.addr + 8u * uint32_t(r.done);
-      if (at >= kMemBase && at + 8 <= kMemBase + kMemSize)
+      error = at < rerr_hi_ && at + 8 > rerr_lo_;
+      if (error) data = 0xdeadbeefdeadbeefull;
+      else if (at >= kMemBase && at + 8 <= kMemBase + kMemSize)
         for (int i = 0; i < 8; ++i) data |= uint64_t(mem_[at - kMemBase + i]) << (8 * i);
       last = r.done + 1 == r.beats;
     }
@@ -365,7 +392,7 @@ class AxiMemory {
     top->axm_rvalid_i = rvalid_;
     top->axm_rdata_i = rvalid_ ? data : 0x0123456789abcdefull;
     top->axm_rlast_i = rvalid_ && last;
-    top->axm_rresp_i = 0;
+    top->axm_rresp_i = error ? 2 : 0;  // SLVERR
   }
   bool arready() const { return arready_; }
   bool rvalid() const { return rvalid_; }
@@ -486,6 +513,7 @@ class AxiMemory {
   std::deque<ReadBurst> rq_;
   std::mt19937 rrng_{777};
   int ar_stall_ = 0, r_gap_ = 0, max_r_latency_ = 0;
+  uint32_t rerr_lo_ = 0, rerr_hi_ = 0;
   bool read_stall_ = false, arready_ = false, rvalid_ = false;
   uint64_t read_bursts_ = 0, read_beats_ = 0;
 };
@@ -561,16 +589,34 @@ class VgaMonitor {
     VgaPins now = vga_pins(top);
     if (!top->rst_ni) return;
     if (now.sync_n) fail("VGA: sync_n high");
+    bool rising = now.clk && !before.clk;
+    if (rising) {
+      // The DAC latches at this edge, enabled or not: the outputs did not
+      // change with it.
+      if (!(now == before)) fail("VGA: outputs changed on the rising edge of vga_clk");
+      dac_ = now;
+      since_rise_ = 0;
+    } else if (++since_rise_ > 4 && !stopped_reported_) {
+      stopped_reported_ = true;
+      fail("VGA: vga_clk stopped (%s): the DAC keeps its last pixel", enable_ ? "enabled" : "disabled");
+    }
     if (!enable_) {
-      if (++since_disable_ > 4 && (now.blank_n || now.r || now.g || now.b || !now.hs || !now.vs))
+      ++since_disable_;
+      if (since_disable_ > 4 && (now.blank_n || now.r || now.g || now.b || !now.hs || !now.vs))
         fail("VGA: disabled, yet outputs not blank/black with syncs inactive");
+      // What the monitor shows: the DAC's latched levels, blank and black
+      // within two pixel clocks.
+      if (since_disable_ > 8 && (dac_.blank_n || dac_.r || dac_.g || dac_.b) && !dac_reported_) {
+        dac_reported_ = true;
+        fail("VGA: disabled, yet the DAC holds %s %02x%02x%02x", dac_.blank_n ? "unblanked" : "blanked", dac_.r,
+             dac_.g, dac_.b);
+      }
       return;
     }
-    if (!(now.clk && !before.clk)) return;
-    // The DAC latches at this edge: the outputs did not change with it.
-    if (!(now == before)) fail("VGA: outputs changed on the rising edge of vga_clk");
-    sample(now, mem);
+    if (rising) sample(now, mem);
   }
+  // The DAC's latched levels (R, G, B, BLANK_N as of its last clock edge).
+  const VgaPins &dac() const { return dac_; }
 
  private:
   void sample(const VgaPins &p, AxiMemory &mem) {
@@ -656,7 +702,9 @@ class VgaMonitor {
   uint32_t base_ = 0, latched_base_ = 0, frame_base_ = 0;
   bool locked_ = false, prev_vs_ = true, capturing_ = false, allow_cut_ = false, have_picture_ = false;
   uint64_t k_ = 0;
-  int since_disable_ = 0, timing_errors_ = 0;
+  int since_disable_ = 0, timing_errors_ = 0, since_rise_ = 0;
+  bool stopped_reported_ = false, dac_reported_ = false;
+  VgaPins dac_{};
   int frames_ = 0, frames_lb_ = 0, cut_frames_ = 0, cut_lines_total_ = 0, last_cut_ = 0;
   std::vector<uint8_t> grab_, picture_;
 };
@@ -1269,6 +1317,47 @@ void check_vga(Bench &b, const std::vector<Golden> &goldens) {
   printf("VGA underrun test: a 20,000-clock read stall cut %d lines of one picture, underrun set, W1C cleared; next picture byte-exact\n",
          cut);
 
+  // A read answered SLVERR (frame B, mid row 100): not shown, the rest of
+  // that picture cut like an underrun, read error and underrun set; the
+  // next picture byte-exact. (Without RRESP the beat's data, 0xdeadbeef,
+  // would be on screen.)
+  m.set_read_error_range(kVgaB + 100 * kRowBytes + 480, 8);
+  mon.allow_cut(true);
+  run_vga_frames(b, 1);
+  mon.allow_cut(false);
+  m.set_read_error_range(0, 0);
+  int err_cut = mon.last_cut_lines();
+  if (err_cut == 0) fail("VGA: a SLVERR beat cut no line");
+  expect_eq("VGA_STATUS read error and underrun after SLVERR", b.read(kVgaStatus) & (kVgaReadError | kVgaUnderrun),
+            kVgaReadError | kVgaUnderrun);
+  b.write(kVgaStatus, kVgaReadError | kVgaUnderrun);
+  run_vga_frames(b, 1);
+  expect_eq("VGA_STATUS clean after the SLVERR picture", b.read(kVgaStatus) & (kVgaReadError | kVgaUnderrun | kVgaStall), 0);
+  printf("VGA read error test: one SLVERR beat, %d lines cut from it on, read error and underrun set; next picture byte-exact\n",
+         err_cut);
+
+  // A read port that never answers (held in reset): after the stall limit
+  // the reader withdraws its request and forgets its bursts (stall bit);
+  // once the port is back, the next whole picture is byte-exact.
+  b.ticks(kToMidFrame);
+  m.set_read_dead(true);
+  b.checker().allow_withdraw(true);
+  mon.allow_cut(true);
+  b.ticks(kVgaStallCycles + kVgaStallCycles / 2);
+  uint32_t dead_status = b.read(kVgaStatus);
+  m.set_read_dead(false);
+  b.checker().forget_reads();
+  b.checker().allow_withdraw(false);
+  run_vga_frames(b, 1);
+  mon.allow_cut(false);
+  expect_eq("VGA_STATUS stall and underrun with a dead read port", dead_status & (kVgaStall | kVgaUnderrun),
+            kVgaStall | kVgaUnderrun);
+  b.write(kVgaStatus, kVgaStall | kVgaUnderrun | kVgaReadError);
+  run_vga_frames(b, 1);
+  expect_eq("VGA_STATUS clean once the port is back", b.read(kVgaStatus) & (kVgaReadError | kVgaUnderrun | kVgaStall), 0);
+  printf("VGA stall-limit test: a read port dead for %llu clocks, stall and underrun set; the next picture byte-exact\n",
+         (unsigned long long)(kVgaStallCycles + kVgaStallCycles / 2));
+
   // Frame DMA and scan-out at once: two frames rendered into memory
   // while the VGA shows frame B; both byte-exact.
   int before = mon.frames_compared();
@@ -1287,10 +1376,17 @@ void check_vga(Bench &b, const std::vector<Golden> &goldens) {
   expect_eq("VGA_STATUS no underrun with the frame DMA", b.read(kVgaStatus) & kVgaUnderrun, 0);
   printf("VGA pictures during or right after the frame DMA: %d\n", mon.frames_compared() - before);
 
-  // Disabled: blank and black (the monitor checks every clock); enabling
-  // again clears VGA_STATUS and shows the frame at once.
+  // Disabled in the middle of a picture: blank and black on the pins and
+  // in the DAC, which latches them on the still-running vga_clk (the
+  // monitor checks every clock); enabling again clears VGA_STATUS and
+  // shows the frame at once.
+  b.ticks(kToMidFrame + 2 * 320);
+  VgaPins lit = mon.dac();
   b.write(kVgaControl, 0);
   b.ticks(5000);
+  if (!lit.blank_n) fail("VGA: the disable test did not start on a visible pixel");
+  printf("VGA disabled mid-picture: the DAC held %02x%02x%02x, then blank and black with vga_clk running\n", lit.r,
+         lit.g, lit.b);
   b.write(kVgaStatus, kVgaUnderrun);
   b.write(kVgaControl, kVgaEnable | kVgaLetterbox);
   expect_eq("VGA_STATUS cleared by enable", b.read(kVgaStatus), 0);
@@ -1298,9 +1394,10 @@ void check_vga(Bench &b, const std::vector<Golden> &goldens) {
   b.write(kVgaControl, 0);
   b.ticks(100);
   m.set_read_pressure(0, 0, 0);
-  printf("VGA monitor: %d pictures compared (%d letterboxed), %d with cut lines (%d lines) under a stall; %llu read bursts, %llu beats; timing checked at every pixel; %.1f Mclocks of clean scan-out\n",
+  printf("VGA monitor: %d pictures compared (%d letterboxed), %d with cut lines (%d lines) under a stall, an error or a dead port; %llu read bursts, %llu beats, at most %d in flight (declared %d); timing checked at every pixel; %.1f Mclocks of clean scan-out\n",
          mon.frames_compared(), mon.frames_letterbox(), mon.frames_with_cut_lines(), mon.cut_lines(),
-         (unsigned long long)m.read_bursts(), (unsigned long long)m.read_beats(), double(clean_clocks) / 1e6);
+         (unsigned long long)m.read_bursts(), (unsigned long long)m.read_beats(), b.checker().max_reads_in_flight(),
+         kReadIssuing, double(clean_clocks) / 1e6);
 }
 
 void check_board_io(Bench &b) {

@@ -24,7 +24,8 @@ use model::display::Layout;
 
 use crate::map::{
     Csr, FRAME_BASE_MASK, HEX_HI_MASK, HEX_LO_MASK, ID_MAGIC, ID_VERSION_VGA, KEYS_DOWN, KEYS_PRESSED, LEDS_MASK,
-    SWITCHES_MASK, VGA_CONTROL_ENABLE, VGA_CONTROL_LETTERBOX, VGA_STATUS_FRAMES, VGA_STATUS_UNDERRUN,
+    SWITCHES_MASK, VGA_CONTROL_ENABLE, VGA_CONTROL_LETTERBOX, VGA_STATUS_FRAMES, VGA_STATUS_READ_ERROR,
+    VGA_STATUS_STALL, VGA_STATUS_UNDERRUN,
 };
 use crate::port::RegisterPort;
 
@@ -96,6 +97,11 @@ pub struct VgaStatus {
     pub frames: u16,
     /// A line was cut since enable or the last clear.
     pub underrun: bool,
+    /// A read beat came back SLVERR or DECERR since enable or the last
+    /// clear.
+    pub read_error: bool,
+    /// The reader gave up on a port that answered nothing (stall limit).
+    pub stalled: bool,
 }
 
 /// KEYS as read.
@@ -207,15 +213,20 @@ impl<P: RegisterPort> BoardIo<P> {
         self.port.read(Csr::VgaBase)
     }
 
-    /// The frame counter and the underrun flag.
+    /// The frame counter and the sticky flags.
     pub fn status(&mut self) -> VgaStatus {
         let s = self.port.read(Csr::VgaStatus);
-        VgaStatus { frames: (s & VGA_STATUS_FRAMES) as u16, underrun: s & VGA_STATUS_UNDERRUN != 0 }
+        VgaStatus {
+            frames: (s & VGA_STATUS_FRAMES) as u16,
+            underrun: s & VGA_STATUS_UNDERRUN != 0,
+            read_error: s & VGA_STATUS_READ_ERROR != 0,
+            stalled: s & VGA_STATUS_STALL != 0,
+        }
     }
 
-    /// Clear the underrun flag.
-    pub fn clear_underrun(&mut self) {
-        self.port.write(Csr::VgaStatus, VGA_STATUS_UNDERRUN);
+    /// Clear the sticky flags (underrun, read error, stall).
+    pub fn clear_flags(&mut self) {
+        self.port.write(Csr::VgaStatus, VGA_STATUS_UNDERRUN | VGA_STATUS_READ_ERROR | VGA_STATUS_STALL);
     }
 
     /// The keys.
@@ -286,7 +297,7 @@ impl<P: RegisterPort> BoardIo<P> {
 impl<P: RegisterPort> rt_services::monitor::Panel for BoardIo<P> {
     fn refreshes(&mut self) -> rt_services::monitor::Refreshes {
         let s = self.status();
-        rt_services::monitor::Refreshes { count: s.frames, underrun: s.underrun }
+        rt_services::monitor::Refreshes { count: s.frames, underrun: s.underrun, port_fault: s.read_error || s.stalled }
     }
 
     fn show(&mut self, base: u32) {

@@ -39,7 +39,7 @@
 //! | `0x28` | [`Csr::RowsDone`] | R | rows `0..n` of the current (or last) frame whose bytes have landed in memory, `0..=360`. Writes ignored. |
 //! | `0x2C` | [`Csr::VgaControl`] | R/W | bit 0 [`VGA_CONTROL_ENABLE`]: scan frames out to the VGA port; bit 1 [`VGA_CONTROL_LETTERBOX`]: letterbox instead of full screen. Other bits read 0. |
 //! | `0x30` | [`Csr::VgaBase`] | R/W | bus address of the frame to show (480 x 360 RGB888 wire bytes, as frame mode writes them); bits 31:3 stored ([`FRAME_BASE_MASK`]). Taken at the start of vertical blanking. |
-//! | `0x34` | [`Csr::VgaStatus`] | R, W1C | bits 15:0 [`VGA_STATUS_FRAMES`]: frames scanned out since enable (wrapping); bit 16 [`VGA_STATUS_UNDERRUN`]: sticky, the reader was late and a line was cut (write 1 to clear; enable clears it too). |
+//! | `0x34` | [`Csr::VgaStatus`] | R, W1C | bits 15:0 [`VGA_STATUS_FRAMES`]: frames scanned out since enable (wrapping); bit 16 [`VGA_STATUS_UNDERRUN`]: sticky, the reader was late and a line was cut; bit 17 [`VGA_STATUS_READ_ERROR`]: sticky, a read came back with an error; bit 18 [`VGA_STATUS_STALL`]: sticky, the memory answered no read for [`VGA_STALL_CYCLES`] (write 1 to clear each; enable clears them too). |
 //! | `0x38` | [`Csr::Keys`] | R, W1C | bits 3:0 [`KEYS_DOWN`]: KEY3..KEY0 held down now (debounced; 1 = pressed, though the pins are active low); bits 7:4 [`KEYS_PRESSED`]: sticky, the key went down since last cleared (write 1 to clear). |
 //! | `0x3C` | [`Csr::Switches`] | R | bits 9:0: SW9..SW0 (1 = up), synchronised. Writes ignored. |
 //! | `0x40` | [`Csr::Leds`] | R/W | bits 9:0: LEDR9..LEDR0 (1 = lit). |
@@ -89,8 +89,15 @@
 //! is never torn: once the counter has moved after a `VGA_BASE` write, the
 //! new frame is on screen and the one before is no longer read. A line the
 //! reader could not fetch in time is cut (black to its end) and sets
-//! [`VGA_STATUS_UNDERRUN`]; the next frame starts over. Disabled, the
-//! outputs are blank and black and the counter holds 0.
+//! [`VGA_STATUS_UNDERRUN`]; the next frame starts over. The reader keeps at
+//! most [`VGA_READS_IN_FLIGHT`] bursts outstanding. A read answered with an
+//! error is not shown: the rest of that frame is black, as after an
+//! underrun, and [`VGA_STATUS_READ_ERROR`] sets. When the memory answers no
+//! read for [`VGA_STALL_CYCLES`] (the port held in reset), the reader
+//! withdraws its request and forgets its bursts, as the frame DMA does at
+//! its stall limit, sets [`VGA_STATUS_STALL`] and tries again at the next
+//! frame. Disabled, the outputs are blank and black, VGA_CLK keeps running
+//! so the DAC latches them, and the counter holds 0.
 //!
 //! # Board I/O (map version 3)
 //!
@@ -352,10 +359,24 @@ pub const VGA_CONTROL_LETTERBOX: u32 = 1 << 1;
 pub const VGA_CONTROL_MASK: u32 = VGA_CONTROL_ENABLE | VGA_CONTROL_LETTERBOX;
 /// VGA_STATUS bits 15:0: frames scanned out since enable (wrapping).
 pub const VGA_STATUS_FRAMES: u32 = 0xFFFF;
-/// VGA_STATUS bit 16: sticky; a line was cut because the reader was late.
+/// VGA_STATUS bit 16: sticky; a line was cut because the reader was late
+/// (or a read failed: bits 17 and 18 say why).
 pub const VGA_STATUS_UNDERRUN: u32 = 1 << 16;
+/// VGA_STATUS bit 17: sticky; a read beat came back SLVERR or DECERR (its
+/// data was not shown, the rest of that frame was black).
+pub const VGA_STATUS_READ_ERROR: u32 = 1 << 17;
+/// VGA_STATUS bit 18: sticky; the memory answered no read for
+/// [`VGA_STALL_CYCLES`] and the reader gave up on its bursts.
+pub const VGA_STATUS_STALL: u32 = 1 << 18;
 /// The VGA_STATUS bits that can be set.
-pub const VGA_STATUS_MASK: u32 = VGA_STATUS_FRAMES | VGA_STATUS_UNDERRUN;
+pub const VGA_STATUS_MASK: u32 = VGA_STATUS_FRAMES | VGA_STATUS_UNDERRUN | VGA_STATUS_READ_ERROR | VGA_STATUS_STALL;
+/// Fabric clocks the VGA reader waits on outstanding reads with no
+/// handshake before it gives them up, as the frame DMA's
+/// [`FRAME_STALL_CYCLES`] (2.6 ms, a sixth of a frame).
+pub const VGA_STALL_CYCLES: u32 = 1 << 17;
+/// Read bursts the VGA reader keeps in flight at most (AR handshake to the
+/// RLAST beat): the read issuing capability `rt_accel_hw.tcl` declares.
+pub const VGA_READS_IN_FLIGHT: u32 = 4;
 /// Fabric clocks per VGA frame: 800 x 525 pixels, two 50 MHz clocks each
 /// (16.8 ms).
 pub const VGA_FRAME_CLOCKS: u32 = 800 * 525 * 2;

@@ -3,7 +3,10 @@
 //! displays, and the driver as the monitor policy's panel.
 
 use hal_avalon::board::{has_board_io, seg, segments, BoardIo, Keys, NoBoardIo, VgaStatus};
-use hal_avalon::map::{Csr, ID_VALUE, KEY_DEBOUNCE_CLOCKS, LINE_WORDS, VGA_FRAME_CLOCKS};
+use hal_avalon::map::{
+    Csr, ID_VALUE, KEY_DEBOUNCE_CLOCKS, LINE_WORDS, VGA_FRAME_CLOCKS, VGA_STATUS_READ_ERROR, VGA_STATUS_STALL,
+    VGA_STATUS_UNDERRUN,
+};
 use hal_avalon::sim::SimAccelerator;
 use hal_avalon::RegisterPort;
 use model::display::Layout;
@@ -45,15 +48,35 @@ fn the_scan_out_counts_refreshes_from_enable() {
     let mut sim = io.into_inner();
     sim.pass_clocks(3 * VGA_FRAME_CLOCKS + 5);
     let mut io = BoardIo::checked(sim);
-    assert_eq!(io.status(), VgaStatus { frames: 3, underrun: false });
+    assert_eq!(io.status(), VgaStatus { frames: 3, ..VgaStatus::default() });
     io.enable(Layout::Letterbox);
     assert_eq!(io.layout(), Some(Layout::Letterbox));
     assert_eq!(io.status().frames, 3, "a layout change keeps the counter");
-    io.clear_underrun();
+    io.clear_flags();
     io.disable();
     assert_eq!(io.layout(), None);
     io.enable(Layout::FullScreen);
     assert_eq!(io.status().frames, 0, "enable restarts the counter");
+}
+
+#[test]
+fn the_scan_out_flags_read_back_reach_the_monitor_and_clear() {
+    let mut sim = SimAccelerator::new();
+    let mut io = BoardIo::checked(&mut sim);
+    io.enable(Layout::FullScreen);
+    sim.report_vga_fault(VGA_STATUS_READ_ERROR | VGA_STATUS_UNDERRUN);
+    let mut io = BoardIo::checked(&mut sim);
+    assert_eq!(io.status(), VgaStatus { underrun: true, read_error: true, ..VgaStatus::default() });
+    assert_eq!(Panel::refreshes(&mut io), Refreshes { count: 0, underrun: true, port_fault: true });
+    io.clear_flags();
+    assert_eq!(io.status(), VgaStatus::default(), "write 1 clears each");
+    sim.report_vga_fault(VGA_STATUS_STALL);
+    let mut io = BoardIo::checked(&mut sim);
+    assert_eq!(io.status(), VgaStatus { stalled: true, ..VgaStatus::default() });
+    assert!(Panel::refreshes(&mut io).port_fault, "a stalled port is a fault");
+    io.disable();
+    io.enable(Layout::FullScreen);
+    assert_eq!(io.status(), VgaStatus::default(), "enable clears the flags");
 }
 
 #[test]
@@ -133,6 +156,6 @@ fn the_driver_is_the_monitor_policys_panel() {
     let board = *sim.board();
     assert_eq!((board.vga_base, board.vga_control, board.leds), (0x0420_0000, 0b11, 0b1011));
     let mut io = BoardIo::checked(&mut sim);
-    assert_eq!(Panel::refreshes(&mut io), Refreshes { count: 2, underrun: false });
+    assert_eq!(Panel::refreshes(&mut io), Refreshes { count: 2, ..Refreshes::default() });
     assert_eq!(io.digits()[0], segments(b'S').unwrap());
 }

@@ -104,6 +104,10 @@ pub struct Refreshes {
     pub count: u16,
     /// A line was cut since the scan-out was enabled.
     pub underrun: bool,
+    /// The memory port failed the reader since the scan-out was enabled: a
+    /// read answered with an error, or reads given up after the stall limit
+    /// (VGA_STATUS bits 17 and 18; the port held in reset, for one).
+    pub port_fault: bool,
 }
 
 /// The board's display and I/O registers (hal-avalon's `BoardIo` on map
@@ -177,6 +181,7 @@ pub struct Scanout {
     last: Option<u16>,
     layout: Layout,
     underrun: bool,
+    port_fault: bool,
     refreshes: u64,
     shown: u64,
 }
@@ -190,6 +195,7 @@ impl Scanout {
             last: None,
             layout: Layout::FullScreen,
             underrun: false,
+            port_fault: false,
             refreshes: 0,
             shown: 0,
         }
@@ -230,6 +236,11 @@ impl Scanout {
         self.underrun
     }
 
+    /// Whether the display has reported a read error or a stalled port.
+    pub fn port_fault(&self) -> bool {
+        self.port_fault
+    }
+
     /// Change the layout (written at once while enabled, else at enable).
     pub fn set_layout(&mut self, panel: &mut impl Panel, layout: Layout) {
         if layout != self.layout {
@@ -249,6 +260,7 @@ impl Scanout {
         if let Some(last) = self.last {
             let r = dev.refreshes();
             self.underrun |= r.underrun;
+            self.port_fault |= r.port_fault;
             step.refreshes = u32::from(r.count.wrapping_sub(last));
             self.refreshes += u64::from(step.refreshes);
             self.last = Some(r.count);
@@ -565,6 +577,8 @@ pub struct Report {
     pub on_screen: Option<(Light, Origin)>,
     /// The display cut a line since it was enabled.
     pub underrun: bool,
+    /// The display's memory port failed (a read error or the stall limit).
+    pub port_fault: bool,
 }
 
 impl fmt::Display for Report {
@@ -589,6 +603,10 @@ impl fmt::Display for Report {
         }
         if self.underrun {
             f.write_str(", underrun")?;
+        }
+        if self.port_fault {
+            // docs/board-bring-up.md: the FPGA-to-SDRAM port out of reset.
+            f.write_str(", memory port fault (check fpgaportrst)")?;
         }
         Ok(())
     }
@@ -728,6 +746,7 @@ impl Monitor {
             attract: self.attract(now),
             on_screen,
             underrun: self.scanout.underrun(),
+            port_fault: self.scanout.port_fault(),
         }
     }
 
@@ -828,7 +847,7 @@ mod tests {
 
     impl Panel for FakePanel {
         fn refreshes(&mut self) -> Refreshes {
-            Refreshes { count: self.count, underrun: false }
+            Refreshes { count: self.count, ..Refreshes::default() }
         }
         fn show(&mut self, base: u32) {
             self.base = Some(base);
@@ -1183,6 +1202,24 @@ mod tests {
         let report = m.report(at(t + 3_001));
         assert_eq!(report.on_screen.map(|(_, o)| o), Some(Origin::Attract));
         assert_eq!(d.ring.free_slots(), 4, "on screen and pending only");
+    }
+
+    #[test]
+    fn the_report_names_a_memory_port_fault() {
+        let r = Report {
+            shown: 1,
+            refreshes: 2,
+            layout: Layout::FullScreen,
+            fps: 0,
+            attract: false,
+            on_screen: None,
+            underrun: true,
+            port_fault: true,
+        };
+        assert_eq!(
+            r.to_string(),
+            "display: 1 frames shown, 2 refreshes, layout full, 0 fps, attract off, underrun, memory port fault (check fpgaportrst)"
+        );
     }
 
     #[test]

@@ -377,7 +377,10 @@ pub fn parse_display_line(line: &str) -> Option<DisplayLine> {
     let (layout, rest) = rest.split_once(", ")?;
     let (_fps, rest) = rest.split_once(" fps, attract ")?;
     let (attract, on_screen) = match rest.split_once(", on screen: ") {
-        Some((a, s)) => (a, Some(s.split(", underrun").next().unwrap_or(s).to_string())),
+        Some((a, s)) => {
+            let s = s.split(", underrun").next().unwrap_or(s);
+            (a, Some(s.split(", memory port fault").next().unwrap_or(s).to_string()))
+        }
         None => (rest.split(',').next().unwrap_or(rest), None),
     };
     Some(DisplayLine {

@@ -25,7 +25,11 @@
 //! * timing: the .sdc constrains CLOCK_50 at 20 ns; every fabric input is a
 //!   clock or has an input delay or a false path, every fabric output is a
 //!   clock or has an output delay or a false path, and every delay names a
-//!   clock the .sdc defines.
+//!   clock the .sdc defines; the VGA pixel clock is a generated clock on
+//!   rt_vga's phase register (CLOCK_50 / 2) and VGA_CLK one on the port
+//!   from that register, so the analyzer traces the register;
+//! * the VGA outputs but the constant SYNC_N leave from I/O registers
+//!   (`FAST_OUTPUT_REGISTER ON`).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -60,9 +64,10 @@ pub const GOLDEN_PINS: &[(&str, &str)] = &[
 /// The I/O standard of every pin in [`GOLDEN_PINS`].
 pub const GOLDEN_IO_STANDARD: &str = "3.3-V LVTTL";
 
-/// Read bursts the VGA reader keeps in flight at most (issue 21): the AXI
-/// master's readIssuingCapability must allow them.
-pub const VGA_READS_OUTSTANDING: u32 = 4;
+/// Read bursts the VGA reader keeps in flight at most (rt_vga's
+/// READS_IN_FLIGHT, counted from AR to RLAST): the AXI master's
+/// readIssuingCapability must allow them.
+pub const VGA_READS_OUTSTANDING: u32 = hal_avalon::map::VGA_READS_IN_FLIGHT;
 
 /// The pin Terasic's golden top gives a port bit (`NAME` or `NAME[i]`), as
 /// `PIN_xx`.
@@ -167,6 +172,8 @@ pub struct Qsf {
     pub locations: Vec<(String, String)>,
     /// `-name IO_STANDARD "STD" -to TARGET`: target to standard.
     pub io_standards: BTreeMap<String, String>,
+    /// `-name FAST_OUTPUT_REGISTER ON -to TARGET` targets (patterns).
+    pub fast_outputs: Vec<String>,
 }
 
 /// The pin assignments of `qsf`.
@@ -180,6 +187,8 @@ pub fn qsf_assignments(qsf: &str) -> Qsf {
         } else if line.contains("-name IO_STANDARD") {
             let std = line.split('"').nth(1).unwrap_or("").to_string();
             q.io_standards.insert(to.to_string(), std);
+        } else if line.contains("-name FAST_OUTPUT_REGISTER ON") {
+            q.fast_outputs.push(to.to_string());
         }
     }
     q
@@ -452,7 +461,9 @@ pub fn problems(top: &str, qsf: &str, system_tcl: &str, hw_tcl: &str, accel_sv: 
         p.push("de1_soc_top.sv: no ports found".into());
     }
     let top_ports: BTreeMap<&str, &Port> = ports.iter().map(|q| (q.name.as_str(), q)).collect();
-    pin_problems(&ports, &qsf_assignments(qsf), &mut p);
+    let q = qsf_assignments(qsf);
+    pin_problems(&ports, &q, &mut p);
+    fast_output_problems(&ports, &q, &mut p);
     export_problems(top, &top_ports, system_tcl, hw_tcl, &mut p);
     component_problems(hw_tcl, accel_sv, system_tcl, &mut p);
     sdc_problems(&ports, sdc, &mut p);
@@ -498,6 +509,16 @@ fn pin_problems(ports: &[Port], q: &Qsf, p: &mut Vec<String>) {
     for target in assigned {
         if !bits.contains(target) {
             p.push(format!("{target}: assigned in de1_soc.qsf but not a port of de1_soc_top.sv"));
+        }
+    }
+}
+
+/// The VGA outputs latched by the DAC or read by the monitor, from I/O
+/// registers: all but SYNC_N, which rt_vga ties to 0.
+fn fast_output_problems(ports: &[Port], q: &Qsf, p: &mut Vec<String>) {
+    for port in ports.iter().filter(|x| x.name.starts_with("VGA_") && x.name != "VGA_SYNC_N") {
+        if !covered(port, &q.fast_outputs) {
+            p.push(format!("{}: no FAST_OUTPUT_REGISTER in de1_soc.qsf", port.name));
         }
     }
 }
@@ -644,6 +665,22 @@ fn sdc_problems(ports: &[Port], sdc: &str, p: &mut Vec<String>) {
     if !clock {
         p.push("de1_soc.sdc: no create_clock for CLOCK_50 at 20 ns".into());
     }
+    // The pixel clock on rt_vga's phase register, VGA_CLK from it.
+    let generated: Vec<Vec<String>> =
+        sdc.lines().map(str::trim).filter(|l| l.starts_with("create_generated_clock")).map(tcl_words).collect();
+    let flag = |w: &[String], f: &str| w.iter().position(|x| x == f).and_then(|i| w.get(i + 1)).cloned();
+    let phase_reg = |word: &str| word.starts_with("[get_registers") && word.contains("u_vga|phase_q");
+    let pixel = generated.iter().find(|w| w.last().is_some_and(|t| phase_reg(t)));
+    match pixel {
+        Some(w)
+            if flag(w, "-divide_by").as_deref() == Some("2")
+                && flag(w, "-source").as_deref() == Some("[get_ports CLOCK_50]") => {}
+        _ => p.push("de1_soc.sdc: no generated clock CLOCK_50 / 2 on rt_vga's phase register (u_vga|phase_q)".into()),
+    }
+    let vga_clk = generated.iter().find(|w| w.last().map(String::as_str) == Some("[get_ports VGA_CLK]"));
+    if !vga_clk.is_some_and(|w| flag(w, "-source").is_some_and(|s| phase_reg(&s))) {
+        p.push("de1_soc.sdc: VGA_CLK is not a generated clock from rt_vga's phase register".into());
+    }
     let s = sdc_constraints(sdc);
     for c in &s.delay_clocks {
         if !s.clocks.contains(c) {
@@ -740,6 +777,43 @@ mod tests {
         assert_eq!(
             broken(5, "-period 20.000", "-period 10.000"),
             ["de1_soc.sdc: no create_clock for CLOCK_50 at 20 ns"]
+        );
+    }
+
+    #[test]
+    fn the_vga_clock_must_be_traced_through_its_register() {
+        // The clock as it was: generated on the port straight from CLOCK_50.
+        let sdc = files()[5].clone();
+        let start = sdc.find("create_generated_clock -name vga_pixel").expect("pixel clock");
+        let end = sdc[start..].find("\n\n").map_or(sdc.len(), |e| start + e);
+        let mut g = files();
+        g[5] = format!(
+            "{}create_generated_clock -name VGA_CLK -source [get_ports CLOCK_50] -divide_by 2 [get_ports VGA_CLK]{}",
+            &sdc[..start],
+            &sdc[end..]
+        );
+        assert_eq!(
+            check(&g),
+            [
+                "de1_soc.sdc: no generated clock CLOCK_50 / 2 on rt_vga's phase register (u_vga|phase_q)",
+                "de1_soc.sdc: VGA_CLK is not a generated clock from rt_vga's phase register"
+            ]
+        );
+        assert_eq!(
+            broken(5, "-divide_by 2 [get_registers", "-divide_by 4 [get_registers"),
+            ["de1_soc.sdc: no generated clock CLOCK_50 / 2 on rt_vga's phase register (u_vga|phase_q)"]
+        );
+    }
+
+    #[test]
+    fn the_vga_outputs_must_use_io_registers() {
+        assert_eq!(
+            broken(1, "set_instance_assignment -name FAST_OUTPUT_REGISTER ON -to VGA_G[*]\n", ""),
+            ["VGA_G: no FAST_OUTPUT_REGISTER in de1_soc.qsf"]
+        );
+        assert_eq!(
+            broken(1, "FAST_OUTPUT_REGISTER ON -to VGA_CLK", "FAST_OUTPUT_REGISTER OFF -to VGA_CLK"),
+            ["VGA_CLK: no FAST_OUTPUT_REGISTER in de1_soc.qsf"]
         );
     }
 
@@ -908,7 +982,7 @@ mod tests {
         // unconstrained output and every DAC delay names a missing clock.
         let p = broken(
             5,
-            "create_generated_clock -name VGA_CLK -source [get_ports CLOCK_50] -divide_by 2 [get_ports VGA_CLK]",
+            "create_generated_clock -name VGA_CLK -source [get_registers {*u_vga|phase_q}] [get_ports VGA_CLK]",
             "",
         );
         assert!(
