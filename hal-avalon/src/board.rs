@@ -24,8 +24,8 @@ use model::display::Layout;
 
 use crate::map::{
     Csr, FRAME_BASE_MASK, HEX_HI_MASK, HEX_LO_MASK, ID_MAGIC, ID_VERSION_VGA, KEYS_DOWN, KEYS_PRESSED, LEDS_MASK,
-    SWITCHES_MASK, VGA_CONTROL_ENABLE, VGA_CONTROL_LETTERBOX, VGA_STATUS_FRAMES, VGA_STATUS_READ_ERROR,
-    VGA_STATUS_STALL, VGA_STATUS_UNDERRUN,
+    SWITCHES_MASK, VGA_CONTROL_ENABLE, VGA_CONTROL_LETTERBOX, VGA_STATUS_FLAGS, VGA_STATUS_FRAMES,
+    VGA_STATUS_READ_ERROR, VGA_STATUS_STALL, VGA_STATUS_UNDERRUN,
 };
 use crate::port::RegisterPort;
 
@@ -226,7 +226,7 @@ impl<P: RegisterPort> BoardIo<P> {
 
     /// Clear the sticky flags (underrun, read error, stall).
     pub fn clear_flags(&mut self) {
-        self.port.write(Csr::VgaStatus, VGA_STATUS_UNDERRUN | VGA_STATUS_READ_ERROR | VGA_STATUS_STALL);
+        self.port.write(Csr::VgaStatus, VGA_STATUS_FLAGS);
     }
 
     /// The keys.

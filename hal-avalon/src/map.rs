@@ -368,8 +368,10 @@ pub const VGA_STATUS_READ_ERROR: u32 = 1 << 17;
 /// VGA_STATUS bit 18: sticky; the memory answered no read for
 /// [`VGA_STALL_CYCLES`] and the reader gave up on its bursts.
 pub const VGA_STATUS_STALL: u32 = 1 << 18;
+/// The sticky VGA_STATUS flags (write 1 to clear each).
+pub const VGA_STATUS_FLAGS: u32 = VGA_STATUS_UNDERRUN | VGA_STATUS_READ_ERROR | VGA_STATUS_STALL;
 /// The VGA_STATUS bits that can be set.
-pub const VGA_STATUS_MASK: u32 = VGA_STATUS_FRAMES | VGA_STATUS_UNDERRUN | VGA_STATUS_READ_ERROR | VGA_STATUS_STALL;
+pub const VGA_STATUS_MASK: u32 = VGA_STATUS_FRAMES | VGA_STATUS_FLAGS;
 /// Fabric clocks the VGA reader waits on outstanding reads with no
 /// handshake before it gives them up, as the frame DMA's
 /// [`FRAME_STALL_CYCLES`] (2.6 ms, a sixth of a frame).

@@ -36,8 +36,8 @@ use crate::map::{
     FRAME_CONTROL_ABORT, FRAME_CONTROL_CLEAR_DONE, FRAME_CONTROL_START, FRAME_ROW_BYTES, FRAME_STATUS_ABORTED,
     FRAME_STATUS_BUSY, FRAME_STATUS_DONE, FRAME_STATUS_ERROR, HEX_HI_MASK, HEX_LO_MASK, ID_VALUE, KEYS_DOWN,
     KEYS_PRESSED, KEY_DEBOUNCE_CLOCKS, LEDS_MASK, LIGHT_MASK, LINE_BUFFER_OFFSET, LINE_WORDS, ROWS, ROW_Y_MASK,
-    STATUS_BUSY, STATUS_DONE, SWITCHES_MASK, VGA_CONTROL_ENABLE, VGA_CONTROL_MASK, VGA_FRAME_CLOCKS, VGA_STATUS_FRAMES,
-    VGA_STATUS_READ_ERROR, VGA_STATUS_STALL, VGA_STATUS_UNDERRUN,
+    STATUS_BUSY, STATUS_DONE, SWITCHES_MASK, VGA_CONTROL_ENABLE, VGA_CONTROL_MASK, VGA_FRAME_CLOCKS, VGA_STATUS_FLAGS,
+    VGA_STATUS_FRAMES,
 };
 use crate::port::RegisterPort;
 
@@ -284,11 +284,10 @@ impl<M: DmaTarget> SimAccelerator<M> {
     }
 
     /// A scan-out fault as the RTL reports it: `flags` (of
-    /// [`VGA_STATUS_UNDERRUN`], [`VGA_STATUS_READ_ERROR`],
-    /// [`VGA_STATUS_STALL`]) set in VGA_STATUS until cleared. The simulated
+    /// [`VGA_STATUS_FLAGS`]) set in VGA_STATUS until cleared. The simulated
     /// reader itself never fails.
     pub fn report_vga_fault(&mut self, flags: u32) {
-        self.board.vga_status |= flags & (VGA_STATUS_UNDERRUN | VGA_STATUS_READ_ERROR | VGA_STATUS_STALL);
+        self.board.vga_status |= flags & VGA_STATUS_FLAGS;
     }
 
     /// The board's inputs as the pins carry them: `keys` held down (bit n:
@@ -448,10 +447,7 @@ impl<M: DmaTarget> SimAccelerator<M> {
                 self.board.vga_control = value & VGA_CONTROL_MASK;
             }
             Csr::VgaBase => self.board.vga_base = value & FRAME_BASE_MASK,
-            Csr::VgaStatus => {
-                let flags = VGA_STATUS_UNDERRUN | VGA_STATUS_READ_ERROR | VGA_STATUS_STALL;
-                self.board.vga_status &= !(value & flags)
-            }
+            Csr::VgaStatus => self.board.vga_status &= !(value & VGA_STATUS_FLAGS),
             Csr::Keys => self.board.keys &= !(value & KEYS_PRESSED),
             Csr::Leds => self.board.leds = value & LEDS_MASK,
             Csr::HexLo => self.board.hex_lo = value & HEX_LO_MASK,

@@ -410,13 +410,18 @@ fn get_ports(word: &str) -> Option<Vec<String>> {
     Some(inner.split_whitespace().map(String::from).collect())
 }
 
+/// The word after `flag` in a Tcl command's words (`-name X`: X).
+fn flag_value(words: &[String], flag: &str) -> Option<String> {
+    words.iter().position(|x| x == flag).and_then(|i| words.get(i + 1)).cloned()
+}
+
 /// What `sdc` constrains.
 pub fn sdc_constraints(sdc: &str) -> Sdc {
     let mut s = Sdc::default();
     for line in sdc.lines().map(str::trim).filter(|l| !l.starts_with('#')) {
         let w = tcl_words(line);
         let Some(cmd) = w.first() else { continue };
-        let flag_value = |flag: &str| w.iter().position(|x| x == flag).and_then(|i| w.get(i + 1)).cloned();
+        let flag_value = |flag: &str| flag_value(&w, flag);
         for (i, word) in w.iter().enumerate() {
             let Some(ports) = get_ports(word) else { continue };
             let prev = if i > 0 { w[i - 1].as_str() } else { "" };
@@ -668,17 +673,16 @@ fn sdc_problems(ports: &[Port], sdc: &str, p: &mut Vec<String>) {
     // The pixel clock on rt_vga's phase register, VGA_CLK from it.
     let generated: Vec<Vec<String>> =
         sdc.lines().map(str::trim).filter(|l| l.starts_with("create_generated_clock")).map(tcl_words).collect();
-    let flag = |w: &[String], f: &str| w.iter().position(|x| x == f).and_then(|i| w.get(i + 1)).cloned();
     let phase_reg = |word: &str| word.starts_with("[get_registers") && word.contains("u_vga|phase_q");
     let pixel = generated.iter().find(|w| w.last().is_some_and(|t| phase_reg(t)));
     match pixel {
         Some(w)
-            if flag(w, "-divide_by").as_deref() == Some("2")
-                && flag(w, "-source").as_deref() == Some("[get_ports CLOCK_50]") => {}
+            if flag_value(w, "-divide_by").as_deref() == Some("2")
+                && flag_value(w, "-source").as_deref() == Some("[get_ports CLOCK_50]") => {}
         _ => p.push("de1_soc.sdc: no generated clock CLOCK_50 / 2 on rt_vga's phase register (u_vga|phase_q)".into()),
     }
     let vga_clk = generated.iter().find(|w| w.last().map(String::as_str) == Some("[get_ports VGA_CLK]"));
-    if !vga_clk.is_some_and(|w| flag(w, "-source").is_some_and(|s| phase_reg(&s))) {
+    if !vga_clk.is_some_and(|w| flag_value(w, "-source").is_some_and(|s| phase_reg(&s))) {
         p.push("de1_soc.sdc: VGA_CLK is not a generated clock from rt_vga's phase register".into());
     }
     let s = sdc_constraints(sdc);
