@@ -14,6 +14,8 @@
 //! * [`monitor`]: the board on its own: the VGA display following the
 //!   newest frame, attract mode, keys, switches, LEDs and 7-segment text.
 //! * [`orbit`]: the light orbiting the sphere, by frame or by time.
+//! * [`web`]: the board's web page (HTTP 80): the live picture in a browser,
+//!   frames over a WebSocket, the board's status as JSON.
 //! * [`time`]: [`time::Instant`], the millisecond clock the services run on.
 //!
 //! A frame is 518,400 bytes: 480 x 360 RGB888, row-major, top row first
@@ -27,6 +29,7 @@ pub mod monitor;
 pub mod orbit;
 pub mod seed;
 pub mod time;
+pub mod web;
 
 pub use frames::{
     Completed, EngineError, FallbackEngine, FrameEngine, FrameMemory, FrameRing, FrameSource, RowEngine, RowFrames,

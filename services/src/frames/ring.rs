@@ -201,6 +201,11 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
         &mut self.engine
     }
 
+    /// Frames completed since the ring was made (wrapping).
+    pub fn completed(&self) -> u32 {
+        self.completed
+    }
+
     /// Slots neither held by a frame nor pinned (free for `begin`).
     pub fn free_slots(&self) -> usize {
         (0..SLOTS).filter(|&i| self.takeable(i)).count()

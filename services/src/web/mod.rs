@@ -1,0 +1,31 @@
+//! The board's web page: `http://<board>/` shows the live picture and lets
+//! a visitor with nothing but a browser move the light.
+//!
+//! * [`assets`]: the page's files (`services/web/`), compiled in, served
+//!   gzip-compressed to browsers that take it.
+//! * [`http`]: request heads (httparse) within fixed caps, response heads.
+//! * [`websocket`]: RFC 6455's handshake key and frame heads.
+//! * [`status`]: `/status`, the board's figures as JSON.
+//! * [`server`]: one connection, sans-IO: a file, the status, an error, or
+//!   a WebSocket viewer that asks for frames by light and gets each as one
+//!   binary message of the exact 518,400 bytes.
+//! * `service` (feature `smoltcp`): the connections on smoltcp sockets, as
+//!   the firmware runs them.
+//!
+//! docs/web.md has the protocol, the caps and why these crates.
+
+pub mod assets;
+pub mod http;
+pub mod server;
+#[cfg(feature = "smoltcp")]
+pub mod service;
+pub mod status;
+pub mod websocket;
+
+/// The page's TCP port on the board.
+pub const WEB_PORT: u16 = 80;
+
+/// WebSocket viewers at once: each holds a frame slot while its frame is
+/// rendered and sent (within the ring's web quota), and a socket; more are
+/// answered 503 and the page retries.
+pub const WEB_VIEWERS: usize = 4;

@@ -1,0 +1,214 @@
+//! The web page on smoltcp (feature `smoltcp`): `N` TCP sockets listening
+//! on [`WEB_PORT`], one [`Connection`] per connected socket, at most
+//! [`WEB_VIEWERS`] of them WebSocket viewers.
+//!
+//! A browser opens a few connections at once for the page's files and
+//! `/status`, and keeps one for the picture; every answer but the picture's
+//! closes its connection, so sockets come back quickly. The caller lends the
+//! buffers, as for the seed service.
+
+use core::fmt::Write;
+use core::time::Duration;
+
+use smoltcp::iface::{SocketHandle, SocketSet};
+use smoltcp::socket::tcp;
+use smoltcp::time::Instant;
+
+use super::http::HEAD_BYTES;
+use super::server::{drive, Action, Connection, Context};
+use super::status::BoardStatus;
+use super::{WEB_PORT, WEB_VIEWERS};
+use crate::frames::FrameSource;
+use crate::time;
+
+/// Receive buffer of one socket: a whole request head.
+pub const RX_BUFFER_BYTES: usize = HEAD_BYTES;
+
+/// Transmit buffer of one socket: 64 KiB, as the seed service's (a frame
+/// streams through it at line rate on a LAN; docs/reliability.md).
+pub const TX_BUFFER_BYTES: usize = 64 * 1024;
+
+/// How long a closed connection may take to finish closing (our FIN sent,
+/// the peer's not come) before its socket is taken back: a half-open
+/// client would otherwise keep it from listening.
+pub const CLOSE_LINGER: Duration = Duration::from_secs(5);
+
+/// The buffers of one socket, the transmit buffer first and cache-line
+/// aligned (rows are copied into it word by word, as the seed service's).
+#[repr(C, align(32))]
+pub struct SocketBuffers {
+    tx: [u8; TX_BUFFER_BYTES],
+    rx: [u8; RX_BUFFER_BYTES],
+}
+
+impl SocketBuffers {
+    /// Zeroed buffers (usable in a `static`).
+    pub const fn new() -> SocketBuffers {
+        SocketBuffers { tx: [0; TX_BUFFER_BYTES], rx: [0; RX_BUFFER_BYTES] }
+    }
+}
+
+impl Default for SocketBuffers {
+    fn default() -> Self {
+        SocketBuffers::new()
+    }
+}
+
+struct Slot<F> {
+    handle: SocketHandle,
+    connection: Option<Connection<F>>,
+    /// When the last connection was closed, while its socket finishes.
+    closing_since: Option<time::Instant>,
+}
+
+/// The page on `N` smoltcp TCP sockets, serving frames whose handles are
+/// `F`.
+pub struct WebService<F, const N: usize> {
+    slots: [Slot<F>; N],
+    frames_sent: u64,
+}
+
+impl<F: Copy, const N: usize> WebService<F, N> {
+    /// Add `N` TCP sockets, listening on [`WEB_PORT`], to `sockets`.
+    pub fn new<'a>(sockets: &mut SocketSet<'a>, buffers: &'a mut [SocketBuffers; N]) -> Self {
+        let slots = buffers.each_mut().map(|b| {
+            let socket = tcp::Socket::new(tcp::SocketBuffer::new(&mut b.rx[..]), tcp::SocketBuffer::new(&mut b.tx[..]));
+            Slot { handle: sockets.add(socket), connection: None, closing_since: None }
+        });
+        WebService { slots, frames_sent: 0 }
+    }
+
+    /// Sockets listening, of `N`.
+    pub fn listening(&self, sockets: &SocketSet<'_>) -> usize {
+        self.slots.iter().filter(|s| sockets.get::<tcp::Socket>(s.handle).state() == tcp::State::Listen).count()
+    }
+
+    /// Open connections.
+    pub fn connections(&self) -> usize {
+        self.slots.iter().filter(|s| s.connection.is_some()).count()
+    }
+
+    /// WebSocket viewers now.
+    pub fn viewers(&self) -> usize {
+        self.slots.iter().filter(|s| s.connection.as_ref().is_some_and(Connection::is_viewer)).count()
+    }
+
+    /// Frames sent whole to viewers since start.
+    pub fn frames_sent(&self) -> u64 {
+        self.frames_sent
+    }
+
+    /// Serve every socket once: accept, read, answer, stream frames from
+    /// `frames`, close, re-listen. Call it after each `Interface::poll`.
+    pub fn poll<S: FrameSource<Frame = F>>(
+        &mut self,
+        now: Instant,
+        sockets: &mut SocketSet<'_>,
+        frames: &mut S,
+        status: &BoardStatus<'_>,
+        log: &mut impl Write,
+    ) {
+        let now = time::Instant::from_millis(u64::try_from(now.total_millis()).unwrap_or(0));
+        for index in 0..N {
+            let room = self.viewers() < WEB_VIEWERS;
+            let cx = Context { now, room, status };
+            let slot = &mut self.slots[index];
+            let socket = sockets.get_mut::<tcp::Socket>(slot.handle);
+            self.frames_sent += u64::from(serve_slot(index, slot, socket, &cx, frames, log));
+        }
+    }
+}
+
+/// Serve one socket; returns the frames it sent whole.
+fn serve_slot<S: FrameSource>(
+    index: usize,
+    slot: &mut Slot<S::Frame>,
+    socket: &mut tcp::Socket<'_>,
+    cx: &Context<'_>,
+    frames: &mut S,
+    log: &mut impl Write,
+) -> u32 {
+    let Some(connection) = &mut slot.connection else {
+        // TIME-WAIT would refuse clients for 10 s: our FIN was acknowledged.
+        if socket.state() == tcp::State::TimeWait {
+            socket.abort();
+        }
+        if let Some(since) = slot.closing_since {
+            if socket.is_open() && cx.now < since + CLOSE_LINGER {
+                return 0;
+            }
+            if socket.is_open() {
+                let _ = writeln!(log, "web[{index}] peer never finished closing; socket taken back");
+                socket.abort();
+            }
+            slot.closing_since = None;
+        }
+        if !socket.is_open() {
+            if let Err(e) = socket.listen(WEB_PORT) {
+                let _ = writeln!(log, "web[{index}] listen on {WEB_PORT} failed: {e:?}");
+            }
+        } else if matches!(socket.state(), tcp::State::Established | tcp::State::CloseWait) {
+            slot.connection = Some(Connection::new(cx.now));
+        }
+        return 0;
+    };
+
+    if !socket.is_active() || !socket.may_send() {
+        if connection.is_viewer() {
+            let _ = writeln!(log, "web[{index}] viewer went away");
+        }
+        connection.abandon(frames);
+        socket.abort();
+        slot.connection = None;
+        return 0;
+    }
+    let before = connection.frames_sent();
+    while socket.can_recv() {
+        match socket.recv(|buf| {
+            let n = connection.receive(buf);
+            (n, n)
+        }) {
+            Ok(n) if n > 0 => {}
+            _ => break,
+        }
+    }
+    if !socket.may_recv() && socket.recv_queue() == 0 {
+        connection.receive_eof();
+    }
+    let was_viewer = connection.is_viewer();
+    // Whole words at a time, as the seed service (rows are 1,440 bytes).
+    let action = drive(
+        connection,
+        cx,
+        frames,
+        |fill| {
+            socket
+                .send(|buf| {
+                    let words = buf.len() & !3;
+                    let n = if words == 0 { 0 } else { fill(&mut buf[..words]) };
+                    (n, n)
+                })
+                .unwrap_or(0)
+        },
+        log,
+    );
+    let sent = connection.frames_sent().wrapping_sub(before);
+    if !was_viewer && connection.is_viewer() {
+        if let Some(peer) = socket.remote_endpoint() {
+            let _ = writeln!(log, "web[{index}] viewer {peer}");
+        }
+    }
+    if let Action::Close(reason) = action {
+        if was_viewer || !reason.graceful() {
+            let _ = writeln!(log, "web[{index}] {reason}");
+        }
+        if reason.graceful() {
+            socket.close();
+            slot.closing_since = Some(cx.now);
+        } else {
+            socket.abort();
+        }
+        slot.connection = None;
+    }
+    sent
+}
