@@ -14,7 +14,8 @@
 //! and per row.
 //!
 //! Beside them, [`rtsp`]: the board as a network camera (RTSP on TCP, RTP
-//! and RTCP on UDP), from one shared frame ring as on the board.
+//! and RTCP on UDP), from one shared frame ring as on the board; and [`web`]:
+//! the board's web page (`--http`), the live picture in a browser.
 //!
 //! Two listeners: the seed protocol on the listen port and the persistent
 //! protocol on the listen port + 1. Every connection is served concurrently
@@ -23,6 +24,7 @@
 //! keeps the clients independent and the frames identical).
 
 pub mod rtsp;
+pub mod web;
 
 use std::cell::RefCell;
 use std::fmt;
@@ -204,6 +206,8 @@ pub struct HpsSim {
     persistent_addr: SocketAddr,
     stop: Arc<AtomicBool>,
     rtsp: Option<rtsp::RtspServer>,
+    shared: Arc<web::Shared>,
+    web: Option<web::WebServer>,
 }
 
 impl HpsSim {
@@ -238,13 +242,15 @@ impl HpsSim {
             persistent_addr: persistent.local_addr()?,
             stop: Arc::new(AtomicBool::new(false)),
             rtsp: None,
+            shared: Arc::new(web::Shared::new(rt_services::camera::rtsp::RTSP_PORT)),
+            web: None,
         };
         let ids = Arc::new(AtomicU64::new(1));
         for (listener, mode) in [(single, Mode::Single), (persistent, Mode::Persistent)] {
-            let (stop, ids) = (sim.stop.clone(), ids.clone());
+            let (stop, ids, shared) = (sim.stop.clone(), ids.clone(), sim.shared.clone());
             thread::Builder::new()
                 .name(format!("accept {mode:?}"))
-                .spawn(move || accept_loop(listener, mode, config, &stop, &ids, verbose))?;
+                .spawn(move || accept_loop(listener, mode, config, &stop, &ids, &shared, verbose))?;
         }
         Ok(sim)
     }
@@ -270,6 +276,16 @@ impl HpsSim {
         let server = rtsp::RtspServer::start(addr, options)?;
         let addr = server.addr();
         self.rtsp = Some(server);
+        self.shared.set_rtsp_port(addr.port());
+        Ok(addr)
+    }
+
+    /// Also serve the board's web page ([`web`]) on `addr` (port 0: any
+    /// free one), logging if `verbose`; returns its address.
+    pub fn start_web(&mut self, addr: SocketAddr, verbose: bool) -> io::Result<SocketAddr> {
+        let server = web::WebServer::start(addr, self.shared.clone(), verbose)?;
+        let addr = server.addr();
+        self.web = Some(server);
         Ok(addr)
     }
 
@@ -318,7 +334,15 @@ fn bind_pair(addr: SocketAddr) -> io::Result<(TcpListener, TcpListener)> {
     Err(last_err.unwrap_or_else(|| io::Error::new(io::ErrorKind::AddrInUse, "no free port pair")))
 }
 
-fn accept_loop(listener: TcpListener, mode: Mode, config: Config, stop: &AtomicBool, ids: &AtomicU64, verbose: bool) {
+fn accept_loop(
+    listener: TcpListener,
+    mode: Mode,
+    config: Config,
+    stop: &AtomicBool,
+    ids: &AtomicU64,
+    shared: &Arc<web::Shared>,
+    verbose: bool,
+) {
     for stream in listener.incoming() {
         if stop.load(Ordering::SeqCst) {
             return;
@@ -326,9 +350,13 @@ fn accept_loop(listener: TcpListener, mode: Mode, config: Config, stop: &AtomicB
         match stream {
             Ok(stream) => {
                 let id = ids.fetch_add(1, Ordering::Relaxed);
-                let spawned = thread::Builder::new()
-                    .name(format!("client {id}"))
-                    .spawn(move || serve_connection(stream, mode, config, Log::new(id, verbose)));
+                let shared = shared.clone();
+                let spawned = thread::Builder::new().name(format!("client {id}")).spawn(move || {
+                    // The page's status counts the seed clients.
+                    shared.seed_clients.fetch_add(1, Ordering::Relaxed);
+                    serve_connection(stream, mode, config, Log::new(id, verbose));
+                    shared.seed_clients.fetch_sub(1, Ordering::Relaxed);
+                });
                 if let Err(e) = spawned {
                     eprintln!("[{id}] cannot start a thread: {e}");
                 }

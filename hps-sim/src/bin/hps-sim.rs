@@ -1,11 +1,12 @@
 //! `hps-sim`: the board simulated on the host.
 //!
 //!     cargo run --release --bin hps-sim -- --listen 127.0.0.1:7878 [--mode rows] [--accelerator rtl] [--rtsp 127.0.0.1:8554]
-//!         [--multicast-group 239.255.42.1 [--multicast-port 5006] [--multicast-ttl 1]]
+//!         [--multicast-group 239.255.42.1 [--multicast-port 5006] [--multicast-ttl 1]] [--http 127.0.0.1:8080]
 //!
 //! Seed protocol on the listen port, persistent protocol on the port + 1,
 //! RTSP on `--rtsp` (default: the listen address, port 8554); multicast
-//! streams to `--multicast-group` when one is given.
+//! streams to `--multicast-group` when one is given; the board's web page
+//! on `--http` when one is given (open `http://ADDR:PORT/` in a browser).
 
 use std::net::{Ipv4Addr, SocketAddr};
 use std::process::ExitCode;
@@ -45,6 +46,10 @@ struct Args {
     /// The multicast packets' time to live (1: they stay on the link).
     #[arg(long, default_value_t = 1)]
     multicast_ttl: u8,
+    /// Address of the board's web page (port 80 on the board): the live
+    /// picture in a browser, the light under the mouse.
+    #[arg(long)]
+    http: Option<SocketAddr>,
 }
 
 fn main() -> ExitCode {
@@ -69,6 +74,15 @@ fn main() -> ExitCode {
                     return ExitCode::FAILURE;
                 }
             };
+            if let Some(http) = args.http {
+                match sim.start_web(http, true) {
+                    Ok(addr) => eprintln!("hps-sim: web page on http://{addr}/"),
+                    Err(e) => {
+                        eprintln!("hps-sim: cannot serve the web page on {http}: {e}");
+                        return ExitCode::FAILURE;
+                    }
+                }
+            }
             eprintln!(
                 "hps-sim: {render:?} mode, {device:?} accelerator; frames on {} (one per connection), persistent on {}, \
                  RTSP on rtsp://{rtsp}/light/3,4,-2 (also /orbit, /live)",

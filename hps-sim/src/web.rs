@@ -1,0 +1,248 @@
+//! The board's web page on the host (`hps-sim --http ADDR:PORT`): the
+//! firmware's web connections (`rt_services::web::server`) on std TCP, a
+//! thread and a simulated accelerator per connection as for the seed
+//! protocol, at most [`WEB_VIEWERS`] WebSocket viewers at once as on the
+//! board.
+
+use std::fmt;
+use std::io::{self, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream};
+use std::sync::atomic::{AtomicBool, AtomicU16, AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use model::ROW_BYTES;
+use rt_services::web::server::{drive, Action, Connection, Context, SEND_TIMEOUT};
+use rt_services::web::status::{BoardStatus, Viewers};
+use rt_services::web::WEB_VIEWERS;
+use rt_services::{FrameSource, Instant as ProtocolInstant};
+
+use crate::{close_gracefully, frame_ring, spawn_reader, Input, Log};
+
+/// What the connections share: the board's figures.
+#[derive(Debug)]
+pub struct Shared {
+    started: Instant,
+    /// Viewers now (the lock also orders handshakes against the cap).
+    viewers: Mutex<usize>,
+    /// Seed-protocol clients now (the seed listeners count them).
+    pub seed_clients: AtomicUsize,
+    frames_rendered: AtomicU64,
+    frames_sent: AtomicU64,
+    rtsp_port: AtomicU16,
+}
+
+impl Shared {
+    /// Figures from now on; the page's RTSP URLs name `rtsp_port`.
+    pub fn new(rtsp_port: u16) -> Shared {
+        Shared {
+            started: Instant::now(),
+            viewers: Mutex::new(0),
+            seed_clients: AtomicUsize::new(0),
+            frames_rendered: AtomicU64::new(0),
+            frames_sent: AtomicU64::new(0),
+            rtsp_port: AtomicU16::new(rtsp_port),
+        }
+    }
+
+    /// The camera's port, once it listens.
+    pub fn set_rtsp_port(&self, port: u16) {
+        self.rtsp_port.store(port, Ordering::Relaxed);
+    }
+
+    fn viewers(&self) -> usize {
+        self.viewers.lock().map_or(WEB_VIEWERS, |v| *v)
+    }
+}
+
+/// The web listener: accepts until dropped.
+pub struct WebServer {
+    addr: SocketAddr,
+    stop: Arc<AtomicBool>,
+}
+
+impl WebServer {
+    /// Listen on `addr` (port 0: any free one), logging if `verbose`.
+    pub fn start(addr: SocketAddr, shared: Arc<Shared>, verbose: bool) -> io::Result<WebServer> {
+        let listener = TcpListener::bind(addr)?;
+        let server = WebServer { addr: listener.local_addr()?, stop: Arc::new(AtomicBool::new(false)) };
+        let stop = server.stop.clone();
+        thread::Builder::new().name("accept web".into()).spawn(move || {
+            let mut id = 0u64;
+            for stream in listener.incoming() {
+                if stop.load(Ordering::SeqCst) {
+                    return;
+                }
+                let Ok(stream) = stream else { continue };
+                id += 1;
+                let shared = shared.clone();
+                let log = Log::new(id, verbose);
+                let spawned =
+                    thread::Builder::new().name(format!("web {id}")).spawn(move || serve(stream, &shared, log));
+                if let Err(e) = spawned {
+                    eprintln!("web: cannot start a thread: {e}");
+                }
+            }
+        })?;
+        Ok(server)
+    }
+
+    /// The listener's address.
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+}
+
+impl Drop for WebServer {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        let _ = TcpStream::connect_timeout(&self.addr, Duration::from_millis(200));
+    }
+}
+
+/// Frames begun through it count as rendered.
+struct Counted<'a, S> {
+    frames: &'a mut S,
+    rendered: &'a AtomicU64,
+}
+
+impl<S: FrameSource> FrameSource for Counted<'_, S> {
+    type Frame = S::Frame;
+    type Error = S::Error;
+
+    fn begin(&mut self, light: &model::Light) -> Result<Option<S::Frame>, S::Error> {
+        let frame = self.frames.begin(light)?;
+        if frame.is_some() {
+            self.rendered.fetch_add(1, Ordering::Relaxed);
+        }
+        Ok(frame)
+    }
+
+    fn rows_ready(&mut self, frame: S::Frame) -> Result<u16, S::Error> {
+        self.frames.rows_ready(frame)
+    }
+
+    fn copy_row(&mut self, frame: S::Frame, y: u16, offset: usize, out: &mut [u8]) -> usize {
+        self.frames.copy_row(frame, y, offset, out)
+    }
+
+    fn end(&mut self, frame: S::Frame) {
+        self.frames.end(frame)
+    }
+}
+
+fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
+    let mut ring = frame_ring();
+    let mut frames = Counted { frames: &mut ring, rendered: &shared.frames_rendered };
+    let _ = stream.set_nodelay(true);
+    let _ = stream.set_write_timeout(Some(SEND_TIMEOUT));
+    let input = match stream.try_clone().and_then(spawn_reader) {
+        Ok(rx) => rx,
+        Err(e) => {
+            let _ = fmt::Write::write_fmt(&mut log, format_args!("web: cannot read: {e}\n"));
+            return;
+        }
+    };
+    let start = Instant::now();
+    let now = || ProtocolInstant::from_millis(u64::try_from(start.elapsed().as_millis()).unwrap_or(u64::MAX));
+    let mut connection = Connection::new(now());
+    let mut pending: Vec<u8> = Vec::new();
+    let mut input_ended = false;
+    let mut viewer = false;
+    let mut stream = stream;
+    loop {
+        if !pending.is_empty() {
+            let n = connection.receive(&pending);
+            pending.drain(..n);
+        }
+        if input_ended && pending.is_empty() {
+            connection.receive_eof();
+        }
+        let status_now = BoardStatus {
+            uptime_s: shared.started.elapsed().as_secs(),
+            renderer: "simulated",
+            link: "loopback",
+            frames_rendered: shared.frames_rendered.load(Ordering::Relaxed),
+            frames_sent: shared.frames_sent.load(Ordering::Relaxed),
+            viewers: Viewers {
+                web: shared.viewers(),
+                web_max: WEB_VIEWERS,
+                seed: shared.seed_clients.load(Ordering::Relaxed),
+                rtsp: 0,
+            },
+            rtsp_port: shared.rtsp_port.load(Ordering::Relaxed),
+        };
+        let before = connection.frames_sent();
+        let mut write_failed = false;
+        let mut send = |fill: &mut dyn FnMut(&mut [u8]) -> usize| {
+            let mut buf = [0u8; ROW_BYTES];
+            let n = fill(&mut buf);
+            match stream.write_all(&buf[..n]) {
+                Ok(()) => n,
+                Err(_) => {
+                    write_failed = true;
+                    0
+                }
+            }
+        };
+        let action = if viewer {
+            let cx = Context { now: now(), room: false, status: &status_now };
+            drive(&mut connection, &cx, &mut frames, &mut send, &mut log)
+        } else {
+            // The cap holds across threads: a handshake is answered under
+            // the lock.
+            let mut count = shared.viewers.lock().unwrap_or_else(|e| e.into_inner());
+            let cx = Context { now: now(), room: *count < WEB_VIEWERS, status: &status_now };
+            let action = drive(&mut connection, &cx, &mut frames, &mut send, &mut log);
+            if connection.is_viewer() {
+                *count += 1;
+                viewer = true;
+                let _ = fmt::Write::write_fmt(&mut log, format_args!("web: viewer {} of {WEB_VIEWERS}\n", *count));
+            }
+            action
+        };
+        shared.frames_sent.fetch_add(u64::from(connection.frames_sent().wrapping_sub(before)), Ordering::Relaxed);
+        let done = match action {
+            Action::Close(reason) => {
+                let _ = fmt::Write::write_fmt(&mut log, format_args!("web: {reason}\n"));
+                if reason.graceful() {
+                    close_gracefully(&stream, &input, input_ended);
+                }
+                true
+            }
+            Action::Write | Action::Send { .. } if write_failed => {
+                let _ = fmt::Write::write_str(&mut log, "web: client went away\n");
+                connection.abandon(&mut frames);
+                true
+            }
+            Action::Wait { deadline } if !input_ended => {
+                let wait = deadline.map_or(Duration::from_secs(3600), |d| {
+                    d.saturating_duration_since(now()).max(Duration::from_millis(1))
+                });
+                match input.recv_timeout(wait) {
+                    Ok(Input::Bytes(b)) => pending.extend_from_slice(&b),
+                    Ok(Input::End) | Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => input_ended = true,
+                    Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+                }
+                false
+            }
+            // Waiting for a slot or rows: the simulated accelerator moves on
+            // with every status read.
+            _ => false,
+        };
+        if done {
+            break;
+        }
+        while let Ok(msg) = input.try_recv() {
+            match msg {
+                Input::Bytes(b) => pending.extend_from_slice(&b),
+                Input::End => input_ended = true,
+            }
+        }
+    }
+    if viewer {
+        let mut count = shared.viewers.lock().unwrap_or_else(|e| e.into_inner());
+        *count = count.saturating_sub(1);
+    }
+}

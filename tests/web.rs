@@ -1,0 +1,167 @@
+//! The board's web page on the simulated board over real TCP: the page's
+//! files, `/status`, and the WebSocket frame channel driven by tungstenite
+//! (a client written by others), byte for byte against the model; the
+//! viewer cap and the refusals a lab network's clients would meet.
+
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::time::Duration;
+
+use hps_sim::HpsSim;
+use model::{render_frame, Light, FRAME_BYTES};
+use rt_services::encode_raw_request;
+use rt_services::web::WEB_VIEWERS;
+use tungstenite::protocol::frame::coding::CloseCode;
+use tungstenite::{Bytes, Message, WebSocket};
+
+fn board() -> (HpsSim, SocketAddr) {
+    let mut sim = HpsSim::start_quiet("127.0.0.1:0".parse().expect("address")).expect("hps-sim starts");
+    let web = sim.start_web("127.0.0.1:0".parse().expect("address"), false).expect("web starts");
+    (sim, web)
+}
+
+/// One HTTP exchange: the whole answer, until the server closes.
+fn http(addr: SocketAddr, request: &[u8]) -> Vec<u8> {
+    let mut s = TcpStream::connect(addr).expect("connect");
+    s.set_read_timeout(Some(Duration::from_secs(30))).expect("timeout");
+    s.write_all(request).expect("send");
+    let mut out = Vec::new();
+    let _ = s.read_to_end(&mut out);
+    out
+}
+
+fn split(answer: &[u8]) -> (String, Vec<u8>) {
+    let at = answer.windows(4).position(|w| w == b"\r\n\r\n").expect("a head") + 4;
+    (String::from_utf8_lossy(&answer[..at]).into_owned(), answer[at..].to_vec())
+}
+
+fn viewer(addr: SocketAddr) -> WebSocket<TcpStream> {
+    let stream = TcpStream::connect(addr).expect("connect");
+    stream.set_read_timeout(Some(Duration::from_secs(30))).expect("timeout");
+    let (ws, response) = tungstenite::client(format!("ws://{addr}/ws"), stream).expect("handshake");
+    assert_eq!(response.status(), 101);
+    ws
+}
+
+fn frame(ws: &mut WebSocket<TcpStream>, raw: [i32; 3]) -> Vec<u8> {
+    ws.send(Message::Binary(Bytes::copy_from_slice(&encode_raw_request(raw)))).expect("request");
+    loop {
+        match ws.read().expect("a frame") {
+            Message::Binary(b) => return b.to_vec(),
+            Message::Ping(_) | Message::Pong(_) => {}
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn the_page_comes_compressed_and_inflates_to_what_the_firmware_holds() {
+    let (_sim, addr) = board();
+    let (head, body) = split(&http(addr, b"GET /?light=3,4,-2 HTTP/1.1\r\nHost: b\r\nAccept-Encoding: gzip\r\n\r\n"));
+    assert!(head.starts_with("HTTP/1.1 200 OK\r\n") && head.contains("Content-Encoding: gzip"), "{head}");
+    let mut page = Vec::new();
+    flate2::read::GzDecoder::new(&body[..]).read_to_end(&mut page).expect("gzip");
+    assert!(String::from_utf8_lossy(&page).contains("<canvas id=\"frame\" width=\"480\" height=\"360\""));
+}
+
+#[test]
+fn status_is_json_that_counts_the_viewers_and_their_frames() {
+    let (_sim, addr) = board();
+    let mut ws = viewer(addr);
+    let _ = frame(&mut ws, [3072, 4096, -2048]);
+    // The viewer's thread counts the frame once its last byte is written,
+    // which may be just after the client has it: ask until it shows.
+    let mut json = String::new();
+    for _ in 0..100 {
+        let (head, body) = split(&http(addr, b"GET /status HTTP/1.1\r\nHost: b\r\n\r\n"));
+        assert!(head.contains("application/json"), "{head}");
+        json = String::from_utf8(body).expect("utf-8");
+        if json.contains("\"frames_sent\":1,") {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(json.contains("\"frames_sent\":1,"), "{json}");
+    assert!(json.contains("\"frames_rendered\":1,"), "{json}");
+    assert!(json.contains("\"web\":1,\"web_max\":4"), "{json}");
+    assert!(json.contains("\"renderer\":\"simulated\""), "{json}");
+}
+
+#[test]
+fn a_viewer_gets_the_models_frames_as_it_moves_the_light() {
+    let (_sim, addr) = board();
+    let mut ws = viewer(addr);
+    for raw in [[3072, 4096, -2048], [-2048, 6144, 1024], [0, 1536, 4096]] {
+        let got = frame(&mut ws, raw);
+        assert_eq!(got.len(), FRAME_BYTES);
+        assert!(got == render_frame(&Light::from_raw(raw[0], raw[1], raw[2]).expect("in range")), "{raw:?}");
+    }
+    ws.close(None).expect("close");
+    loop {
+        match ws.read() {
+            Ok(Message::Close(_)) | Err(_) => break,
+            Ok(_) => {}
+        }
+    }
+}
+
+#[test]
+fn past_the_cap_a_viewer_is_refused_503_and_a_place_comes_back_when_one_leaves() {
+    let (_sim, addr) = board();
+    let mut viewers: Vec<_> = (0..WEB_VIEWERS).map(|_| viewer(addr)).collect();
+    let stream = TcpStream::connect(addr).expect("connect");
+    match tungstenite::client(format!("ws://{addr}/ws"), stream) {
+        Err(tungstenite::HandshakeError::Failure(tungstenite::Error::Http(r))) => assert_eq!(r.status(), 503),
+        other => panic!("expected 503, got {:?}", other.map(|(_, r)| r.status())),
+    }
+    let mut last = viewers.pop().expect("one");
+    last.close(None).expect("close");
+    while last.read().is_ok() {}
+    drop(last);
+    // The server notices the close within a poll or two.
+    let mut again = None;
+    for _ in 0..50 {
+        let stream = TcpStream::connect(addr).expect("connect");
+        if let Ok((ws, _)) = tungstenite::client(format!("ws://{addr}/ws"), stream) {
+            again = Some(ws);
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let mut again = again.expect("a place came back");
+    assert_eq!(frame(&mut again, [3072, 4096, -2048]).len(), FRAME_BYTES);
+}
+
+#[test]
+fn a_message_bigger_than_a_request_is_closed_1009_without_being_read() {
+    let (_sim, addr) = board();
+    let mut ws = viewer(addr);
+    let _ = ws.send(Message::Binary(Bytes::from(vec![0u8; 1 << 20])));
+    let code = loop {
+        match ws.read() {
+            Ok(Message::Close(Some(c))) => break c.code,
+            Ok(_) => {}
+            Err(e) => panic!("no close frame: {e}"),
+        }
+    };
+    assert_eq!(code, CloseCode::Size);
+}
+
+#[test]
+fn refusals_carry_their_status_codes() {
+    let (_sim, addr) = board();
+    let long = format!("GET /{} HTTP/1.1\r\nHost: b\r\n\r\n", "a".repeat(300));
+    let fields = format!("GET / HTTP/1.1\r\nHost: b\r\nX: {}\r\n\r\n", "b".repeat(4000));
+    for (request, code) in [
+        (b"GET /missing HTTP/1.1\r\nHost: b\r\n\r\n".to_vec(), "404"),
+        (b"POST /status HTTP/1.1\r\nHost: b\r\nContent-Length: 1\r\n\r\nx".to_vec(), "405"),
+        (b"GET / HTTP/1.1\r\nHost: b\r\nContent-Length: 1048576\r\n\r\n".to_vec(), "413"),
+        (long.into_bytes(), "414"),
+        (fields.into_bytes(), "431"),
+        (b"\x16\x03\x01\x00\xa5\x01\x00\x00\xa1\x03\x03garbage\r\n\r\n".to_vec(), "400"),
+    ] {
+        let answer = http(addr, &request);
+        let text = String::from_utf8_lossy(&answer);
+        assert!(text.starts_with(&format!("HTTP/1.1 {code} ")), "{code}: {text}");
+    }
+}
