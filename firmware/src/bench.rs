@@ -49,6 +49,8 @@ static CLEANED: AtomicU64 = AtomicU64::new(0);
 #[cfg(feature = "bench")]
 static CAMERA_TICKS: AtomicU64 = AtomicU64::new(0);
 #[cfg(feature = "bench")]
+static WEB_TICKS: AtomicU64 = AtomicU64::new(0);
+#[cfg(feature = "bench")]
 static STARTED_TICKS: AtomicU64 = AtomicU64::new(0);
 #[cfg(feature = "bench")]
 static RENDERED_TICKS: AtomicU32 = AtomicU32::new(0);
@@ -135,6 +137,21 @@ pub fn camera<R>(f: impl FnOnce() -> R) -> R {
         let t0 = crate::platform::TIMER.ticks();
         let r = f();
         CAMERA_TICKS.fetch_add(crate::platform::TIMER.ticks().wrapping_sub(t0), Ordering::Relaxed);
+        r
+    }
+    #[cfg(not(feature = "bench"))]
+    f()
+}
+
+/// Run `f` (the web page's poll), adding its guest time to the web
+/// page's, which the bench prints apart.
+#[inline(always)]
+pub fn web<R>(f: impl FnOnce() -> R) -> R {
+    #[cfg(feature = "bench")]
+    {
+        let t0 = crate::platform::TIMER.ticks();
+        let r = f();
+        WEB_TICKS.fetch_add(crate::platform::TIMER.ticks().wrapping_sub(t0), Ordering::Relaxed);
         r
     }
     #[cfg(not(feature = "bench"))]
@@ -271,6 +288,8 @@ impl Counts {
             );
             let camera = ns(CAMERA_TICKS.swap(0, Ordering::Relaxed));
             let _ = writeln!(log, "bench: camera {camera} ns (rendering included)");
+            let web = ns(WEB_TICKS.swap(0, Ordering::Relaxed));
+            let _ = writeln!(log, "bench: web {web} ns (rendering included)");
             let _ = writeln!(
                 log,
                 "bench: counts lw_reads={} lw_line_words={} lw_writes={} cpu_copied={} lines_invalidated={} lines_cleaned={} uncached_read={} mac_tx={} mac_tx_zero_copy={} tx_frames={} busy_ns={} render_ns={} busy_loops={}",

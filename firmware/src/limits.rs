@@ -5,7 +5,7 @@
 //!
 //! # The ring's slots
 //!
-//! Three kinds of user share the ring (`rt_services::frames::share`), each
+//! Four kinds of user share the ring (`rt_services::frames::share`), each
 //! with a bound of its own, and the ring holds the sum, so none can starve
 //! another (docs/streaming.md, "Slot arithmetic"):
 //!
@@ -14,9 +14,20 @@
 //! | VGA display | [`DISPLAY_SLOTS`] = 2 | the frame on screen and the one waiting for vertical blanking |
 //! | seed frame server | [`SEED_FRAMES`] = 4 | one being sent and three rendering ahead (its quota) |
 //! | network camera | [`CAMERA_SLOTS`] = 8 | per stream the frame being sent and the one before it, for repairs; up to four streams |
+//! | web page | [`WEB_FRAMES`] = 2 | the frames its viewers' messages carry (its quota), two of its four viewers at once |
 //!
-//! 14 slots of 518,400 bytes, 7,257,600 bytes, in the 8 MiB `.frames`
-//! region (memory.x).
+//! 16 slots of 518,400 bytes, 8,294,400 bytes, in the 8 MiB (8,388,608
+//! bytes) `.frames` region (memory.x): the ring cannot grow further without
+//! a bigger region.
+//!
+//! # The web page's sockets
+//!
+//! [`WEB_SOCKETS`] = 8 on port 80: up to [`WEB_VIEWERS`] = 4 hold a
+//! viewer's WebSocket each; the other four (at least) answer the page's
+//! files and `/status`, each answer closing its connection, so a browser
+//! loading the page (three files at once, then the status each second) is
+//! never refused for want of a socket. Eight sockets of 66 KiB buffers are
+//! 528 KiB of RAM.
 
 pub use rt_services::camera::sender::CAMERA_SLOTS;
 
@@ -37,8 +48,17 @@ pub const DISPLAY_SLOTS: usize = 2;
 /// Frames the seed frame server holds at once (its quota).
 pub const SEED_FRAMES: usize = 4;
 
+/// Frames the web page's viewers hold at once (their quota): more viewers
+/// take turns, each frame being rendered and sent in about a frame time.
+pub const WEB_FRAMES: usize = 2;
+
+pub use rt_services::web::WEB_VIEWERS;
+
+/// TCP sockets of the web page (module docs).
+pub const WEB_SOCKETS: usize = 8;
+
 /// Frame slots of the ring: the sum of its users' bounds (module docs).
-pub const RING_SLOTS: usize = DISPLAY_SLOTS + SEED_FRAMES + CAMERA_SLOTS;
+pub const RING_SLOTS: usize = DISPLAY_SLOTS + SEED_FRAMES + CAMERA_SLOTS + WEB_FRAMES;
 
 /// Row frames in row mode: one per seed-port socket.
 pub const ROW_FRAMES: usize = SOCKETS;

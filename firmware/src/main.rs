@@ -1,6 +1,7 @@
 //! The ray tracer's board binary for the Cortex-A9: boots on the Terasic
 //! DE1-SoC or QEMU's `npcm750-evb` (cargo feature `de1-soc` /
-//! `qemu-npcm750`) and serves frames on the protocol's two TCP ports.
+//! `qemu-npcm750`) and serves frames on the protocol's two TCP ports, as a
+//! network camera (RTSP/RTP) and on its web page (HTTP, port 80).
 //!
 //! Build: `cargo build --release -p firmware --target armv7a-none-eabi
 //! --features qemu-npcm750`; `cargo xtask qemu` boots it, `cargo xtask

@@ -1,6 +1,7 @@
 //! Network bring-up and the main loop: MAC and PHY, the smoltcp interface
 //! with a static IPv4 address (ARP and ICMP echo come with it), the frame
-//! service on the protocol's two ports, the link monitor and the log drain.
+//! service on the protocol's two ports, the network camera, the web page,
+//! the link monitor and the log drain.
 
 use core::cell::UnsafeCell;
 use core::fmt::{self, Write};
@@ -18,6 +19,9 @@ use rt_services::camera::sender::{self, Multicast};
 use rt_services::camera::service::{CameraBuffers, CameraService, Snoop, Snooped, RTSP_SOCKETS};
 use rt_services::frames::Quota;
 use rt_services::seed::service::{FrameService, SocketBuffers};
+use rt_services::web::service::{SocketBuffers as WebBuffers, WebService};
+use rt_services::web::status::{BoardStatus, Viewers};
+use rt_services::web::WEB_PORT;
 use rt_services::{FrameSource, FRAME_PORT, PERSISTENT_PORT};
 use smoltcp::iface::{Config, Interface, SocketSet, SocketStorage};
 use smoltcp::time::Instant;
@@ -27,7 +31,7 @@ use static_cell::ConstStaticCell;
 
 use crate::cpu::Caches;
 use crate::display::Display;
-use crate::limits::{FRAME_PORT_SOCKETS, RING_SLOTS, SEED_FRAMES, SOCKETS};
+use crate::limits::{FRAME_PORT_SOCKETS, RING_SLOTS, SEED_FRAMES, SOCKETS, WEB_FRAMES, WEB_SOCKETS, WEB_VIEWERS};
 use crate::log::{self, Log};
 use crate::platform::Board;
 use crate::render::Frames;
@@ -135,8 +139,10 @@ pub fn run<B: Board, P: RegisterPort>(
 ) -> Result<core::convert::Infallible, NetError> {
     static SOCKET_BUFFERS: ConstStaticCell<[SocketBuffers; SOCKETS]> =
         ConstStaticCell::new([const { SocketBuffers::new() }; SOCKETS]);
-    static SOCKET_STORAGE: ConstStaticCell<[SocketStorage<'static>; SOCKETS + CAMERA_SOCKETS]> =
-        ConstStaticCell::new([SocketStorage::EMPTY; SOCKETS + CAMERA_SOCKETS]);
+    static SOCKET_STORAGE: ConstStaticCell<[SocketStorage<'static>; SOCKETS + CAMERA_SOCKETS + WEB_SOCKETS]> =
+        ConstStaticCell::new([SocketStorage::EMPTY; SOCKETS + CAMERA_SOCKETS + WEB_SOCKETS]);
+    static WEB_BUFFERS: ConstStaticCell<[WebBuffers; WEB_SOCKETS]> =
+        ConstStaticCell::new([const { WebBuffers::new() }; WEB_SOCKETS]);
     static CAMERA_BUFFERS: ConstStaticCell<CameraBuffers> = ConstStaticCell::new(CameraBuffers::new());
     // The RTP senders' repair windows, some 32 KiB a session.
     static CAMERA: ConstStaticCell<Camera<MAX_SESSIONS>> = ConstStaticCell::new(Camera::new());
@@ -146,6 +152,7 @@ pub fn run<B: Board, P: RegisterPort>(
     let socket_storage = SOCKET_STORAGE.try_take().ok_or(TAKEN_TWICE)?;
     let camera_buffers = CAMERA_BUFFERS.try_take().ok_or(TAKEN_TWICE)?;
     let camera_senders = CAMERA.try_take().ok_or(TAKEN_TWICE)?;
+    let web_buffers = WEB_BUFFERS.try_take().ok_or(TAKEN_TWICE)?;
 
     // SAFETY: the board's DesignWare MAC, mapped Device; only this driver
     // uses it.
@@ -194,6 +201,7 @@ pub fn run<B: Board, P: RegisterPort>(
     }
     let mut sockets = SocketSet::new(&mut socket_storage[..]);
     let mut service = FrameService::<usize, SOCKETS>::new(&mut sockets, socket_buffers, FRAME_PORT_SOCKETS);
+    let mut web = WebService::<usize, WEB_SOCKETS>::new(&mut sockets, web_buffers);
     let mut counts = crate::bench::Counts::default();
     let _ = writeln!(
         log,
@@ -201,6 +209,10 @@ pub fn run<B: Board, P: RegisterPort>(
         gw.unwrap_or(Ipv4Addr::UNSPECIFIED),
         EthernetAddress(B::MAC_ADDR),
         SOCKETS - FRAME_PORT_SOCKETS,
+    );
+    let _ = writeln!(
+        log,
+        "web: page on TCP {WEB_PORT} ({WEB_SOCKETS} sockets, at most {WEB_VIEWERS} viewers sharing {WEB_FRAMES} frame slots)"
     );
     log::flush();
 
@@ -259,6 +271,13 @@ pub fn run<B: Board, P: RegisterPort>(
     let mut refused = 0u32;
     // Frames the seed server holds (its quota's count).
     let mut seed_frames = 0usize;
+    // Frames the web page's viewers hold (their quota's count).
+    let mut web_frames = 0usize;
+    // Frames every service has handed back (sent, or abandoned): the
+    // status page's "sent".
+    let mut ended = 0u64;
+    let mut link_text: heapless::String<32> = heapless::String::new();
+    let _ = link_text.push_str("down");
     log::flush();
 
     let mut display = Display::probe(frames, &mut log);
@@ -278,6 +297,11 @@ pub fn run<B: Board, P: RegisterPort>(
         if let Some(change) = link.poll(now_us, &mut mac) {
             mac.set_link(change);
             link_up = change.is_some();
+            link_text.clear();
+            let _ = match change {
+                Some(l) => write!(link_text, "{l}"),
+                None => link_text.push_str("down").map_err(|_| fmt::Error),
+            };
             match change {
                 Some(l) => {
                     let _ = writeln!(log, "link up: {l}");
@@ -291,7 +315,7 @@ pub fn run<B: Board, P: RegisterPort>(
         iface.poll(now, &mut Snoop { inner: &mut mac, peers: &mut peers }, &mut sockets);
         // The seed server's frames count for the display (its attract
         // mode waits while they come) and stay within its quota of slots.
-        let mut counted = Counting { frames: &mut *frames, begun: &mut requests };
+        let mut counted = Counting { frames: &mut *frames, begun: &mut requests, ended: &mut ended };
         service.poll(now, &mut sockets, &mut Quota::new(&mut counted, &mut seed_frames, SEED_FRAMES), &mut log);
         if let (Some(c), Some(slots)) = (&mut camera, &slot_addresses) {
             let busy = crate::camera::slots_in_flight(&mut mac, &mut in_flight);
@@ -304,10 +328,30 @@ pub fn run<B: Board, P: RegisterPort>(
                 cic: None,
             };
             // The camera's frames count as clients' for the display too.
-            let mut counted = Counting { frames: &mut *frames, begun: &mut requests };
+            let mut counted = Counting { frames: &mut *frames, begun: &mut requests, ended: &mut ended };
             let entropy = timer.ticks();
             crate::bench::camera(|| c.poll(now, &mut sockets, &mut peers, &mut counted, &mut tx, entropy, &mut log));
         }
+        // The web page: its viewers' frames count for the display too, and
+        // stay within their quota of slots.
+        let status = BoardStatus {
+            uptime_s: now_us / 1_000_000,
+            renderer: frames.renderer(),
+            link: &link_text,
+            frames_rendered: frames.completed().map_or(u64::from(requests), u64::from),
+            frames_sent: ended,
+            viewers: Viewers {
+                web: web.viewers(),
+                web_max: WEB_VIEWERS,
+                seed: service.active_sessions(),
+                rtsp: camera.as_ref().map_or(0, |c| c.server().sessions().len()),
+            },
+            rtsp_port: RTSP_PORT,
+        };
+        let mut counted = Counting { frames: &mut *frames, begun: &mut requests, ended: &mut ended };
+        crate::bench::web(|| {
+            web.poll(now, &mut sockets, &mut Quota::new(&mut counted, &mut web_frames, WEB_FRAMES), &status, &mut log)
+        });
         frames.report(&mut log);
         if let Some(c) = &camera {
             if now_us.saturating_sub(camera_report) >= 1_000_000 {
@@ -329,7 +373,7 @@ pub fn run<B: Board, P: RegisterPort>(
         // the hostile-network test read this line).
         let camera_busy =
             camera.as_ref().is_some_and(|c| !c.server().sessions().is_empty() || c.listening(&sockets) < RTSP_SOCKETS);
-        if service.active_sessions() > 0 || camera_busy {
+        if service.active_sessions() > 0 || camera_busy || web.connections() > 0 {
             idle_since = Some(now_us);
         } else if idle_since.is_some_and(|t| now_us.saturating_sub(t) >= 1_000_000) {
             idle_since = None;
@@ -337,10 +381,11 @@ pub fn run<B: Board, P: RegisterPort>(
             let rtsp = camera.as_ref().map_or(0, |c| c.listening(&sockets));
             let _ = writeln!(
                 log,
-                "net: idle: {} of {SOCKETS} sockets listening, {tx} of {} TX and {rx} of {} RX descriptors free, {rtsp} of {RTSP_SOCKETS} RTSP sockets listening",
+                "net: idle: {} of {SOCKETS} sockets listening, {tx} of {} TX and {rx} of {} RX descriptors free, {rtsp} of {RTSP_SOCKETS} RTSP sockets listening, {} of {WEB_SOCKETS} web sockets listening",
                 service.listening(&sockets),
                 dwmac::TX_RING,
-                dwmac::RX_RING
+                dwmac::RX_RING,
+                web.listening(&sockets)
             );
         }
         let stats = mac.stats();
@@ -360,10 +405,12 @@ pub fn run<B: Board, P: RegisterPort>(
 }
 
 /// The frames as the service sees them, counting the frames its clients
-/// begin (the display's attract mode waits while they come).
+/// begin (the display's attract mode waits while they come) and end (the
+/// web page's status).
 struct Counting<'a, F> {
     frames: &'a mut F,
     begun: &'a mut u32,
+    ended: &'a mut u64,
 }
 
 impl<F: FrameSource> FrameSource for Counting<'_, F> {
@@ -387,6 +434,7 @@ impl<F: FrameSource> FrameSource for Counting<'_, F> {
     }
 
     fn end(&mut self, frame: F::Frame) {
+        *self.ended += 1;
         self.frames.end(frame)
     }
 }

@@ -222,6 +222,28 @@ impl<P: RegisterPort> Frames<P> {
         }
     }
 
+    /// Who renders, as the web page's status names it.
+    pub fn renderer(&mut self) -> &'static str {
+        let fpga = match self {
+            Frames::Ring(r) => r.engine().primary_active(),
+            Frames::Rows(r) => r.rows().primary_active(),
+        };
+        if fpga {
+            "fpga"
+        } else {
+            "software"
+        }
+    }
+
+    /// Frames the ring completed (frame mode; wrapping), `None` in row
+    /// mode.
+    pub fn completed(&self) -> Option<u32> {
+        match self {
+            Frames::Ring(r) => Some(r.completed()),
+            Frames::Rows(_) => None,
+        }
+    }
+
     /// Bus accesses to the accelerator so far.
     pub fn bus_accesses(&mut self) -> bench::Bus {
         let port = match self {
