@@ -85,6 +85,13 @@ enum Command {
     /// by the multicast checks).
     #[command(hide = true)]
     Receive(host::viewers::ReceiveArgs),
+    /// The web page in Chromium: served by hps-sim, then by the emulated
+    /// board while a hostile client attacks its port.
+    WebTest,
+    /// The web page's hostile client (run by the browser check while the
+    /// page plays).
+    #[command(hide = true)]
+    HostileWeb(emulated::web::ClientArgs),
     /// The hostile-network test's client (run inside its namespace).
     #[command(hide = true)]
     HostileClient(emulated::hostile::ClientArgs),
@@ -117,6 +124,8 @@ fn main() -> ExitCode {
         Command::Viewers => suite::viewers(),
         Command::Receive(args) => host::viewers::receive(&args),
         Command::HostileClient(args) => emulated::hostile::client(&args),
+        Command::HostileWeb(args) => emulated::web::client(&args),
+        Command::WebTest => suite::web(),
         Command::Hostile => suite::hostile(),
         Command::LossyTest => support::tools::ensure_qemu().and_then(|()| emulated::lossy::suite_test()),
         Command::BenchFw(args) => emulated::bench_fw::run(&args),

@@ -122,6 +122,20 @@ fn many_viewers(elf: &std::path::Path) -> Result<()> {
     crate::emulated::viewers::relay(elf)
 }
 
+/// `cargo xtask web-test`: the web page in Chromium, served by hps-sim and
+/// by the emulated board under attack.
+pub fn web() -> Result<()> {
+    ensure_qemu()?;
+    crate::host::web_page::run()?;
+    let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
+    web_on_the_emulated_board(&elf)
+}
+
+fn web_on_the_emulated_board(elf: &std::path::Path) -> Result<()> {
+    println!("==> the web page in Chromium, the emulated board under attack ({})", elf.display());
+    crate::emulated::web::run(elf)
+}
+
 /// `cargo xtask hostile`: the network camera on a hostile network.
 pub fn hostile() -> Result<()> {
     ensure_qemu()?;
@@ -175,6 +189,10 @@ pub fn qemu_tests() -> Result<()> {
     many_viewers(&elf)?;
     println!("==> the network camera on a hostile network ({})", elf.display());
     crate::emulated::hostile::run(&elf)?;
+    // The web page in Chromium: served by hps-sim, then by the emulated
+    // board while a hostile client attacks its port.
+    crate::host::web_page::run()?;
+    web_on_the_emulated_board(&elf)?;
     for (features, renderer, uart, display) in [
         (&["row-mode"][..], "row mode, software renderer", skipped, false),
         (&["sim-accelerator"][..], "frame mode, FPGA frame DMA into the ring (software fallback)", pass.clone(), true),

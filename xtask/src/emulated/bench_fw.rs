@@ -39,6 +39,9 @@ pub struct BenchArgs {
     /// Measure the RTP path only.
     #[arg(long)]
     pub rtp_only: bool,
+    /// Measure the web page's WebSocket path only.
+    #[arg(long)]
+    pub web_only: bool,
 }
 
 /// One `bench: counts` line (`u64`), or a mean of them per frame (`f64`).
@@ -181,6 +184,70 @@ fn measure(features: &[&str], frames: usize) -> Result<Measured> {
     }
     let counted = &lines[1..frames - 1];
     Ok(Measured { counts: Counts::mean(counted), frames: counted.len() })
+}
+
+/// The frame-mode bench build serving one browser: the page's WebSocket
+/// channel asking for a frame when the last one is in, as the page does;
+/// `frames` frames checked against the model; the counts of the frames
+/// sent, less the first and the last, per frame.
+fn measure_web(frames: usize) -> Result<Measured> {
+    let elf = build("qemu-npcm750", &["bench", "sim-accelerator"])?;
+    let mut g = Guest::boot(&elf, &["-icount", "shift=0"])?;
+    g.wait_for_log("web: page on TCP 80", Duration::from_secs(120))?;
+    let f = g.forwards.ok_or("the guest has no forwarded web port")?;
+    let from = g.uart().len();
+    let s = TcpStream::connect(("127.0.0.1", f.web)).map_err(|e| e.to_string())?;
+    let mut s = match super::web::handshake(s)? {
+        Ok(s) => s,
+        Err(code) => return Err(format!("WebSocket handshake answered {code}")),
+    };
+    s.set_read_timeout(Some(Duration::from_secs(600))).map_err(|e| e.to_string())?;
+    let light = super::qemu_e2e::LIGHTS[0];
+    let want = super::qemu_e2e::expected_frame(light)?;
+    for i in 0..frames {
+        if super::web::ws_frame(&mut s, light)? != want {
+            return Err(format!("WebSocket: frame {i} differs from model::render_frame"));
+        }
+    }
+    drop(s);
+    g.wait_for_line(from, "client left", Duration::from_secs(30))?;
+    let uart = g.uart();
+    // Lines of frames rendered and sent (the display's attract mode renders
+    // frames that go nowhere).
+    let sent: Vec<Counts> = uart
+        .get(from..)
+        .unwrap_or("")
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("bench: counts"))
+        .filter_map(Counts::parse)
+        .filter(|c| c.mac_tx > model::FRAME_BYTES as u64 / 2)
+        .collect();
+    if sent.len() < frames - 1 {
+        return Err(format!(
+            "WebSocket: expected {} counts lines of frames sent, got {}:\n{uart}",
+            frames - 1,
+            sent.len()
+        ));
+    }
+    let counted = &sent[1..frames - 1];
+    let web: Vec<&str> = uart.lines().filter(|l| l.contains("bench: web")).collect();
+    if let Some(l) = web.get(web.len() / 2) {
+        println!("{}", l.trim());
+    }
+    Ok(Measured { counts: Counts::mean(counted), frames: counted.len() })
+}
+
+/// The web page's case: figures, estimate, one line with both.
+fn web_case(frames: usize) -> Result<()> {
+    let name = "WebSocket (one browser, frame mode, rows copied into the socket)";
+    let m = measure_web(frames)?;
+    print_mode(name, &m);
+    let p = print_estimate(name, &m, cost_model::FPGA_FRAME_CYCLES.value);
+    println!(
+        "bench-fw: {name}: {:.0} instructions per frame; board estimate {p:.0} frames/s for one browser",
+        m.streaming()
+    );
+    Ok(())
 }
 
 /// How the RTP bench's viewers watch one stream.
@@ -425,6 +492,9 @@ fn print_estimate(name: &str, m: &Measured, fpga_cycles: f64) -> f64 {
 pub fn run(args: &BenchArgs) -> Result<()> {
     crate::support::tools::ensure_qemu()?;
     let frames = args.frames.max(4);
+    if args.web_only {
+        return web_case(frames);
+    }
     if args.rtp_only {
         let rtp = measure_rtp(frames, Viewers::Unicast(1))?;
         print_mode(&Viewers::Unicast(1).name(), &rtp);
@@ -467,7 +537,8 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         verdict(rtp.streaming() <= 100_000.0),
         verdict(p >= 220.0)
     );
-    rtp_cases(frames)
+    rtp_cases(frames)?;
+    web_case(frames)
 }
 
 fn verdict(ok: bool) -> &'static str {

@@ -14,3 +14,4 @@ pub mod lossy;
 pub mod qemu_e2e;
 pub mod soak;
 pub mod viewers;
+pub mod web;

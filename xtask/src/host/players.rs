@@ -51,7 +51,7 @@ const DISCONT: u32 = 0x40;
 
 /// A child process killed (and reaped) when dropped, so no error path leaves
 /// one running.
-struct Guard(Child, &'static str);
+pub struct Guard(pub Child, pub &'static str);
 
 impl Drop for Guard {
     fn drop(&mut self) {
@@ -114,7 +114,7 @@ pub fn check_server(name: &str, rtsp: SocketAddr, dir: &Path) -> Result<()> {
 /// persistent port) and an RTSP address, all on loopback. Another process
 /// may take them before hps-sim binds them: it then fails to start, and
 /// [`wait_for_port`] says so.
-fn free_ports() -> Result<(SocketAddr, SocketAddr)> {
+pub fn free_ports() -> Result<(SocketAddr, SocketAddr)> {
     let bind = |port: u16| TcpListener::bind(("127.0.0.1", port));
     for _ in 0..64 {
         let a = bind(0).map_err(|e| format!("no free TCP port: {e}"))?;
@@ -129,8 +129,8 @@ fn free_ports() -> Result<(SocketAddr, SocketAddr)> {
     Err("no two consecutive free TCP ports on 127.0.0.1".into())
 }
 
-/// Wait until hps-sim accepts RTSP connections (or has exited).
-fn wait_for_port(sim: &mut Guard, addr: SocketAddr, log: &Path) -> Result<()> {
+/// Wait until hps-sim accepts connections on `addr` (or has exited).
+pub fn wait_for_port(sim: &mut Guard, addr: SocketAddr, log: &Path) -> Result<()> {
     let deadline = Instant::now() + Duration::from_secs(10);
     loop {
         if let Ok(Some(status)) = sim.0.try_wait() {
@@ -141,7 +141,7 @@ fn wait_for_port(sim: &mut Guard, addr: SocketAddr, log: &Path) -> Result<()> {
             return Ok(());
         }
         if Instant::now() > deadline {
-            return Err(format!("{} does not accept RTSP on {addr} after 10 s", sim.1));
+            return Err(format!("{} does not accept connections on {addr} after 10 s", sim.1));
         }
         std::thread::sleep(Duration::from_millis(50));
     }

@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 
 use clap::Args;
 use rt_services::camera::rtsp::{RTSP_PORT, SERVER_RTP_PORT};
+use rt_services::web::WEB_PORT;
 use rt_services::{persistent_port, FRAME_PORT, PERSISTENT_PORT};
 
 use super::uimage;
@@ -25,6 +26,9 @@ pub fn elf_path() -> PathBuf {
 /// warnings as errors.
 pub fn build(board: &str, extra_features: &[&str]) -> Result<PathBuf> {
     let features = std::iter::once(board).chain(extra_features.iter().copied()).collect::<Vec<_>>().join(",");
+    // Every command that boots the firmware builds it here: the target
+    // comes with it (a fresh machine has only the host's).
+    crate::support::tools::ensure_rust_target(FIRMWARE_TARGET)?;
     let mut c = cargo(&["build", "--release", "-p", "firmware", "--target", FIRMWARE_TARGET, "--features", &features]);
     c.env("RUSTFLAGS", "-D warnings");
     step(&format!("build firmware ({features})"), c)?;
@@ -52,6 +56,8 @@ pub struct Forwards {
     /// reaches the board from a stock player; tests with their own client
     /// may use any.
     pub rtcp: u16,
+    /// To the web page (TCP 80).
+    pub web: u16,
 }
 
 impl Forwards {
@@ -62,7 +68,7 @@ impl Forwards {
         } else {
             free_udp_port()?
         };
-        Ok(Forwards { single: free_port()?, persistent: free_port()?, rtsp: free_port()?, rtcp })
+        Ok(Forwards { single: free_port()?, persistent: free_port()?, rtsp: free_port()?, rtcp, web: free_port()? })
     }
 }
 
@@ -73,18 +79,18 @@ pub fn free_udp_port() -> Result<u16> {
 }
 
 /// The QEMU command line for `elf` with host ports forwarded to the
-/// firmware's frame, persistent, RTSP and RTCP ports. The board's RTP
+/// firmware's frame, persistent, RTSP, RTCP and web ports. The board's RTP
 /// leaves for the client's ports on 10.0.2.2, which slirp delivers to the
 /// host's 127.0.0.1 (QEMU's user networking: the host's alias).
 pub fn qemu_command(elf: &Path, f: &Forwards) -> Command {
     let mut c = Command::new("qemu-system-arm");
-    let (single, persistent, rtsp, rtcp) = (f.single, f.persistent, f.rtsp, f.rtcp);
+    let (single, persistent, rtsp, rtcp, web) = (f.single, f.persistent, f.rtsp, f.rtcp, f.web);
     c.args(["-M", "npcm750-evb", "-kernel"]).arg(elf).args([
         "-nic",
         &format!(
             "user,id=n0,model=npcm-gmac,hostfwd=tcp:127.0.0.1:{single}-:{FRAME_PORT},\
              hostfwd=tcp:127.0.0.1:{persistent}-:{PERSISTENT_PORT},hostfwd=tcp:127.0.0.1:{rtsp}-:{RTSP_PORT},\
-             hostfwd=udp:127.0.0.1:{rtcp}-:{}",
+             hostfwd=udp:127.0.0.1:{rtcp}-:{},hostfwd=tcp:127.0.0.1:{web}-:{WEB_PORT}",
             SERVER_RTP_PORT + 1
         ),
     ]);
@@ -204,6 +210,9 @@ pub struct QemuArgs {
     /// its RTCP port, where players send reports and NACKs).
     #[arg(long, default_value_t = RTSP_PORT)]
     pub rtsp_port: u16,
+    /// Host port forwarded to the firmware's web page (port 80).
+    #[arg(long, default_value_t = 8080)]
+    pub http_port: u16,
 }
 
 /// Build the QEMU firmware and boot it in the foreground (Ctrl-A X quits).
@@ -214,8 +223,10 @@ pub fn qemu(args: &QemuArgs) -> Result<()> {
     println!("firmware: {}", elf.display());
     println!("forwarded: 127.0.0.1:{p1} -> firmware :{FRAME_PORT} (one frame per connection)");
     println!("forwarded: 127.0.0.1:{p2} -> firmware :{PERSISTENT_PORT} (persistent)");
-    let f = Forwards { single: p1, persistent: p2, rtsp: args.rtsp_port, rtcp: SERVER_RTP_PORT + 1 };
+    let f =
+        Forwards { single: p1, persistent: p2, rtsp: args.rtsp_port, rtcp: SERVER_RTP_PORT + 1, web: args.http_port };
     println!("forwarded: 127.0.0.1:{} -> firmware :{RTSP_PORT} (RTSP), UDP {} -> :{} (RTCP)", f.rtsp, f.rtcp, f.rtcp);
+    println!("forwarded: 127.0.0.1:{} -> firmware :{WEB_PORT} (the web page: open http://127.0.0.1:{}/)", f.web, f.web);
     println!("try: rt-client orbit --server 127.0.0.1:{p1}    (quit QEMU with Ctrl-A X)");
     println!("or:  gst-launch-1.0 rtspsrc location=rtsp://127.0.0.1:{}/light/3,4,-2 ! rtpvrawdepay ! videoconvert ! autovideosink", f.rtsp);
     let mut c = qemu_command(&elf, &f);

@@ -4,6 +4,7 @@
 //! May import: `support` only. Nothing above it, so every group can use it
 //! without a cycle.
 
+pub mod browser;
 pub mod player;
 pub mod rtsp_client;
 pub mod tools;

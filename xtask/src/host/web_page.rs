@@ -1,0 +1,47 @@
+//! The board's web page served by `hps-sim --http`, in a real browser
+//! (`support::browser`): with `/?light=3,4,-2` the canvas equals the
+//! model's frame byte for byte, a scripted drag moves the light and the
+//! canvas follows it exactly, the status counters move while it plays; the
+//! browser's screenshot of the page is left in `target/web/hps-sim`.
+
+use std::fs;
+use std::net::TcpListener;
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+use super::players::{free_ports, wait_for_port, Guard};
+use crate::support::browser::{check_page, ensure_browser, PageCheck};
+use crate::support::tools::{cargo, root, step};
+use crate::support::Result;
+
+/// Run the step.
+pub fn run() -> Result<()> {
+    ensure_browser()?;
+    step("build hps-sim (release)", cargo(&["build", "--release", "-p", "hps-sim"]))?;
+    let started = Instant::now();
+    let dir = root().join("target/web/hps-sim");
+    fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let (listen, rtsp) = free_ports()?;
+    let http =
+        TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).map_err(|e| format!("no free port: {e}"))?;
+    let log = dir.join("hps-sim.log");
+    let log_file = fs::File::create(&log).map_err(|e| format!("{}: {e}", log.display()))?;
+    println!("==> the web page in Chromium: hps-sim on http://{http}/ (log {})", log.display());
+    let sim = Command::new(root().join("target/release/hps-sim"))
+        .args(["--listen", &listen.to_string(), "--rtsp", &rtsp.to_string(), "--http", &http.to_string()])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(log_file)
+        .spawn()
+        .map_err(|e| format!("hps-sim: {e}"))?;
+    let mut sim = Guard(sim, "hps-sim");
+    wait_for_port(&mut sim, http, &log)?;
+    let check = PageCheck { url: format!("http://{http}"), out: dir.clone(), timeout_s: 60, during: None };
+    let summary = check_page(&check)?;
+    if let Ok(Some(status)) = sim.0.try_wait() {
+        return Err(format!("hps-sim exited during the test ({status}); see {}", log.display()));
+    }
+    println!("web (hps-sim): {summary}; screenshot {}", dir.join("page.png").display());
+    println!("web (hps-sim): done in {:.1} s", started.elapsed().as_secs_f64());
+    Ok(())
+}
