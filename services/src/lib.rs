@@ -16,6 +16,8 @@
 //! * [`orbit`]: the light orbiting the sphere, by frame or by time.
 //! * [`web`]: the board's web page (HTTP 80): the live picture in a browser,
 //!   frames over a WebSocket, the board's status as JSON.
+//! * `tcp` (feature `smoltcp`): what the smoltcp services share, the
+//!   buffers lent to each socket.
 //! * [`time`]: [`time::Instant`], the millisecond clock the services run on.
 //!
 //! A frame is 518,400 bytes: 480 x 360 RGB888, row-major, top row first
@@ -28,6 +30,8 @@ pub mod frames;
 pub mod monitor;
 pub mod orbit;
 pub mod seed;
+#[cfg(feature = "smoltcp")]
+pub mod tcp;
 pub mod time;
 pub mod web;
 

@@ -247,13 +247,8 @@ impl<D: Device> Device for Snoop<'_, D> {
     }
 }
 
-/// One RTSP socket's buffers. The transmit buffer comes first and is
-/// cache-line aligned, as the frame service's are.
-#[repr(C, align(32))]
-struct RtspBuffers {
-    tx: [u8; RTSP_TX_BYTES],
-    rx: [u8; rtsp::MAX_REQUEST_BYTES],
-}
+/// One RTSP socket's buffers.
+type RtspBuffers = crate::tcp::SocketBuffers<RTSP_TX_BYTES, { rtsp::MAX_REQUEST_BYTES }>;
 
 /// Buffers of the service's sockets (in a `static` on the board).
 pub struct CameraBuffers {
@@ -268,7 +263,7 @@ impl CameraBuffers {
     /// Zeroed buffers (usable in a `static`).
     pub const fn new() -> CameraBuffers {
         CameraBuffers {
-            rtsp: [const { RtspBuffers { tx: [0; RTSP_TX_BYTES], rx: [0; rtsp::MAX_REQUEST_BYTES] } }; RTSP_SOCKETS],
+            rtsp: [const { RtspBuffers::new() }; RTSP_SOCKETS],
             rtcp_meta: [udp::PacketMetadata::EMPTY; 8],
             rtcp_rx: [0; 4096],
             rtcp_tx_meta: [udp::PacketMetadata::EMPTY; 8],
@@ -349,8 +344,7 @@ impl<'c> CameraService<'c> {
     ) -> Result<CameraService<'c>, udp::BindError> {
         let CameraBuffers { rtsp, rtcp_meta, rtcp_rx, rtcp_tx_meta, rtcp_tx } = buffers;
         let tcp_sockets = rtsp.each_mut().map(|b| {
-            let mut socket =
-                tcp::Socket::new(tcp::SocketBuffer::new(&mut b.rx[..]), tcp::SocketBuffer::new(&mut b.tx[..]));
+            let mut socket = b.socket();
             socket.set_keep_alive(Some(KEEP_ALIVE));
             socket.set_timeout(Some(TCP_TIMEOUT));
             socket.set_nagle_enabled(false);

@@ -27,27 +27,9 @@ pub const RX_BUFFER_BYTES: usize = 512;
 /// docs/reliability.md for the figures.
 pub const TX_BUFFER_BYTES: usize = 64 * 1024;
 
-/// The buffers of one TCP socket. The transmit buffer comes first and is
-/// cache-line aligned: rows are copied into it a whole number of words at a
-/// time, so the copies stay word aligned (see [`poll`](FrameService::poll)).
-#[repr(C, align(32))]
-pub struct SocketBuffers {
-    tx: [u8; TX_BUFFER_BYTES],
-    rx: [u8; RX_BUFFER_BYTES],
-}
-
-impl SocketBuffers {
-    /// Zeroed buffers (usable in a `static`).
-    pub const fn new() -> SocketBuffers {
-        SocketBuffers { tx: [0; TX_BUFFER_BYTES], rx: [0; RX_BUFFER_BYTES] }
-    }
-}
-
-impl Default for SocketBuffers {
-    fn default() -> Self {
-        SocketBuffers::new()
-    }
-}
+/// The buffers of one TCP socket of this service (see
+/// [`crate::tcp::SocketBuffers`]).
+pub type SocketBuffers = crate::tcp::SocketBuffers<TX_BUFFER_BYTES, RX_BUFFER_BYTES>;
 
 struct Slot<F> {
     handle: SocketHandle,
@@ -78,7 +60,7 @@ impl<F: Copy, const N: usize> FrameService<F, N> {
     pub fn new<'a>(sockets: &mut SocketSet<'a>, buffers: &'a mut [SocketBuffers; N], frame_port: usize) -> Self {
         let mut i = 0;
         let slots = buffers.each_mut().map(|b| {
-            let socket = tcp::Socket::new(tcp::SocketBuffer::new(&mut b.rx[..]), tcp::SocketBuffer::new(&mut b.tx[..]));
+            let socket = b.socket();
             let mode = if i < frame_port { Mode::Single } else { Mode::Persistent };
             i += 1;
             Slot { handle: sockets.add(socket), mode, session: None }

@@ -33,26 +33,9 @@ pub const TX_BUFFER_BYTES: usize = 64 * 1024;
 /// client would otherwise keep it from listening.
 pub const CLOSE_LINGER: Duration = Duration::from_secs(5);
 
-/// The buffers of one socket, the transmit buffer first and cache-line
-/// aligned (rows are copied into it word by word, as the seed service's).
-#[repr(C, align(32))]
-pub struct SocketBuffers {
-    tx: [u8; TX_BUFFER_BYTES],
-    rx: [u8; RX_BUFFER_BYTES],
-}
-
-impl SocketBuffers {
-    /// Zeroed buffers (usable in a `static`).
-    pub const fn new() -> SocketBuffers {
-        SocketBuffers { tx: [0; TX_BUFFER_BYTES], rx: [0; RX_BUFFER_BYTES] }
-    }
-}
-
-impl Default for SocketBuffers {
-    fn default() -> Self {
-        SocketBuffers::new()
-    }
-}
+/// The buffers of one socket of this service (see
+/// [`crate::tcp::SocketBuffers`]).
+pub type SocketBuffers = crate::tcp::SocketBuffers<TX_BUFFER_BYTES, RX_BUFFER_BYTES>;
 
 struct Slot<F> {
     handle: SocketHandle,
@@ -72,7 +55,7 @@ impl<F: Copy, const N: usize> WebService<F, N> {
     /// Add `N` TCP sockets, listening on [`WEB_PORT`], to `sockets`.
     pub fn new<'a>(sockets: &mut SocketSet<'a>, buffers: &'a mut [SocketBuffers; N]) -> Self {
         let slots = buffers.each_mut().map(|b| {
-            let socket = tcp::Socket::new(tcp::SocketBuffer::new(&mut b.rx[..]), tcp::SocketBuffer::new(&mut b.tx[..]));
+            let socket = b.socket();
             Slot { handle: sockets.add(socket), connection: None, closing_since: None }
         });
         WebService { slots, frames_sent: 0 }
