@@ -133,7 +133,10 @@ pub fn web() -> Result<()> {
 
 fn web_on_the_emulated_board(elf: &std::path::Path) -> Result<()> {
     println!("==> the web page in Chromium, the emulated board under attack ({})", elf.display());
-    crate::emulated::web::run(elf)
+    crate::emulated::web::run(elf)?;
+    // Instruction counts, not seconds: the same on every run of one build.
+    println!("==> bench-fw --web-only: the WebSocket path's instructions a frame and the board estimate");
+    crate::emulated::bench_fw::web_case(6)
 }
 
 /// `cargo xtask hostile`: the network camera on a hostile network.

@@ -237,8 +237,9 @@ fn measure_web(frames: usize) -> Result<Measured> {
     Ok(Measured { counts: Counts::mean(counted), frames: counted.len() })
 }
 
-/// The web page's case: figures, estimate, one line with both.
-fn web_case(frames: usize) -> Result<()> {
+/// The web page's case: figures, estimate, one line with both
+/// (`bench-fw --web-only`; the suite prints them after the browser test).
+pub fn web_case(frames: usize) -> Result<()> {
     let name = "WebSocket (one browser, frame mode, rows copied into the socket)";
     let m = measure_web(frames)?;
     print_mode(name, &m);
