@@ -160,9 +160,14 @@ impl Guest {
         Ok(g)
     }
 
-    /// The UART output so far.
+    /// The UART output so far, whole lines only: the firmware writes the
+    /// UART a byte at a time, so the log's last line may still be arriving,
+    /// and a check must not read half a report (or half a number).
     pub fn uart(&self) -> String {
-        std::fs::read_to_string(&self.log).unwrap_or_default()
+        let bytes = std::fs::read(&self.log).unwrap_or_default();
+        let mut log = String::from_utf8_lossy(&bytes).into_owned();
+        log.truncate(whole_lines(&log).len());
+        log
     }
 
     /// Wait until a line of the UART log contains `needle`.
@@ -188,6 +193,11 @@ impl Guest {
             std::thread::sleep(Duration::from_millis(50));
         }
     }
+}
+
+/// `log` up to and including its last newline.
+fn whole_lines(log: &str) -> &str {
+    log.rfind('\n').map_or("", |end| &log[..=end])
 }
 
 impl Drop for Guest {
@@ -281,4 +291,16 @@ pub fn image(args: &ImageArgs) -> Result<()> {
     );
     println!("{}: {} bytes (U-Boot legacy image, load = entry = {LOAD_ADDRESS:#010x})", img_path.display(), img.len());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::whole_lines;
+
+    #[test]
+    fn a_line_still_arriving_is_left_out() {
+        assert_eq!(whole_lines("boot\nnet: idle: 24 of 24 sockets listening, 32 of "), "boot\n");
+        assert_eq!(whole_lines("boot\r\nnet: idle: 24 of 24\r\n"), "boot\r\nnet: idle: 24 of 24\r\n");
+        assert_eq!(whole_lines("boo"), "");
+    }
 }
