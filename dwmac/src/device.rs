@@ -183,17 +183,41 @@ impl TxState {
         split: bool,
     ) {
         let i = self.next;
+        self.prepare(shared, i, tdes1, buf1, buf2, split);
+        // Buffer and TDES1..3 in memory before OWN can be (crate::sync).
+        shared.publish();
+        Self::give(shared, i, tdes0);
+        self.next = (i + 1) % TX_RING;
+    }
+
+    /// Write descriptor `i`'s TDES1..3; OWN stays clear. The caller owns
+    /// the descriptor and has filled the buffers the CPU writes; until a
+    /// [`Shared::publish`] these writes may still sit in a store buffer.
+    #[inline(always)]
+    pub(crate) fn prepare<S: DmaSync>(
+        &mut self,
+        shared: &Shared<'_, S>,
+        i: usize,
+        tdes1: u32,
+        buf1: u32,
+        buf2: u32,
+        split: bool,
+    ) {
         let desc = shared.area.tx_descriptor(i);
         desc.set_word(1, tdes1);
         desc.set_word(2, buf1);
         desc.set_word(3, buf2);
-        // Buffer and control words before OWN; OWN visible before the poll.
-        shared.sync.dsb();
-        desc.set_word(0, tdes0 | OWN);
+        self.split[i] = split;
+    }
+
+    /// Give prepared descriptor `i` to the DMA: TDES0 with OWN, drained to
+    /// memory, then a poll demand. The caller has [published](Shared::publish)
+    /// the descriptor's other words and buffers since it wrote them.
+    #[inline(always)]
+    pub(crate) fn give<S: DmaSync>(shared: &Shared<'_, S>, i: usize, tdes0: u32) {
+        shared.area.tx_descriptor(i).set_word(0, tdes0 | OWN);
         shared.publish();
         shared.regs.tx_poll_demand();
-        self.split[i] = split;
-        self.next = (i + 1) % TX_RING;
     }
 }
 

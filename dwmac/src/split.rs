@@ -29,7 +29,7 @@ use embedded_hal::delay::DelayNs;
 
 use crate::csum;
 use crate::desc::{self, ChecksumInsertion};
-use crate::mac::{Dwmac, MAX_FRAME};
+use crate::mac::{Dwmac, TxState, MAX_FRAME};
 use crate::ring::{BUFFER_SIZE, TX_RING, TX_SKEW};
 use crate::sync::DmaSync;
 
@@ -151,18 +151,32 @@ impl<S: DmaSync, D: DelayNs> Dwmac<'_, S, D> {
         }
         let control = desc::tx_control_split(shared.format, header_len, payload_len, false, cic);
         let last = desc::tx_control_split(shared.format, header_len, payload_len, true, cic);
+        let control_of = |i: usize| if i == TX_RING - 1 { last } else { control };
+        let first = tx.next;
+        // Every header and TDES1..3 of the run first, then one drain, then
+        // OWN in ring order: the DMA, maybe still walking the ring, can
+        // never find OWN before the rest of its descriptor is in memory
+        // (crate::sync).
         for k in 0..n {
-            let i = tx.next;
+            let i = (first + k) % TX_RING;
             let slot = shared.area.tx_buffer(i);
             // SAFETY: descriptor `i` is outside the pending ones (at most
             // `TX_RING - pending` are taken here), so the CPU owns it and
             // its buffer (OWN seen clear, then a dmb, when it was
-            // reclaimed) until the hand-over below; this is the only slice.
+            // reclaimed) until it is given below; this is the only slice.
             fill(k, unsafe { slot.words_mut(header_words) });
-            let control = if i == TX_RING - 1 { last } else { control };
             let buf2 = payload.wrapping_add((k as u32).wrapping_mul(stride));
-            tx.hand_over_descriptor(shared, control, slot.bus_address() + TX_SKEW as u32, buf2, true);
+            tx.prepare(shared, i, control_of(i)[1], slot.bus_address() + TX_SKEW as u32, buf2, true);
         }
+        shared.publish();
+        // One poll demand a descriptor, each after its OWN is in memory:
+        // QEMU up to 10.0.2 sends a wrong second frame when one poll finds
+        // two (docs/streaming.md).
+        for k in 0..n {
+            let i = (first + k) % TX_RING;
+            TxState::give(shared, i, control_of(i)[0]);
+        }
+        tx.next = (first + n) % TX_RING;
         tx.count_split(n, header_len, payload_len);
         Ok((n, Some(SplitSeq(tx.split_sent - 1))))
     }

@@ -70,11 +70,24 @@ struct Seen {
     polled: bool,
 }
 
+/// Words of a transmit buffer a [`TxSnapshot`] keeps: every header and
+/// the test frames.
+const SNAPSHOT_BUFFER_WORDS: usize = 64;
+
+/// One transmit descriptor's four words, then the first
+/// [`SNAPSHOT_BUFFER_WORDS`] of its buffer.
+type TxSlot = [u32; 4 + SNAPSHOT_BUFFER_WORDS];
+
+/// The whole transmit ring at one barrier.
+type TxSnapshot = Vec<TxSlot>;
+
 /// Records every barrier with the state of TX descriptor 0 and the
-/// poll-demand register at that moment.
+/// poll-demand register at that moment, and a snapshot of the transmit
+/// ring ([`assert_drained_before_own`]).
 struct Recorder {
     events: RefCell<Vec<Seen>>,
-    tx_desc0: *const u32,
+    snapshots: RefCell<Vec<TxSnapshot>>,
+    area: *const DmaArea,
     tx_poll: *const u32,
 }
 
@@ -82,9 +95,58 @@ impl Recorder {
     fn record(&self, op: &'static str) {
         // SAFETY: both point into the test's live DMA area and register block;
         // volatile reads, as the driver's writes are volatile too.
-        let (own, poll) = unsafe { (self.tx_desc0.read_volatile() & OWN != 0, self.tx_poll.read_volatile()) };
+        let (area, poll) = unsafe { (&*self.area, self.tx_poll.read_volatile()) };
+        let snapshot: TxSnapshot = (0..TX_RING)
+            .map(|i| {
+                let mut slot = [0; 4 + SNAPSHOT_BUFFER_WORDS];
+                slot[..4].copy_from_slice(&area.tx_descriptor(i).words());
+                // SAFETY: the buffer is live and word aligned; volatile reads
+                // of words the driver may have a slice of between barriers,
+                // never during one (the test is single-threaded).
+                let words = unsafe { area.tx_buffer(i).bytes(4 * SNAPSHOT_BUFFER_WORDS) }.as_ptr().cast::<u32>();
+                for (k, w) in slot[4..].iter_mut().enumerate() {
+                    // SAFETY: within the buffer (`k` < SNAPSHOT_BUFFER_WORDS).
+                    *w = unsafe { words.add(k).read_volatile() };
+                }
+                slot
+            })
+            .collect();
+        let own = snapshot[0][0] & OWN != 0;
         self.events.borrow_mut().push(Seen { op, own, polled: poll != UNTOUCHED });
+        self.snapshots.borrow_mut().push(snapshot);
     }
+}
+
+/// Check the transmit hand-over order over everything recorded: whenever a
+/// descriptor's OWN is newly set at a barrier, its TDES1..3 and buffer are
+/// what they were at the last drain (`dsb`, then the outer cache sync)
+/// before that barrier, so they reached memory before OWN could (the
+/// L2C-310 drains its store buffer out of program order: `crate::sync`).
+/// Returns how many hand-overs it checked, so a test can see it checked
+/// every frame it sent.
+fn assert_drained_before_own(mac: &TestMac<'_>) -> usize {
+    let events = mac.events();
+    let snapshots = mac.shared.sync.snapshots.borrow();
+    let mut checked = 0;
+    for e in 1..events.len() {
+        for i in 0..TX_RING {
+            let (before, now) = (&snapshots[e - 1][i], &snapshots[e][i]);
+            if now[0] & OWN == 0 || before[0] & OWN != 0 {
+                continue;
+            }
+            let drain = (1..e).rev().find(|&s| events[s].op == "sync" && events[s - 1].op == "dsb");
+            let Some(drain) = drain else {
+                panic!("descriptor {i} given at barrier {e} with no drain before it");
+            };
+            assert_eq!(
+                &snapshots[drain][i][1..],
+                &now[1..],
+                "descriptor {i} given at barrier {e}: TDES1..3 or its buffer changed after the last drain ({drain})"
+            );
+            checked += 1;
+        }
+    }
+    checked
 }
 
 impl DmaSync for Recorder {
@@ -131,7 +193,8 @@ impl Rig {
     fn mac(&mut self, completes: bool) -> TestMac<'_> {
         let recorder = Recorder {
             events: RefCell::default(),
-            tx_desc0: self.area.tx_descriptor(0) as *const _ as *const u32,
+            snapshots: RefCell::default(),
+            area: &*self.area,
             tx_poll: self.regs.word_ptr(TX_POLL),
         };
         let delay = ResettingDelay { bus_mode: self.regs.word_ptr(BUS_MODE), completes };
@@ -154,7 +217,8 @@ impl TestMac<'_> {
         self.shared.sync.events.borrow().clone()
     }
     fn clear_events(&self) {
-        self.shared.sync.events.borrow_mut().clear()
+        self.shared.sync.events.borrow_mut().clear();
+        self.shared.sync.snapshots.borrow_mut().clear()
     }
     /// Play the DMA: write `frame` plus a 4-byte FCS into RX slot `i` and
     /// write RDES0 (OWN clear) with `flags`.
@@ -268,7 +332,7 @@ fn link_up_resumes_receive_and_link_down_leaves_it() {
 }
 
 #[test]
-fn transmit_hands_over_in_order_own_dsb_cache_sync_dsb_poll() {
+fn transmit_hands_over_in_order_drain_own_drain_poll() {
     let mut rig = Rig::new(QEMU_HW_FEATURE);
     let mut mac = rig.mac(true);
     started(&mut mac);
@@ -278,15 +342,38 @@ fn transmit_hands_over_in_order_own_dsb_cache_sync_dsb_poll() {
     assert_eq!(
         mac.events(),
         [
-            seen("dmb", false, false), // OWN seen clear, then the buffer is written
-            seen("dsb", false, false), // buffer and control words, before OWN
-            seen("dsb", true, false),  // OWN written, drained from the CPU ...
-            seen("sync", true, false), // ... and from the L2C-310 store buffer ...
-            seen("dsb", true, false),  // ... before the poll demand
+            seen("dmb", false, false),  // OWN seen clear, then the buffer is written
+            seen("dsb", false, false),  // buffer and control words drained from the CPU ...
+            seen("sync", false, false), // ... and from the L2C-310 ...
+            seen("dsb", false, false),  // ... before OWN
+            seen("dsb", true, false),   // OWN written, drained from the CPU ...
+            seen("sync", true, false),  // ... and from the L2C-310 store buffer ...
+            seen("dsb", true, false),   // ... before the poll demand
         ]
     );
     drop(mac);
     assert_eq!(rig.regs.0[TX_POLL], 0, "poll demand written last");
+}
+
+#[test]
+fn every_transmitted_frame_is_in_memory_before_its_own() {
+    // 100 frames of changing length and contents through a ring of 32,
+    // the DMA taking some every few frames: each hand-over drained first.
+    let mut rig = Rig::new(QEMU_HW_FEATURE);
+    let mut mac = rig.mac(true);
+    started(&mut mac);
+    mac.clear_events();
+    let mut dma_next = 0;
+    for k in 0..100 {
+        transmit_one(&mut mac, 60 + k % 7, k as u8);
+        if k % 5 == 4 {
+            while mac.shared.area.tx_descriptor(dma_next).word(0) & OWN != 0 {
+                mac.dma_transmitted(dma_next);
+                dma_next = (dma_next + 1) % TX_RING;
+            }
+        }
+    }
+    assert_eq!(assert_drained_before_own(&mac), 100);
 }
 
 #[test]

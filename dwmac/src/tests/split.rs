@@ -9,7 +9,9 @@ use smoltcp::phy::{Device, TxToken};
 use smoltcp::time::Instant;
 use smoltcp::wire::{EthernetFrame, IpAddress, Ipv4Address, Ipv4Packet, UdpPacket};
 
-use super::{started, transmit_one, transmit_tcp, Rig, Seen, TestMac, QEMU_HW_FEATURE, TX_POLL};
+use super::{
+    assert_drained_before_own, started, transmit_one, transmit_tcp, Rig, Seen, TestMac, QEMU_HW_FEATURE, TX_POLL,
+};
 use crate::desc::{self, ChecksumInsertion, DescFormat, OWN};
 use crate::gmac_csum_model::{insert, ones_sum};
 use crate::mac::MAX_FRAME;
@@ -410,15 +412,53 @@ fn split_send_hands_over_with_the_same_barriers_as_send() {
     assert_eq!(
         mac.events(),
         [
-            seen("dsb", false, false), // header slot and descriptor words, before OWN
-            seen("dsb", true, false),  // OWN drained from the CPU ...
-            seen("sync", true, false), // ... and from the L2C-310 ...
-            seen("dsb", true, false),  // ... before the poll demand
+            seen("dsb", false, false),  // header slot and descriptor words drained ...
+            seen("sync", false, false), // ... from the CPU and the L2C-310 ...
+            seen("dsb", false, false),  // ... before OWN
+            seen("dsb", true, false),   // OWN drained from the CPU ...
+            seen("sync", true, false),  // ... and from the L2C-310 ...
+            seen("dsb", true, false),   // ... before the poll demand
         ]
     );
     drop(mac);
     // SAFETY: points into the live fake register block.
     assert_eq!(unsafe { *tx_poll }, 0, "poll demand written last");
+}
+
+#[test]
+fn every_split_frame_and_run_is_in_memory_before_its_own() {
+    // Runs of 1 to 32 (wrapping the ring), single frames by bytes and by
+    // words, and a smoltcp frame between them; the DMA takes what is
+    // there after each step. Every header differs (its sequence number),
+    // so a header still on its way at OWN would show.
+    let mut rig = Rig::new(QEMU_HW_FEATURE);
+    let mut mac = rig.mac(true);
+    started(&mut mac);
+    mac.clear_events();
+    let pixels = PixelMemory::new();
+    let mut dma = FakeDma { next: 0 };
+    let cic = mac.checksum_for(&rtp_header(0));
+    let words = padded_words(&rtp_header(0)).len();
+    let mut seq = 0u16;
+    let mut sent = 0;
+    for (step, n) in [1, 32, 5, 31, 2, 17, 32, 3].into_iter().enumerate() {
+        let base = seq;
+        let (taken, _) = mac
+            .send_split_run(n, words, cic, PixelMemory::row_bus(n % ROWS), 0, ROW, |k, out| {
+                out.copy_from_slice(&padded_words(&rtp_header(base + k as u16)))
+            })
+            .expect("lengths");
+        assert_eq!(taken, n, "the DMA took everything before");
+        seq += n as u16;
+        sent += dma.run(&mac, &pixels, usize::MAX).len();
+        mac.send_split(&rtp_header(seq), PixelMemory::row_bus(step % ROWS), ROW).expect("room");
+        mac.send_split_words(&padded_words(&rtp_header(seq + 1)), cic, PixelMemory::row_bus(0), ROW).expect("room");
+        seq += 2;
+        transmit_one(&mut mac, 60, step as u8);
+        sent += dma.run(&mac, &pixels, usize::MAX).len();
+    }
+    assert_eq!(sent, 123 + 3 * 8);
+    assert_eq!(assert_drained_before_own(&mac), sent);
 }
 
 #[test]
