@@ -420,10 +420,10 @@ fn wait_for_display(g: &Guest, skip: usize, secs: u64, ok: impl Fn(&DisplayLine)
 /// counter runs at the VGA rate, and a client's frame becoming the one on
 /// screen.
 fn t_display(g: &mut Guest) -> Result<()> {
+    // Printed after the "listening" line `Guest::boot` waits for: it may
+    // still be on its way.
     let announce = "display: VGA scan-out and board I/O (register map version 3): attract mode on";
-    if !g.uart().contains(announce) {
-        return Err(format!("UART log lacks {announce:?}"));
-    }
+    g.wait_for_log(announce, Duration::from_secs(10)).map_err(|e| format!("UART log lacks {announce:?}: {e}"))?;
     // Attract mode at boot: frames of its own shown, the counter moving.
     let first = wait_for_display(g, 0, 60, |l| l.attract && l.shown >= 1)?;
     let skip = display_lines(g).len();
@@ -464,9 +464,7 @@ pub fn variant(elf: &std::path::Path, renderer: &str, uart: &[String], display: 
     let result = (|| {
         let line = format!("renderer: {renderer}");
         for needle in std::iter::once(&line).chain(uart) {
-            if !g.uart().contains(needle.as_str()) {
-                return Err(format!("UART log lacks {needle:?}"));
-            }
+            g.wait_for_log(needle, Duration::from_secs(10)).map_err(|e| format!("UART log lacks {needle:?}: {e}"))?;
         }
         if display {
             t_display(&mut g)?;
