@@ -134,7 +134,8 @@ pub fn web() -> Result<()> {
 fn web_on_the_emulated_board(elf: &std::path::Path) -> Result<()> {
     println!("==> the web page in Chromium, the emulated board under attack ({})", elf.display());
     crate::emulated::web::run(elf)?;
-    // Instruction counts, not seconds: the same on every run of one build.
+    // Guest instruction counts (QEMU -icount), not seconds: they move by a
+    // few hundred in 2.76 million between runs, not with the host's load.
     println!("==> bench-fw --web-only: the WebSocket path's instructions a frame and the board estimate");
     crate::emulated::bench_fw::web_case(6)
 }
