@@ -159,7 +159,8 @@ struct Viewer<F> {
     pong: Option<Vec<u8, CONTROL_PAYLOAD>>,
     /// A close to send after the frame going out, and the connection's end.
     close: Option<(u16, Closed)>,
-    /// The last request's arrival (the upgrade's, before the first).
+    /// When a request was last seen waiting (the upgrade, before the
+    /// first).
     asked_at: Instant,
     frames: u32,
 }
@@ -474,6 +475,9 @@ impl<F: Copy> Connection<F> {
             return Action::Write;
         }
         if let Some(light) = v.wanted {
+            // A request waiting is a viewer asking: the idle deadline
+            // counts from the last one seen.
+            v.asked_at = now;
             return Action::Begin { light };
         }
         if self.eof {
@@ -1018,6 +1022,25 @@ mod tests {
         assert_eq!(p.step(), Action::Wait { deadline: Some(Instant::ZERO + VIEWER_IDLE) });
         p.now = Instant::ZERO + VIEWER_IDLE;
         assert_eq!(p.step(), Action::Close(Closed::Viewer(CloseCode::GoingAway)));
+    }
+
+    #[test]
+    fn a_viewer_asking_every_second_is_never_closed() {
+        let mut p = viewer();
+        for s in 1..=40u64 {
+            p.now = Instant::ZERO + Duration::from_secs(s);
+            p.send(&request([3072, 4096, -2048]));
+            let before = p.c.frames_sent();
+            while p.c.frames_sent() == before {
+                let a = p.step();
+                assert!(!matches!(a, Action::Close(_)), "closed at {s} s: {a:?}");
+            }
+            let a = p.step();
+            assert!(matches!(a, Action::Wait { .. }), "at {s} s: {a:?}");
+        }
+        assert_eq!(p.c.frames_sent(), 40);
+        let closes = server_frames(&p.out).iter().filter(|(op, _)| *op == 8).count();
+        assert_eq!(closes, 0, "no close frame went out");
     }
 
     #[test]
