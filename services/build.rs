@@ -2,6 +2,8 @@
 //! board serves them precompressed (`rt_services::web::assets`) without a
 //! compressor of its own. The output is deterministic (no file name, time
 //! zero), so a build of the same sources gives the same firmware image.
+//! Each file's entity tag is the CRC-32 of its bytes (crc32fast, which
+//! flate2 builds on already).
 
 use std::io::Write;
 use std::path::Path;
@@ -21,5 +23,8 @@ fn main() {
         let compressed = gz.finish().expect("compressing into memory cannot fail");
         let target = Path::new(&out).join(format!("{name}.gz"));
         fs::write(&target, compressed).unwrap_or_else(|e| panic!("cannot write {}: {e}", target.display()));
+        let etag = Path::new(&out).join(format!("{name}.etag"));
+        let tag = format!("\"{:08x}\"", crc32fast::hash(&bytes));
+        fs::write(&etag, tag).unwrap_or_else(|e| panic!("cannot write {}: {e}", etag.display()));
     }
 }

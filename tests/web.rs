@@ -57,7 +57,8 @@ fn frame(ws: &mut WebSocket<TcpStream>, raw: [i32; 3]) -> Vec<u8> {
 #[test]
 fn the_page_comes_compressed_and_inflates_to_what_the_firmware_holds() {
     let (_sim, addr) = board();
-    let (head, body) = split(&http(addr, b"GET /?light=3,4,-2 HTTP/1.1\r\nHost: b\r\nAccept-Encoding: gzip\r\n\r\n"));
+    let (head, body) =
+        split(&http(addr, b"GET /?light=3,4,-2 HTTP/1.1\r\nHost: 127.0.0.1\r\nAccept-Encoding: gzip\r\n\r\n"));
     assert!(head.starts_with("HTTP/1.1 200 OK\r\n") && head.contains("Content-Encoding: gzip"), "{head}");
     let mut page = Vec::new();
     flate2::read::GzDecoder::new(&body[..]).read_to_end(&mut page).expect("gzip");
@@ -73,7 +74,7 @@ fn status_is_json_that_counts_the_viewers_and_their_frames() {
     // which may be just after the client has it: ask until it shows.
     let mut json = String::new();
     for _ in 0..100 {
-        let (head, body) = split(&http(addr, b"GET /status HTTP/1.1\r\nHost: b\r\n\r\n"));
+        let (head, body) = split(&http(addr, b"GET /status HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
         assert!(head.contains("application/json"), "{head}");
         json = String::from_utf8(body).expect("utf-8");
         if json.contains("\"frames_sent\":1,") {
@@ -150,12 +151,12 @@ fn a_message_bigger_than_a_request_is_closed_1009_without_being_read() {
 #[test]
 fn refusals_carry_their_status_codes() {
     let (_sim, addr) = board();
-    let long = format!("GET /{} HTTP/1.1\r\nHost: b\r\n\r\n", "a".repeat(300));
-    let fields = format!("GET / HTTP/1.1\r\nHost: b\r\nX: {}\r\n\r\n", "b".repeat(4000));
+    let long = format!("GET /{} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n", "a".repeat(300));
+    let fields = format!("GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nX: {}\r\n\r\n", "b".repeat(4000));
     for (request, code) in [
-        (b"GET /missing HTTP/1.1\r\nHost: b\r\n\r\n".to_vec(), "404"),
-        (b"POST /status HTTP/1.1\r\nHost: b\r\nContent-Length: 1\r\n\r\nx".to_vec(), "405"),
-        (b"GET / HTTP/1.1\r\nHost: b\r\nContent-Length: 1048576\r\n\r\n".to_vec(), "413"),
+        (b"GET /missing HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n".to_vec(), "404"),
+        (b"POST /status HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 1\r\n\r\nx".to_vec(), "405"),
+        (b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 1048576\r\n\r\n".to_vec(), "413"),
         (long.into_bytes(), "414"),
         (fields.into_bytes(), "431"),
         (b"\x16\x03\x01\x00\xa5\x01\x00\x00\xa1\x03\x03garbage\r\n\r\n".to_vec(), "400"),
@@ -164,4 +165,32 @@ fn refusals_carry_their_status_codes() {
         let text = String::from_utf8_lossy(&answer);
         assert!(text.starts_with(&format!("HTTP/1.1 {code} ")), "{code}: {text}");
     }
+}
+
+#[test]
+fn another_sites_page_cannot_open_the_websocket_and_a_rebound_name_cannot_read_the_status() {
+    use tungstenite::client::IntoClientRequest;
+    let (_sim, addr) = board();
+    let handshake = |origin: Option<&str>| {
+        let mut request = format!("ws://{addr}/ws").into_client_request().expect("request");
+        if let Some(o) = origin {
+            request.headers_mut().insert("Origin", o.parse().expect("header value"));
+        }
+        let stream = TcpStream::connect(addr).expect("connect");
+        stream.set_read_timeout(Some(Duration::from_secs(30))).expect("timeout");
+        match tungstenite::client(request, stream) {
+            Ok((_, response)) => response.status().as_u16(),
+            Err(tungstenite::HandshakeError::Failure(tungstenite::Error::Http(r))) => r.status().as_u16(),
+            Err(e) => panic!("handshake: {e}"),
+        }
+    };
+    assert_eq!(handshake(Some("http://evil.example")), 403, "a cross-origin upgrade");
+    assert_eq!(handshake(Some("null")), 403, "a sandboxed page");
+    assert_eq!(handshake(Some(&format!("http://{addr}"))), 101, "the page's own origin");
+    assert_eq!(handshake(None), 101, "a program that is not a browser");
+    let (head, body) = split(&http(addr, b"GET /status HTTP/1.1\r\nHost: rebound.evil.example\r\n\r\n"));
+    assert!(head.starts_with("HTTP/1.1 403 "), "{head}");
+    assert!(!String::from_utf8_lossy(&body).contains("uptime"));
+    let (head, _) = split(&http(addr, b"GET /status HTTP/1.1\r\nHost: raytracer.local\r\n\r\n"));
+    assert!(head.starts_with("HTTP/1.1 200 "), "{head}");
 }

@@ -350,7 +350,14 @@ pub fn run<B: Board, P: RegisterPort>(
         };
         let mut counted = Counting { frames: &mut *frames, begun: &mut requests, ended: &mut ended };
         crate::bench::web(|| {
-            web.poll(now, &mut sockets, &mut Quota::new(&mut counted, &mut web_frames, WEB_FRAMES), &status, &mut log)
+            web.poll(
+                now,
+                &mut sockets,
+                &mut Quota::new(&mut counted, &mut web_frames, WEB_FRAMES),
+                &status,
+                rt_services::DEFAULT_HOST_NAME,
+                &mut log,
+            )
         });
         frames.report(&mut log);
         if let Some(c) = &camera {

@@ -187,13 +187,18 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
             }
         };
         let action = if viewer {
-            let cx = Context { now: now(), room: false, status: &status_now };
+            let cx = Context { now: now(), room: false, status: &status_now, name: rt_services::DEFAULT_HOST_NAME };
             drive(&mut connection, &cx, &mut frames, &mut send, &mut log)
         } else {
             // The cap holds across threads: a handshake is answered under
             // the lock.
             let mut count = shared.viewers.lock().unwrap_or_else(|e| e.into_inner());
-            let cx = Context { now: now(), room: *count < WEB_VIEWERS, status: &status_now };
+            let cx = Context {
+                now: now(),
+                room: *count < WEB_VIEWERS,
+                status: &status_now,
+                name: rt_services::DEFAULT_HOST_NAME,
+            };
             let action = drive(&mut connection, &cx, &mut frames, &mut send, &mut log);
             if connection.is_viewer() {
                 *count += 1;

@@ -44,3 +44,8 @@ pub use seed::wire::{
     decode_request, encode_raw_request, encode_request, persistent_port, FRAME_PORT, PERSISTENT_PORT, REQUEST_BYTES,
 };
 pub use time::Instant;
+
+/// The board's host name unless its card names another: `raytracer.local`
+/// by mDNS, and the one name its web page answers to besides addresses and
+/// `localhost` ([`web::guard`]).
+pub const DEFAULT_HOST_NAME: &str = "raytracer";

@@ -13,6 +13,9 @@ pub struct Asset {
     pub raw: &'static [u8],
     /// The same, gzip-compressed.
     pub gzip: &'static [u8],
+    /// Its entity tag (RFC 9110, section 8.8.3): the CRC-32 of the file as
+    /// written, quoted, made by the build script.
+    pub etag: &'static str,
 }
 
 macro_rules! asset {
@@ -22,6 +25,7 @@ macro_rules! asset {
             content_type: $type,
             raw: include_bytes!(concat!(env!("CARGO_MANIFEST_DIR"), "/web/", $file)),
             gzip: include_bytes!(concat!(env!("OUT_DIR"), "/", $file, ".gz")),
+            etag: include_str!(concat!(env!("OUT_DIR"), "/", $file, ".etag")),
         }
     };
 }
@@ -52,6 +56,14 @@ mod tests {
             assert_eq!(inflated, a.raw, "{}", a.path);
             assert!(a.gzip.len() < a.raw.len(), "{}: {} >= {}", a.path, a.gzip.len(), a.raw.len());
         }
+    }
+
+    #[test]
+    fn each_file_has_an_entity_tag_of_its_own_made_from_its_bytes() {
+        for a in ASSETS {
+            assert_eq!(a.etag, format!("\"{:08x}\"", crc32fast::hash(a.raw)), "{}", a.path);
+        }
+        assert_ne!(ASSETS[0].etag, ASSETS[1].etag);
     }
 
     #[test]

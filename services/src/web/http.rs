@@ -32,8 +32,14 @@ pub enum Status {
     SwitchingProtocols,
     /// 200.
     Ok,
+    /// 304: the page file the client holds ([`Request::if_none_match`]) is
+    /// the one served.
+    NotModified,
     /// 400: not HTTP/1.x as RFC 9112 has it (or a bad WebSocket upgrade).
     BadRequest,
+    /// 403: a `Host` that is not the board's, or a WebSocket upgrade from
+    /// a page of another origin.
+    Forbidden,
     /// 404: no such file.
     NotFound,
     /// 405: a method other than GET and HEAD.
@@ -58,7 +64,9 @@ impl Status {
         match self {
             Status::SwitchingProtocols => 101,
             Status::Ok => 200,
+            Status::NotModified => 304,
             Status::BadRequest => 400,
+            Status::Forbidden => 403,
             Status::NotFound => 404,
             Status::MethodNotAllowed => 405,
             Status::RequestTimeout => 408,
@@ -75,7 +83,9 @@ impl Status {
         match self {
             Status::SwitchingProtocols => "Switching Protocols",
             Status::Ok => "OK",
+            Status::NotModified => "Not Modified",
             Status::BadRequest => "Bad Request",
+            Status::Forbidden => "Forbidden",
             Status::NotFound => "Not Found",
             Status::MethodNotAllowed => "Method Not Allowed",
             Status::RequestTimeout => "Request Timeout",
@@ -120,6 +130,13 @@ pub struct Request<'a> {
     pub accepts_gzip: bool,
     /// A WebSocket handshake.
     pub upgrade: Upgrade,
+    /// The `Host` field's value (none in HTTP/1.0 without one).
+    pub host: Option<&'a str>,
+    /// The `Origin` field's value: the page that opened the request, sent
+    /// by browsers with every WebSocket handshake (RFC 6455, section 4.1).
+    pub origin: Option<&'a str>,
+    /// The `If-None-Match` field's value: the entity tags the client holds.
+    pub if_none_match: Option<&'a str>,
     /// Bytes of the head (what follows is not part of it).
     pub len: usize,
 }
@@ -176,6 +193,7 @@ pub fn parse(buf: &[u8], full: bool) -> Parsed<'_> {
         None => (target, None),
     };
     let mut host = 0;
+    let (mut host_value, mut origin, mut if_none_match) = (None, None, None);
     let mut accepts_gzip = false;
     let mut upgrade_websocket = false;
     let mut connection_upgrade = false;
@@ -186,6 +204,11 @@ pub fn parse(buf: &[u8], full: bool) -> Parsed<'_> {
         let value = core::str::from_utf8(f.value).unwrap_or("");
         if name.eq_ignore_ascii_case("host") {
             host += 1;
+            host_value = Some(value.trim());
+        } else if name.eq_ignore_ascii_case("origin") {
+            origin = Some(value.trim());
+        } else if name.eq_ignore_ascii_case("if-none-match") {
+            if_none_match = Some(value.trim());
         } else if name.eq_ignore_ascii_case("content-length") {
             // A body we would have to read (or a malformed length).
             if value.trim() != "0" {
@@ -225,7 +248,17 @@ pub fn parse(buf: &[u8], full: bool) -> Parsed<'_> {
     } else {
         Upgrade::None
     };
-    Parsed::Request(Request { method, path, query, accepts_gzip, upgrade, len })
+    Parsed::Request(Request {
+        method,
+        path,
+        query,
+        accepts_gzip,
+        upgrade,
+        host: host_value,
+        origin,
+        if_none_match,
+        len,
+    })
 }
 
 /// A `Sec-WebSocket-Key` that decodes to 16 bytes, as sent.
@@ -237,6 +270,12 @@ fn websocket_key(value: &str) -> Option<[u8; 24]> {
         Ok(16) => Some(bytes),
         _ => None,
     }
+}
+
+/// An `If-None-Match` list (RFC 9110, section 13.1.2) names `etag` (weak
+/// comparison: a `W/` prefix is ignored), or is `*`.
+pub fn etag_listed(list: &str, etag: &str) -> bool {
+    list.trim() == "*" || list.split(',').any(|t| t.trim().trim_start_matches("W/") == etag)
 }
 
 /// A comma-separated list holds `token` (case-insensitive).
@@ -275,6 +314,8 @@ pub fn head(out: &mut Out, status: Status, length: Option<usize>, extra: &[(&str
     }
     if status != Status::SwitchingProtocols {
         w.write_str("Connection: close\r\n")?;
+        // No answer of the board's is to be read as another type.
+        w.write_str("X-Content-Type-Options: nosniff\r\n")?;
     }
     for (name, value) in extra {
         write!(w, "{name}: {value}\r\n")?;
@@ -365,7 +406,7 @@ mod tests {
         head(&mut out, Status::NotFound, Some(10), &[("Content-Type", "text/plain")]).unwrap();
         assert_eq!(
             core::str::from_utf8(&out).unwrap(),
-            "HTTP/1.1 404 Not Found\r\nContent-Length: 10\r\nConnection: close\r\nContent-Type: text/plain\r\n\r\n"
+            "HTTP/1.1 404 Not Found\r\nContent-Length: 10\r\nConnection: close\r\nX-Content-Type-Options: nosniff\r\nContent-Type: text/plain\r\n\r\n"
         );
     }
 

@@ -3,6 +3,8 @@
 //!
 //! * [`assets`]: the page's files (`services/web/`), compiled in, served
 //!   gzip-compressed to browsers that take it.
+//! * [`guard`]: the `Host` and `Origin` checks that keep other web sites
+//!   (cross-site WebSockets, DNS rebinding) out.
 //! * [`http`]: request heads (httparse) within fixed caps, response heads.
 //! * [`websocket`]: RFC 6455's handshake key and frame heads.
 //! * [`status`]: `/status`, the board's figures as JSON.
@@ -15,6 +17,7 @@
 //! docs/web.md has the protocol, the caps and why these crates.
 
 pub mod assets;
+pub mod guard;
 pub mod http;
 pub mod server;
 #[cfg(feature = "smoltcp")]

@@ -34,6 +34,7 @@ use heapless::Vec;
 use model::{Light, FRAME_BYTES, ROW_BYTES};
 
 use super::assets;
+use super::guard;
 use super::http::{self, Method, Out, Parsed, Status, Upgrade, HEAD_BYTES};
 use super::status::BoardStatus;
 use super::websocket::{self, CloseCode, Opcode, CONTROL_PAYLOAD, MAX_HEAD};
@@ -52,6 +53,13 @@ pub const SEND_TIMEOUT: Duration = Duration::from_secs(30);
 /// How long a viewer may go without asking for a frame (the page asks at
 /// least once a second at its slowest rate).
 pub const VIEWER_IDLE: Duration = Duration::from_secs(30);
+
+/// The page's content security policy: its own files only, its WebSocket
+/// and `/status` on its own origin (`connect-src 'self'`, which covers
+/// `ws:` to the same host in CSP Level 3), never inside another site's
+/// frame (`frame-ancestors 'none'`); `data:` for the icon and a saved PNG.
+pub const PAGE_POLICY: &str =
+    "default-src 'self'; connect-src 'self'; img-src 'self' data: blob:; frame-ancestors 'none'; base-uri 'none'; form-action 'none'";
 
 /// Why a connection ended.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -138,6 +146,9 @@ pub struct Context<'a> {
     pub room: bool,
     /// The board's status, for `/status`.
     pub status: &'a BoardStatus<'a>,
+    /// The board's host name (mDNS, without `.local`): the one name besides
+    /// `localhost` that a request's `Host` may carry ([`guard`]).
+    pub name: &'a str,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -196,6 +207,8 @@ pub struct Connection<F> {
     /// The last time output moved (or became due).
     moved_at: Instant,
     eof: bool,
+    /// The request was a HEAD: answers go without their body.
+    head_only: bool,
 }
 
 impl<F: Copy> Connection<F> {
@@ -212,6 +225,7 @@ impl<F: Copy> Connection<F> {
             body_sent: 0,
             moved_at: now,
             eof: false,
+            head_only: false,
         }
     }
 
@@ -287,7 +301,9 @@ impl<F: Copy> Connection<F> {
         let _ = body.extend_from_slice(text.as_bytes());
         let _ = body.push(b'\n');
         let _ = http::head(&mut self.small, status, Some(body.len()), extra);
-        let _ = self.small.extend_from_slice(&body);
+        if !self.head_only {
+            let _ = self.small.extend_from_slice(&body);
+        }
         self.body = &[];
         self.body_sent = 0;
         self.moved_at = now;
@@ -368,8 +384,17 @@ impl<F: Copy> Connection<F> {
             }
             Parsed::Request(r) => r,
         };
+        self.head_only = request.method == Method::Head;
+        if !guard::host_is_ours(request.host, cx.name) {
+            self.respond(now, Status::Forbidden, &[]);
+            return Action::Write;
+        }
         match (request.path, request.upgrade) {
             ("/ws", Upgrade::WebSocket(key)) => {
+                if !guard::origin_is_ours(request.origin, request.host) {
+                    self.respond(now, Status::Forbidden, &[]);
+                    return Action::Write;
+                }
                 if !cx.room {
                     self.respond(now, Status::ServiceUnavailable, &[("Retry-After", "2")]);
                     return Action::Write;
@@ -426,21 +451,29 @@ impl<F: Copy> Connection<F> {
                     self.respond(now, Status::NotFound, &[]);
                     return Action::Write;
                 };
+                // `no-cache` with an entity tag: a browser asks again on
+                // every visit (a new firmware's page is never stale) and is
+                // answered 304 with no body while its copy is current.
+                let fresh = request.if_none_match.is_some_and(|tags| http::etag_listed(tags, asset.etag));
+                let status = if fresh { Status::NotModified } else { Status::Ok };
                 let body = if request.accepts_gzip { asset.gzip } else { asset.raw };
-                let mut extra: Vec<(&str, &str), 4> = Vec::new();
+                let mut extra: Vec<(&str, &str), 6> = Vec::new();
                 let _ = extra.push(("Content-Type", asset.content_type));
                 let _ = extra.push(("Cache-Control", "no-cache"));
+                let _ = extra.push(("ETag", asset.etag));
                 let _ = extra.push(("Vary", "Accept-Encoding"));
-                if request.accepts_gzip {
+                let _ = extra.push(("Content-Security-Policy", PAGE_POLICY));
+                if request.accepts_gzip && !fresh {
                     let _ = extra.push(("Content-Encoding", "gzip"));
                 }
                 self.small.clear();
                 self.small_sent = 0;
-                let _ = http::head(&mut self.small, Status::Ok, Some(body.len()), &extra);
-                self.body = if request.method == Method::Get { body } else { &[] };
+                let length = (!fresh).then_some(body.len());
+                let _ = http::head(&mut self.small, status, length, &extra);
+                self.body = if request.method == Method::Get && !fresh { body } else { &[] };
                 self.body_sent = 0;
                 self.moved_at = now;
-                self.state = State::Respond { then_viewer: false, closed: Closed::Answered(Some(Status::Ok)) };
+                self.state = State::Respond { then_viewer: false, closed: Closed::Answered(Some(status)) };
                 Action::Write
             }
         }
@@ -638,15 +671,33 @@ fn take_message<F>(v: &mut Viewer<F>, head: websocket::FrameHead) {
         },
         Opcode::Ping => v.pong = Vec::from_slice(payload).ok(),
         Opcode::Close => {
-            // Echo the code (section 5.5.1); none, or a malformed body: 1000.
-            let code = match payload {
-                [a, b, ..] => u16::from_be_bytes([*a, *b]),
-                _ => CloseCode::Normal.code(),
-            };
-            v.close = Some((code, Closed::Answered(None)));
+            v.close = Some(match close_reply(payload) {
+                Ok(code) => (code, Closed::Answered(None)),
+                Err(refused) => (refused.code(), Closed::Viewer(refused)),
+            });
         }
         Opcode::Pong | Opcode::Text | Opcode::Continuation => {}
     }
+}
+
+/// The code to answer a client's close with (section 5.5.1: echo it), or
+/// the code to fail the connection with: a body of one byte, a code no
+/// endpoint may send (section 7.4: below 1000, 1004-1006, 1015, 1016-2999
+/// unassigned) 1002, a reason that is not UTF-8 1007 (section 8.1). No
+/// body: 1000 (1005 means "none" and is never sent).
+fn close_reply(body: &[u8]) -> Result<u16, CloseCode> {
+    let [a, b, reason @ ..] = body else {
+        return if body.is_empty() { Ok(CloseCode::Normal.code()) } else { Err(CloseCode::ProtocolError) };
+    };
+    let code = u16::from_be_bytes([*a, *b]);
+    let sendable = matches!(code, 1000..=1003 | 1007..=1014 | 3000..=4999);
+    if !sendable {
+        return Err(CloseCode::ProtocolError);
+    }
+    if core::str::from_utf8(reason).is_err() {
+        return Err(CloseCode::InvalidPayload);
+    }
+    Ok(code)
 }
 
 /// Carry out `connection`'s actions with `source` until it must wait (for
@@ -746,7 +797,7 @@ mod tests {
         rtsp_port: 8554,
     };
 
-    const UPGRADE: &[u8] = b"GET /ws HTTP/1.1\r\nHost: b\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n";
+    const UPGRADE: &[u8] = b"GET /ws HTTP/1.1\r\nHost: raytracer\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n";
 
     /// A client frame, masked with a fixed key.
     fn client_frame(b0: u8, payload: &[u8]) -> std::vec::Vec<u8> {
@@ -797,7 +848,7 @@ mod tests {
         }
 
         fn step(&mut self) -> Action<usize> {
-            let cx = Context { now: self.now, room: self.room, status: &STATUS };
+            let cx = Context { now: self.now, room: self.room, status: &STATUS, name: "raytracer" };
             let out = &mut self.out;
             drive(
                 &mut self.c,
@@ -828,7 +879,7 @@ mod tests {
     #[test]
     fn the_page_is_served_compressed_to_a_browser_that_takes_it_and_plain_otherwise() {
         let asset = assets::find("/").unwrap();
-        let (gz, a) = answer("GET / HTTP/1.1\r\nHost: b\r\nAccept-Encoding: gzip, br\r\n\r\n");
+        let (gz, a) = answer("GET / HTTP/1.1\r\nHost: raytracer\r\nAccept-Encoding: gzip, br\r\n\r\n");
         assert_eq!(a, Action::Close(Closed::Answered(Some(Status::Ok))));
         assert!(gz.starts_with("HTTP/1.1 200 OK\r\n"), "{gz}");
         assert!(gz.contains("Content-Encoding: gzip\r\n"));
@@ -836,26 +887,26 @@ mod tests {
         let (plain, _) = answer("GET /?light=3,4,-2 HTTP/1.0\r\n\r\n");
         assert!(plain.ends_with(core::str::from_utf8(asset.raw).unwrap()));
         assert!(!plain.contains("Content-Encoding"));
-        let (head, _) = answer("HEAD /page.js HTTP/1.1\r\nHost: b\r\n\r\n");
+        let (head, _) = answer("HEAD /page.js HTTP/1.1\r\nHost: raytracer\r\n\r\n");
         assert!(head.ends_with("\r\n\r\n") && head.contains("text/javascript"), "{head}");
     }
 
     #[test]
     fn status_is_json_and_errors_have_their_codes() {
-        let (s, _) = answer("GET /status HTTP/1.1\r\nHost: b\r\n\r\n");
+        let (s, _) = answer("GET /status HTTP/1.1\r\nHost: raytracer\r\n\r\n");
         assert!(s.contains("application/json") && s.ends_with("\"rtsp_port\":8554}"), "{s}");
         for (req, code) in [
-            ("GET /nope HTTP/1.1\r\nHost: b\r\n\r\n", "404"),
-            ("DELETE / HTTP/1.1\r\nHost: b\r\n\r\n", "405"),
-            ("GET / HTTP/1.1\r\nHost: b\r\nContent-Length: 5\r\n\r\n", "413"),
-            ("GET /ws HTTP/1.1\r\nHost: b\r\n\r\n", "426"),
+            ("GET /nope HTTP/1.1\r\nHost: raytracer\r\n\r\n", "404"),
+            ("DELETE / HTTP/1.1\r\nHost: raytracer\r\n\r\n", "405"),
+            ("GET / HTTP/1.1\r\nHost: raytracer\r\nContent-Length: 5\r\n\r\n", "413"),
+            ("GET /ws HTTP/1.1\r\nHost: raytracer\r\n\r\n", "426"),
             ("\x00\x01garbage\r\n\r\n", "400"),
         ] {
             let (text, a) = answer(req);
             assert!(text.starts_with(&format!("HTTP/1.1 {code} ")), "{req:?}: {text}");
             assert!(matches!(a, Action::Close(Closed::Answered(Some(_)))));
         }
-        let (allow, _) = answer("PUT / HTTP/1.1\r\nHost: b\r\n\r\n");
+        let (allow, _) = answer("PUT / HTTP/1.1\r\nHost: raytracer\r\n\r\n");
         assert!(allow.contains("Allow: GET, HEAD\r\n"));
     }
 
@@ -872,8 +923,8 @@ mod tests {
     #[test]
     fn a_client_that_reads_nothing_is_dropped() {
         let mut p = Peer::new();
-        p.send(b"GET / HTTP/1.1\r\nHost: b\r\n\r\n");
-        let cx = Context { now: Instant::ZERO, room: true, status: &STATUS };
+        p.send(b"GET / HTTP/1.1\r\nHost: raytracer\r\n\r\n");
+        let cx = Context { now: Instant::ZERO, room: true, status: &STATUS, name: "raytracer" };
         assert_eq!(p.c.poll(&cx), Action::Write);
         let later = Context { now: Instant::ZERO + SEND_TIMEOUT, ..cx };
         assert_eq!(p.c.poll(&later), Action::Close(Closed::Stalled));
@@ -910,7 +961,7 @@ mod tests {
 
     /// Drive with a transport that takes `chunks` buffers of 1,000 bytes.
     fn step_limited(p: &mut Peer, mut chunks: usize) {
-        let cx = Context { now: p.now, room: true, status: &STATUS };
+        let cx = Context { now: p.now, room: true, status: &STATUS, name: "raytracer" };
         let out = &mut p.out;
         drive(
             &mut p.c,
@@ -1041,6 +1092,82 @@ mod tests {
         assert_eq!(p.c.frames_sent(), 40);
         let closes = server_frames(&p.out).iter().filter(|(op, _)| *op == 8).count();
         assert_eq!(closes, 0, "no close frame went out");
+    }
+
+    #[test]
+    fn a_close_with_a_code_no_endpoint_may_send_is_answered_1002_and_a_bad_reason_1007() {
+        for (what, body, reply) in [
+            ("1005", 1005u16.to_be_bytes().to_vec(), 1002u16),
+            ("1006", 1006u16.to_be_bytes().to_vec(), 1002),
+            ("1015", 1015u16.to_be_bytes().to_vec(), 1002),
+            ("999", 999u16.to_be_bytes().to_vec(), 1002),
+            ("2000", 2000u16.to_be_bytes().to_vec(), 1002),
+            ("one byte", vec![3], 1002),
+            ("not UTF-8", [&1000u16.to_be_bytes()[..], &[0xff, 0xfe]].concat(), 1007),
+        ] {
+            let (closed, frames) = closed_with(&client_frame(0x88, &body));
+            assert_eq!(frames, vec![(8, reply.to_be_bytes().to_vec())], "{what}");
+            assert!(matches!(closed, Closed::Viewer(_)), "{what}: {closed:?}");
+        }
+        for (body, echo) in [(vec![], 1000u16), (b"\x0b\xb8bye".to_vec(), 3000), (b"\x03\xe9".to_vec(), 1001)] {
+            let (closed, frames) = closed_with(&client_frame(0x88, &body));
+            assert_eq!((closed, frames), (Closed::Answered(None), vec![(8, echo.to_be_bytes().to_vec())]));
+        }
+    }
+
+    #[test]
+    fn head_answers_have_no_body_and_every_answer_says_nosniff() {
+        for req in [
+            "HEAD /nope HTTP/1.1\r\nHost: raytracer\r\n\r\n",
+            "HEAD /status HTTP/1.1\r\nHost: raytracer\r\n\r\n",
+            "HEAD / HTTP/1.1\r\nHost: raytracer\r\n\r\n",
+        ] {
+            let (text, _) = answer(req);
+            assert!(text.ends_with("\r\n\r\n"), "{req:?}: {text}");
+            assert!(text.contains("X-Content-Type-Options: nosniff\r\n"), "{req:?}: {text}");
+        }
+        let (page, _) = answer("GET / HTTP/1.1\r\nHost: raytracer\r\n\r\n");
+        assert!(page.contains("Content-Security-Policy: default-src 'self'; connect-src 'self';"), "{page}");
+        assert!(page.contains("frame-ancestors 'none'"));
+    }
+
+    #[test]
+    fn a_page_file_the_browser_holds_is_answered_304_by_its_entity_tag() {
+        let asset = assets::find("/page.js").unwrap();
+        let (first, _) = answer("GET /page.js HTTP/1.1\r\nHost: raytracer\r\n\r\n");
+        assert!(first.contains(&format!("ETag: {}\r\n", asset.etag)) && first.contains("Cache-Control: no-cache"));
+        let (again, a) = answer(&format!(
+            "GET /page.js HTTP/1.1\r\nHost: raytracer\r\nIf-None-Match: W/\"x\", {}\r\n\r\n",
+            asset.etag
+        ));
+        assert!(again.starts_with("HTTP/1.1 304 Not Modified\r\n") && again.ends_with("\r\n\r\n"), "{again}");
+        assert!(!again.contains("Content-Length") && !again.contains("Content-Encoding"), "{again}");
+        assert_eq!(a, Action::Close(Closed::Answered(Some(Status::NotModified))));
+        let (stale, _) = answer("GET /page.js HTTP/1.1\r\nHost: raytracer\r\nIf-None-Match: \"0\"\r\n\r\n");
+        assert!(stale.starts_with("HTTP/1.1 200 OK\r\n") && stale.ends_with(core::str::from_utf8(asset.raw).unwrap()));
+    }
+
+    #[test]
+    fn another_sites_websocket_and_a_foreign_host_are_refused_403() {
+        let upgrade = |host: &str, origin: Option<&str>| {
+            let origin = origin.map(|o| format!("Origin: {o}\r\n")).unwrap_or_default();
+            format!("GET /ws HTTP/1.1\r\nHost: {host}\r\n{origin}Upgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n")
+        };
+        for (host, origin, code) in [
+            ("raytracer.local", Some("http://evil.example"), "403"),
+            ("raytracer.local", Some("null"), "403"),
+            ("evil.example", Some("http://evil.example"), "403"),
+            ("raytracer.local", Some("http://raytracer.local"), "101"),
+            ("127.0.0.1:8080", Some("http://127.0.0.1:8080"), "101"),
+            ("10.0.2.15", None, "101"),
+        ] {
+            let (text, _) = answer(&upgrade(host, origin));
+            assert!(text.starts_with(&format!("HTTP/1.1 {code} ")), "{host} {origin:?}: {text}");
+        }
+        let (status, _) = answer("GET /status HTTP/1.1\r\nHost: rebound.evil.example\r\n\r\n");
+        assert!(status.starts_with("HTTP/1.1 403 Forbidden\r\n") && !status.contains("uptime"), "{status}");
+        let (page, _) = answer("GET / HTTP/1.1\r\nHost: RAYTRACER.local:80\r\n\r\n");
+        assert!(page.starts_with("HTTP/1.1 200 OK\r\n"), "{page}");
     }
 
     #[test]

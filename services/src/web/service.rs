@@ -89,12 +89,13 @@ impl<F: Copy, const N: usize> WebService<F, N> {
         sockets: &mut SocketSet<'_>,
         frames: &mut S,
         status: &BoardStatus<'_>,
+        name: &str,
         log: &mut impl Write,
     ) {
         let now = time::Instant::from_millis(u64::try_from(now.total_millis()).unwrap_or(0));
         for index in 0..N {
             let room = self.viewers() < WEB_VIEWERS;
-            let cx = Context { now, room, status };
+            let cx = Context { now, room, status, name };
             let slot = &mut self.slots[index];
             let socket = sockets.get_mut::<tcp::Socket>(slot.handle);
             self.frames_sent += u64::from(serve_slot(index, slot, socket, &cx, frames, log));

@@ -189,7 +189,7 @@ fn status_of(mut s: &TcpStream) -> Option<u16> {
 pub fn handshake(mut s: TcpStream) -> Result<std::result::Result<TcpStream, u16>> {
     s.set_read_timeout(Some(ANSWER)).map_err(|e| e.to_string())?;
     s.write_all(
-        b"GET /ws HTTP/1.1\r\nHost: board\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
+        b"GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
           Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n",
     )
     .map_err(|e| e.to_string())?;
