@@ -361,7 +361,7 @@ fn orbit_rtsp(args: &RunArgs, out: Option<PathBuf>, show: bool) -> Result<(), St
     let path = match &args.light {
         Some(light) => {
             light.parse::<Light>().map_err(|e| format!("--light {light}: {e}"))?;
-            format!("/light/{}?fps={}", light.replace(',', "%2C"), args.fps)
+            format!("/light/{}?fps={}", light.replace(',', "/"), args.fps)
         }
         None => format!("/orbit?radius={}&height={}&period={}&fps={}", args.radius, args.height, args.period, args.fps),
     };

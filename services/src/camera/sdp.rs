@@ -6,7 +6,7 @@ use core::net::Ipv4Addr;
 
 use model::{HEIGHT, WIDTH};
 
-use super::url::Fps;
+use super::url::{ControlUrl, Fps};
 
 /// The RTP clock of the video payload (RFC 4175 section 6.1), Hz.
 pub const RTP_CLOCK_HZ: u32 = 90_000;
@@ -65,7 +65,8 @@ pub struct Description<'a> {
     /// description can join. `None`: unicast, `c=IN IP4 0.0.0.0` and port
     /// 0 (the ports come with `SETUP`).
     pub group: Option<Group>,
-    /// The control URL (`a=control`).
+    /// The stream's URL; `a=control` writes it as its control URL
+    /// ([`ControlUrl`]).
     pub control: &'a str,
 }
 
@@ -95,7 +96,7 @@ pub fn write(out: &mut impl Write, d: &Description<'_>) -> fmt::Result {
     if d.profile == Profile::Avpf {
         write!(out, "a=rtcp-fb:{PAYLOAD_TYPE} nack\r\na=rtcp-rsize\r\n")?;
     }
-    write!(out, "a=control:{}\r\n", d.control)
+    write!(out, "a=control:{}\r\n", ControlUrl(d.control))
 }
 
 #[cfg(test)]
@@ -123,7 +124,7 @@ mod tests {
             "v=0\r\no=- 7 1 IN IP4 192.168.1.200\r\ns=raytracer\r\nc=IN IP4 0.0.0.0\r\nt=0 0\r\n\
              m=video 0 RTP/AVP 96\r\na=rtpmap:96 raw/90000\r\n\
              a=fmtp:96 sampling=RGB; width=480; height=360; depth=8; colorimetry=BT709-2; exactframerate=30\r\n\
-             a=control:rtsp://192.168.1.200:8554/light/3,4,-2\r\n"
+             a=control:rtsp://192.168.1.200:8554/light/3/4/-2\r\n"
         );
         let avpf = text(&Description { profile: Profile::Avpf, fps: Fps::Max, ..d });
         assert!(avpf.contains("m=video 0 RTP/AVPF 96\r\n"), "{avpf}");

@@ -152,7 +152,8 @@ enum Kind {
     Live,
 }
 
-/// `X,Y,Z` in world units, percent-encoded commas (`%2C`) allowed.
+/// `X,Y,Z` in world units, percent-encoded commas (`%2C`) allowed, or
+/// `X/Y/Z` as the control URL writes it ([`ControlUrl`]).
 fn parse_light(text: &str) -> Result<Light, UrlError> {
     let mut decoded: String<64> = String::new();
     let mut bytes = text.bytes();
@@ -167,11 +168,47 @@ fn parse_light(text: &str) -> Result<Light, UrlError> {
         } else {
             b
         };
+        let c = if b == b'/' { b',' } else { c };
         if !c.is_ascii() || decoded.push(char::from(c)).is_err() {
             return Err(UrlError::BadParameter);
         }
     }
     decoded.parse::<Light>().map_err(|_| UrlError::BadParameter)
+}
+
+/// A stream URL as its control URL: the SDP's `a=control`, which players
+/// set the stream up with and which `RTP-Info` names the stream by again.
+/// A light's commas (or `%2C`) become slashes (`/light/3/4/-2`): the
+/// header separates streams with `,` and parameters with `;` (RFC 2326,
+/// section 12.33), and GStreamer and FFmpeg compare its URL with their
+/// `SETUP` URL byte for byte without decoding escapes, so the control URL
+/// holds neither and needs no escape. Everything else is written as given.
+#[derive(Clone, Copy, Debug)]
+pub struct ControlUrl<'a>(pub &'a str);
+
+impl core::fmt::Display for ControlUrl<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let url = self.0;
+        let path_end = url.find('?').unwrap_or(url.len());
+        let Some(light_at) = url[..path_end].find("/light/") else { return f.write_str(url) };
+        let start = light_at + "/light/".len();
+        f.write_str(&url[..start])?;
+        let mut rest = &url[start..path_end];
+        while !rest.is_empty() {
+            if rest.starts_with(',') {
+                f.write_str("/")?;
+                rest = &rest[1..];
+            } else if rest.get(..3).is_some_and(|e| e.eq_ignore_ascii_case("%2C")) {
+                f.write_str("/")?;
+                rest = &rest[3..];
+            } else {
+                let next = rest.find([',', '%']).map_or(rest.len(), |i| i.max(1));
+                f.write_str(&rest[..next])?;
+                rest = &rest[next..];
+            }
+        }
+        f.write_str(&url[path_end..])
+    }
 }
 
 fn parse_number(text: &str) -> Result<f64, UrlError> {

@@ -260,7 +260,7 @@ fn rt_client_target(url: &str) -> Result<(String, String)> {
     let rest = url.strip_prefix("rtsp://").ok_or(format!("{url}: not rtsp://"))?;
     let (server, path) = rest.split_once('/').ok_or(format!("{url}: no path"))?;
     let light = path.strip_prefix("light/").ok_or(format!("{url}: rt-client plays /light/ streams here"))?;
-    let light = light.split('?').next().unwrap_or(light).replace("%2C", ",");
+    let light = light.split('?').next().unwrap_or(light).replace("%2C", ",").replace('/', ",");
     Ok((server.to_string(), light))
 }
 

@@ -433,25 +433,6 @@ pub(super) fn bare_answer(out: &mut impl Write, status: Status, cseq: Option<&st
     status
 }
 
-/// `url` as an `RTP-Info` header's `url=` value: its commas written `%2C`,
-/// since the header separates streams with commas (RFC 2326 section
-/// 12.33), and players split there (a light's `3,4,-2` would cut the URL).
-pub(super) struct RtpInfoUrl<'a>(pub &'a str);
-
-impl fmt::Display for RtpInfoUrl<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let mut parts = self.0.split(',');
-        if let Some(first) = parts.next() {
-            f.write_str(first)?;
-        }
-        for part in parts {
-            f.write_str("%2C")?;
-            f.write_str(part)?;
-        }
-        Ok(())
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -489,12 +470,6 @@ mod tests {
         ] {
             assert_eq!(t(bad), None, "{bad}");
         }
-    }
-
-    #[test]
-    fn rtp_info_urls_have_no_bare_commas() {
-        let s = std::format!("{}", RtpInfoUrl("rtsp://h:8554/light/3,4,-2?fps=10"));
-        assert_eq!(s, "rtsp://h:8554/light/3%2C4%2C-2?fps=10");
     }
 
     #[test]

@@ -11,7 +11,7 @@
 //!
 //! | URL | light |
 //! |---|---|
-//! | `rtsp://HOST:8554/light/X,Y,Z` | fixed at `X,Y,Z` world units (as `rt-client --light`) |
+//! | `rtsp://HOST:8554/light/X,Y,Z` (or `X/Y/Z`, the control URL's form) | fixed at `X,Y,Z` world units (as `rt-client --light`) |
 //! | `rtsp://HOST:8554/orbit?radius=R&height=H&period=S` | orbiting as `rt-client orbit` moves it, one turn per `S` seconds ([`crate::orbit`]; each parameter optional, defaults 3, 4, 2) |
 //! | `rtsp://HOST:8554/live` | set by `SET_PARAMETER` (`light: x,y,z`), the sender's first light until then |
 //!
@@ -80,12 +80,12 @@ use model::Light;
 
 mod message;
 
-use message::{bare_answer, parse_request, parse_transport, status_line, Framing, Out, Request, RtpInfoUrl};
+use message::{bare_answer, parse_request, parse_transport, status_line, Framing, Out, Request};
 pub use message::{Connection, Transport};
 
 use super::sdp::{self, Description};
 pub use super::sdp::{Group, Profile};
-pub use super::url::{Fps, Stream, StreamSpec, UrlError, DEFAULT_FPS, MAX_FPS};
+pub use super::url::{ControlUrl, Fps, Stream, StreamSpec, UrlError, DEFAULT_FPS, MAX_FPS};
 use crate::time::Instant;
 
 /// TCP port of the RTSP server.
@@ -749,7 +749,9 @@ impl<const N: usize> Server<N> {
                             // tick is 11.1 us).
                             let us = p.media_ticks * 100 / 9;
                             let _ = write!(out, "Range: npt={}.{:06}-\r\n", us / 1_000_000, us % 1_000_000);
-                            let url = RtpInfoUrl(&s.url);
+                            // The URL the player set the stream up with,
+                            // as it compares it (the SDP's control URL).
+                            let url = ControlUrl(&s.url);
                             let _ = write!(out, "RTP-Info: url={url};seq={};rtptime={}\r\n", p.seq, p.rtptime);
                         }
                     }

@@ -204,7 +204,7 @@ fn describe_answers_the_sdp_exactly() {
                a=fmtp:96 sampling=RGB; width=480; height=360; depth=8; colorimetry=BT709-2; exactframerate=30\r\n\
                a=rtcp-fb:96 nack\r\n\
                a=rtcp-rsize\r\n\
-               a=control:rtsp://192.168.1.10:8554/light/3,4,-2\r\n";
+               a=control:rtsp://192.168.1.10:8554/light/3/4/-2\r\n";
     let want = format!(
         "RTSP/1.0 200 OK\r\nCSeq: 2\r\nContent-Base: {URL}/\r\nContent-Type: application/sdp\r\n\
          Content-Length: {}\r\n\r\n{sdp}",
@@ -247,8 +247,8 @@ fn a_whole_session_setup_play_pause_play_teardown() {
     assert_eq!(
         a.text,
         "RTSP/1.0 200 OK\r\nCSeq: 4\r\nSession: 4444444455555555;timeout=60\r\nRange: npt=0.000000-\r\n\
-         RTP-Info: url=rtsp://192.168.1.10:8554/light/3%2C4%2C-2;seq=17476;rtptime=1431655765\r\n\r\n",
-        "the light's commas are %2C in RTP-Info"
+         RTP-Info: url=rtsp://192.168.1.10:8554/light/3/4/-2;seq=17476;rtptime=1431655765\r\n\r\n",
+        "the light's commas are slashes in RTP-Info, as in the control URL"
     );
     assert_eq!(r.calls(), [Call::Play(id)]);
     assert_eq!(r.server.session(id).unwrap().state(), State::Playing);
@@ -265,9 +265,7 @@ fn a_whole_session_setup_play_pause_play_teardown() {
     r.streams.position = Some(Position { seq: 0x4500, rtptime: 0x5555_9999, media_ticks: 90_001 });
     let a = r.ask(&with_session("PLAY", id, 8));
     assert!(a.text.contains("Range: npt=1.000011-\r\n"), "media ticks to the microsecond: {}", a.text);
-    assert!(a
-        .text
-        .contains("RTP-Info: url=rtsp://192.168.1.10:8554/light/3%2C4%2C-2;seq=17664;rtptime=1431673241\r\n"));
+    assert!(a.text.contains("RTP-Info: url=rtsp://192.168.1.10:8554/light/3/4/-2;seq=17664;rtptime=1431673241\r\n"));
 
     let a = r.ask(&with_session("TEARDOWN", id, 9));
     assert_eq!(a.text, "RTSP/1.0 200 OK\r\nCSeq: 9\r\n\r\n");
@@ -663,4 +661,36 @@ fn the_longest_responses_fit() {
     assert_eq!(a.status, Status::Ok, "{}", a.text);
     let a = r.ask(&request("SETUP", &url, 1_234_567_890, "Transport: RTP/AVPF;multicast\r\n"));
     assert_eq!(a.status, Status::Ok, "{}", a.text);
+}
+
+/// GStreamer and FFmpeg take `seq` and `rtptime` from `RTP-Info` only when
+/// its `url` is, byte for byte, the URL they set the stream up with: the
+/// SDP's `a=control`. Neither percent-decodes, so that URL must need no
+/// escaping in the header (no `,` or `;`).
+#[test]
+fn rtp_info_names_the_stream_by_the_sdps_control_url_byte_for_byte() {
+    for url in [
+        URL,
+        "rtsp://192.168.1.10:8554/light/1.5,-2,0.25?fps=max",
+        "rtsp://h/orbit?fps=10&radius=3",
+        "rtsp://h/light/3%2C4%2C-2",
+    ] {
+        let mut r = Rig::new();
+        let a = r.ask(&request("DESCRIBE", url, 1, ""));
+        let control = a.text.lines().find_map(|l| l.strip_prefix("a=control:")).expect("a=control").to_string();
+        assert!(!control.contains([',', ';', '%', ' ']), "{url}: {control} needs escaping");
+        let a = r.ask(&request("SETUP", &control, 2, "Transport: RTP/AVP;unicast;client_port=6000-6001\r\n"));
+        assert!(a.text.starts_with("RTSP/1.0 200 OK\r\n"), "{url}: SETUP {control}: {}", a.text);
+        let id =
+            SessionId::parse(a.text.lines().find_map(|l| l.strip_prefix("Session: ")).expect("Session")).expect("id");
+        let a = r.ask(&request("PLAY", &control, 3, &format!("Session: {id}\r\n")));
+        let info = a.text.lines().find_map(|l| l.strip_prefix("RTP-Info: url=")).expect("RTP-Info");
+        let info_url = info.split(';').next().expect("url");
+        assert_eq!(info_url, control, "{url}");
+        assert_eq!(
+            StreamSpec::parse(&control).expect("the control URL parses"),
+            StreamSpec::parse(url).expect("the URL parses"),
+            "{url}: the control URL names the same stream"
+        );
+    }
 }
