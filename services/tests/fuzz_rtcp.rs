@@ -157,8 +157,9 @@ enum Event {
     Junk(Option<usize>, u16, Vec<u8>),
     /// A NACK from a stranger.
     StrangerNack(usize, Vec<(u16, u16)>),
-    /// ICMP port unreachable about client `.0`'s port.
-    Unreachable(usize, u16),
+    /// ICMP port unreachable about client `.0`'s port, quoting the SSRC of
+    /// session `.2`'s stream (4: an SSRC of none).
+    Unreachable(usize, u16, usize),
     /// Session `.0` pauses or plays.
     Toggle(usize),
 }
@@ -178,7 +179,7 @@ fn event() -> impl Strategy<Value = Event> {
         1 => (prop::option::of(0usize..2), port.clone(), prop::collection::vec(any::<u8>(), 0..120))
             .prop_map(|(c, p, j)| Event::Junk(c, p, j)),
         2 => (0usize..4, entries()).prop_map(|(s, e)| Event::StrangerNack(s, e)),
-        1 => (0usize..2, port).prop_map(|(c, p)| Event::Unreachable(c, p)),
+        1 => (0usize..2, port, 0usize..5).prop_map(|(c, p, s)| Event::Unreachable(c, p, s)),
         1 => (0usize..4).prop_map(Event::Toggle),
     ]
 }
@@ -262,7 +263,10 @@ fn run(events: &[Event]) -> Result<(), TestCaseError> {
                 camera.rtcp_received(SocketAddr::new(STRANGER, 6001), &d, now, wall, &mut source, &mut wire);
                 prop_assert_eq!(wire.fresh, 0, "a stranger's NACK made packets go");
             }
-            Event::Unreachable(c, port) => camera.unreachable(CLIENTS[*c], *port, now, &mut source),
+            Event::Unreachable(c, port, s) => {
+                let ssrc = camera.ssrc(SessionId(*s as u64 + 1)).unwrap_or(0xdead_beef);
+                camera.unreachable(CLIENTS[*c], *port, ssrc, now, &mut source)
+            }
             Event::Toggle(s) => {
                 let id = SessionId(*s as u64 + 1);
                 let mut b = Bound { camera: &mut camera, source: &mut source, now, wall };

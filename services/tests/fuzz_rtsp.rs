@@ -98,8 +98,9 @@ enum Piece {
     /// An RTCP packet from peer `.0`, port `.1` (a NACK for the stream's
     /// SSRC or random bytes).
     Rtcp(usize, u16, bool),
-    /// ICMP port unreachable about a packet to peer `.0`, port `.1`.
-    Unreachable(usize, u16),
+    /// ICMP port unreachable about a packet to peer `.0`, port `.1`, quoting
+    /// the SSRC of the server's session `.2` (none: an SSRC of no stream).
+    Unreachable(usize, u16, usize),
     /// Connection `.0` closes (its peer went away).
     Close(usize),
     /// The sender is polled this many times.
@@ -249,7 +250,7 @@ fn piece() -> impl Strategy<Value = Piece> {
         1 => (conn.clone(), prop::collection::vec(any::<u8>(), 0..40)).prop_map(|(c, mut j)| { j.insert(0, b'$'); Piece::Junk(c, j) }),
         1 => (0usize..PEERS.len(), prop_oneof![Just(6001u16), Just(7001u16), any::<u16>()], any::<bool>())
             .prop_map(|(p, port, nack)| Piece::Rtcp(p, port, nack)),
-        1 => (0usize..PEERS.len(), prop_oneof![Just(6000u16), Just(6002u16), any::<u16>()]).prop_map(|(p, port)| Piece::Unreachable(p, port)),
+        1 => (0usize..PEERS.len(), prop_oneof![Just(6000u16), Just(6002u16), any::<u16>()], 0usize..4).prop_map(|(p, port, s)| Piece::Unreachable(p, port, s)),
         1 => (0usize..PEERS.len()).prop_map(Piece::Close),
         3 => (1u8..20).prop_map(Piece::Send),
         2 => prop_oneof![0u64..5_000, Just(REQUEST_DEADLINE.as_millis() as u64), Just(SESSION_TIMEOUT.as_millis() as u64 + 1_000)].prop_map(Piece::Wait),
@@ -498,8 +499,10 @@ fn run(c: &Case) -> Result<(), TestCaseError> {
                 }
                 continue;
             }
-            Piece::Unreachable(peer, port) => {
-                camera.unreachable(PEERS[*peer], *port, Instant::from_millis(now), &mut source);
+            Piece::Unreachable(peer, port, s) => {
+                // Quoting the SSRC of the server's session `s`, if there is one.
+                let ssrc = server.sessions().get(*s).map_or(0xdead_beef, |s| s.ssrc());
+                camera.unreachable(PEERS[*peer], *port, ssrc, Instant::from_millis(now), &mut source);
                 while let Some((s, _)) = camera.take_ended() {
                     prop_assert!(server.remove(s), "the sender ended a session the server did not have");
                     ended.push(s);

@@ -843,14 +843,20 @@ impl<const N: usize> Camera<N> {
         Some(session)
     }
 
-    /// The host at `to` answered a packet to its port `port` with ICMP port
-    /// unreachable: after [`UNREACHABLE_LIMIT`] of them with no RTCP in
-    /// between, the output's sessions end ([`take_ended`](Self::take_ended)).
-    pub fn unreachable<S: SlotSource>(&mut self, to: IpAddr, port: u16, now: Instant, source: &mut S) {
+    /// The host at `to` answered a packet of the stream with SSRC `ssrc` to
+    /// its port `port` with ICMP port unreachable: after
+    /// [`UNREACHABLE_LIMIT`] of them with no RTCP in between, the output's
+    /// sessions end ([`take_ended`](Self::take_ended)). A message about
+    /// another stream's packet (a forged one, which would have to guess the
+    /// 32-bit SSRC) counts for nothing.
+    pub fn unreachable<S: SlotSource>(&mut self, to: IpAddr, port: u16, ssrc: u32, now: Instant, source: &mut S) {
+        let media = &self.media;
+        let ours = |m: usize| media[m].as_ref().is_some_and(|m| m.packetiser.ssrc() == ssrc);
         let hit = |o: &Option<Output>| {
-            o.as_ref().is_some_and(
-                |o| matches!(o.dest, Dest::Udp { addr, rtp_port, rtcp_port } if addr == to && (rtp_port == port || rtcp_port == port)),
-            )
+            o.as_ref().is_some_and(|o| {
+                matches!(o.dest, Dest::Udp { addr, rtp_port, rtcp_port } if addr == to && (rtp_port == port || rtcp_port == port))
+                    && ours(o.media)
+            })
         };
         let Some(i) = self.outputs.iter().position(hit) else { return };
         let Some(o) = self.outputs[i].as_mut() else { return };

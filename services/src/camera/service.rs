@@ -118,8 +118,22 @@ pub trait RowTransmitter {
 #[derive(Clone, Debug)]
 pub struct Snooped {
     entries: heapless::Deque<(Ipv4Addr, EthernetAddress), PEERS>,
-    unreachable: heapless::Deque<(Ipv4Addr, u16), UNREACHABLE_NOTES>,
+    unreachable: heapless::Deque<Unreachable, UNREACHABLE_NOTES>,
     rtp_port: u16,
+}
+
+/// An ICMP port unreachable about one of the camera's RTP packets, as
+/// [`Snooped`] checked it: sent by the host the packet went to, quoting
+/// the packet's ports and its RTP header's SSRC.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Unreachable {
+    /// The client's address (the ICMP message's sender and the quoted
+    /// packet's destination).
+    pub client: Ipv4Addr,
+    /// The quoted packet's destination port.
+    pub port: u16,
+    /// The quoted packet's SSRC: the stream it belongs to.
+    pub ssrc: u32,
 }
 
 impl Snooped {
@@ -138,7 +152,7 @@ impl Snooped {
         }
         let Ok(ip) = Ipv4Packet::new_checked(eth.payload()) else { return };
         if ip.next_header() == IpProtocol::Icmp {
-            self.note_unreachable(ip.payload());
+            self.note_unreachable(ip.src_addr(), ip.payload());
         }
         let (addr, mac) = (ip.src_addr(), eth.src_addr());
         if self.lookup(addr) == Some(mac) {
@@ -160,10 +174,15 @@ impl Snooped {
         let _ = self.entries.push_back((addr, mac));
     }
 
-    /// An ICMP message: destination unreachable, port unreachable (RFC 792
-    /// type 3 code 3), quoting a UDP datagram that left from our RTP port:
-    /// noted as (its destination, its destination port).
-    fn note_unreachable(&mut self, icmp: &[u8]) {
+    /// An ICMP message from `sender`: destination unreachable, port
+    /// unreachable (RFC 792 type 3 code 3), quoting a UDP datagram that
+    /// left from our RTP port to `sender` itself (a port is unreachable
+    /// only on the host that has it: anyone else's word is forged), with
+    /// the RTP header's SSRC in the quote, so that the camera can check the
+    /// packet was its stream's. RFC 792 promises only the UDP header, but
+    /// current hosts quote up to 576 bytes (RFC 1812, section 4.3.2.3; Linux's
+    /// `icmp_send`); a quote without the SSRC is not trusted.
+    fn note_unreachable(&mut self, sender: Ipv4Addr, icmp: &[u8]) {
         let Ok(msg) = Icmpv4Packet::new_checked(icmp) else { return };
         if msg.msg_type() != Icmpv4Message::DstUnreachable || msg.msg_code() != 3 {
             return;
@@ -179,12 +198,15 @@ impl Snooped {
         if header < 20 || quoted.next_header() != IpProtocol::Udp {
             return;
         }
-        // The quote holds at least the first 8 bytes of the datagram: the
-        // UDP header (RFC 792).
-        let Some(udp) = msg.data().get(header..header + 8) else { return };
+        if quoted.dst_addr() != sender {
+            return;
+        }
+        // The UDP header, then the RTP header's first 12 bytes (SSRC last).
+        let Some(udp) = msg.data().get(header..header + 8 + 12) else { return };
+        let ssrc = u32::from_be_bytes([udp[16], udp[17], udp[18], udp[19]]);
         let udp = UdpPacket::new_unchecked(udp);
-        if udp.src_port() == self.rtp_port {
-            let _ = self.unreachable.push_back((quoted.dst_addr(), udp.dst_port()));
+        if udp.src_port() == self.rtp_port && !self.unreachable.is_full() {
+            let _ = self.unreachable.push_back(Unreachable { client: sender, port: udp.dst_port(), ssrc });
         }
     }
 
@@ -193,8 +215,8 @@ impl Snooped {
         self.entries.iter().rev().find(|(a, _)| *a == addr).map(|(_, m)| *m)
     }
 
-    /// The next port unreachable noted: (client address, its port).
-    pub fn take_unreachable(&mut self) -> Option<(Ipv4Addr, u16)> {
+    /// The next port unreachable noted.
+    pub fn take_unreachable(&mut self) -> Option<Unreachable> {
         self.unreachable.pop_front()
     }
 }
@@ -429,8 +451,8 @@ impl<'c> CameraService<'c> {
                 let _ = writeln!(log, "rtsp: session {session} timed out");
             }
         }
-        while let Some((to, port)) = snooped.take_unreachable() {
-            self.camera.unreachable(IpAddr::V4(to), port, now_ms, source);
+        while let Some(u) = snooped.take_unreachable() {
+            self.camera.unreachable(IpAddr::V4(u.client), u.port, u.ssrc, now_ms, source);
         }
         let local = *self.server.config();
         let mut sink = Sink {
@@ -761,10 +783,11 @@ mod tests {
         assert_eq!(multicast_mac(Ipv4Addr::new(224, 128, 0, 9)).0, [0x01, 0x00, 0x5e, 0x00, 0x00, 0x09], "23 bits");
     }
 
-    /// An Ethernet frame from 10.0.2.2 carrying ICMP `kind`/`code` about a
-    /// UDP datagram from port `src` to 10.0.2.2:`dst`, quoting `quote`
-    /// bytes of it.
-    fn icmp_frame(kind: u8, code: u8, src: u16, dst: u16, quote: usize) -> Vec<u8> {
+    /// An Ethernet frame from `sender` carrying ICMP `kind`/`code` about a
+    /// UDP datagram from 10.0.2.15 port `src` to 10.0.2.2:`dst`, quoting
+    /// `quote` bytes of it (past its IPv4 header; the RTP header's bytes,
+    /// SSRC included, are 0xaa).
+    fn icmp_frame(sender: [u8; 4], kind: u8, code: u8, src: u16, dst: u16, quote: usize) -> Vec<u8> {
         let mut quoted = vec![0x45, 0, 0x05, 0xd0, 0, 0, 0x40, 0, 64, 17, 0, 0, 10, 0, 2, 15, 10, 0, 2, 2];
         quoted.extend_from_slice(&src.to_be_bytes());
         quoted.extend_from_slice(&dst.to_be_bytes());
@@ -776,7 +799,9 @@ mod tests {
         let sum = !smoltcp::wire::checksum::data(&icmp);
         icmp[2..4].copy_from_slice(&sum.to_be_bytes());
         let total = (20 + icmp.len()) as u16;
-        let mut ip = vec![0x45, 0, (total >> 8) as u8, total as u8, 0, 0, 0, 0, 64, 1, 0, 0, 10, 0, 2, 2, 10, 0, 2, 15];
+        let mut ip = vec![0x45, 0, (total >> 8) as u8, total as u8, 0, 0, 0, 0, 64, 1, 0, 0];
+        ip.extend_from_slice(&sender);
+        ip.extend_from_slice(&[10, 0, 2, 15]);
         let sum = !smoltcp::wire::checksum::data(&ip);
         ip[10..12].copy_from_slice(&sum.to_be_bytes());
         let mut frame = vec![0x02, 0, 0, 0, 0, 1, 0x52, 0x54, 0, 0x12, 0x34, 0x57, 0x08, 0x00];
@@ -785,19 +810,33 @@ mod tests {
         frame
     }
 
+    const CLIENT: [u8; 4] = [10, 0, 2, 2];
+
     #[test]
     fn port_unreachable_about_an_rtp_packet_is_noted_and_the_next_hop_learnt() {
         let mut s = Snooped::new(5004);
-        s.learn(&icmp_frame(3, 3, 5004, 6000, 528));
-        assert_eq!(s.take_unreachable(), Some((Ipv4Addr::new(10, 0, 2, 2), 6000)), "a truncated quote is enough");
+        s.learn(&icmp_frame(CLIENT, 3, 3, 5004, 6000, 528));
+        let noted = Unreachable { client: Ipv4Addr::new(10, 0, 2, 2), port: 6000, ssrc: 0xaaaa_aaaa };
+        assert_eq!(s.take_unreachable(), Some(noted), "a truncated quote is enough");
         assert_eq!(s.lookup(Ipv4Addr::new(10, 0, 2, 2)), Some(EthernetAddress([0x52, 0x54, 0, 0x12, 0x34, 0x57])));
-        s.learn(&icmp_frame(3, 3, 5004, 6000, 8));
-        assert!(s.take_unreachable().is_some(), "the UDP header alone");
+        s.learn(&icmp_frame(CLIENT, 3, 3, 5004, 6000, 20));
+        assert_eq!(s.take_unreachable(), Some(noted), "the UDP header and the RTP header up to the SSRC");
         for (kind, code, src) in [(3, 1, 5004), (11, 0, 5004), (3, 3, 5005), (0, 0, 5004)] {
-            s.learn(&icmp_frame(kind, code, src, 6000, 8));
+            s.learn(&icmp_frame(CLIENT, kind, code, src, 6000, 20));
             assert_eq!(s.take_unreachable(), None, "{kind}/{code} from {src}");
         }
-        s.learn(&icmp_frame(3, 3, 5004, 6000, 4));
+        s.learn(&icmp_frame(CLIENT, 3, 3, 5004, 6000, 4));
         assert_eq!(s.take_unreachable(), None, "no whole UDP header quoted");
+    }
+
+    #[test]
+    fn port_unreachable_from_anyone_but_the_client_or_without_the_ssrc_is_not_believed() {
+        let mut s = Snooped::new(5004);
+        s.learn(&icmp_frame([10, 0, 2, 3], 3, 3, 5004, 6000, 528));
+        assert_eq!(s.take_unreachable(), None, "a third host's word about 10.0.2.2's port");
+        s.learn(&icmp_frame([192, 168, 7, 7], 3, 3, 5004, 6000, 528));
+        assert_eq!(s.take_unreachable(), None, "a router's or a stranger's");
+        s.learn(&icmp_frame(CLIENT, 3, 3, 5004, 6000, 8));
+        assert_eq!(s.take_unreachable(), None, "the UDP header alone: whose stream is not known");
     }
 }

@@ -712,10 +712,17 @@ fn a_silent_or_unreachable_client_is_ended_by_the_sender() {
     assert_eq!(r.camera.take_ended(), None);
     r.settle(t(21_000));
     assert_eq!(r.camera.take_ended(), Some((SessionId(1), Gone::Silent)));
+    // Forged port unreachable about client 2's port (another SSRC than
+    // its stream's): nothing ends.
+    let ssrc2 = r.camera.ssrc(SessionId(2)).unwrap();
+    for _ in 0..2 * UNREACHABLE_LIMIT {
+        r.camera.unreachable(CLIENT2, 7000, ssrc2 ^ 1, t(21_050), &mut r.ring);
+    }
+    assert_eq!(r.camera.take_ended(), None, "port unreachable about another stream's packets");
     // Client 2's host answers with port unreachable, three times.
     for _ in 0..UNREACHABLE_LIMIT {
         assert_eq!(r.camera.take_ended(), None);
-        r.camera.unreachable(CLIENT2, 7000, t(21_100), &mut r.ring);
+        r.camera.unreachable(CLIENT2, 7000, ssrc2, t(21_100), &mut r.ring);
     }
     assert_eq!(r.camera.take_ended(), Some((SessionId(2), Gone::Unreachable)));
     assert_eq!(r.camera.streams(), 0);
