@@ -402,8 +402,9 @@ pub struct Camera<const N: usize = MAX_SESSIONS> {
     members: [Option<Member>; N],
     /// Sessions the sender ended itself, for the RTSP server to forget.
     ended: heapless::Deque<(SessionId, Gone), N>,
-    /// Goodbyes to send: an output's destination and its stream's SSRC.
-    byes: heapless::Deque<(Dest, u32), N>,
+    /// Goodbyes to send: an output's destination and its stream's last
+    /// sender report (its wall-clock time is filled in when it goes).
+    byes: heapless::Deque<(Dest, SenderReport), N>,
     /// Where RTCP packets are built.
     rtcp: [u8; RTCP_BYTES],
     /// Frames begun or ended over all streams (wrapping), for callers
@@ -730,9 +731,9 @@ impl<const N: usize> Camera<N> {
         let Some(media) = self.outputs[m.output].as_ref().map(|o| o.media) else { return };
         if !used {
             if let Some(o) = self.outputs[m.output].take() {
-                let ssrc = self.media[media].as_ref().map_or(0, |s| s.packetiser.ssrc());
-                if bye {
-                    let _ = self.byes.push_back((o.dest, ssrc));
+                if let (true, Some(m)) = (bye, self.media[media].as_ref()) {
+                    let last = SenderReport::now(&m.packetiser, 0, m.media_ticks(now));
+                    let _ = self.byes.push_back((o.dest, last));
                 }
             }
         }
@@ -873,8 +874,8 @@ impl<const N: usize> Camera<N> {
     /// begun (poll again at once if so).
     pub fn poll<S: SlotSource, K: RtpSink>(&mut self, now: Instant, wall: u64, source: &mut S, sink: &mut K) -> bool {
         let mut progress = false;
-        while let Some((dest, ssrc)) = self.byes.pop_front() {
-            let n = self.goodbye(ssrc, wall, now);
+        while let Some((dest, last)) = self.byes.pop_front() {
+            let n = self.goodbye(SenderReport { ntp_timestamp: wall, ..last });
             let _ = sink.send_rtcp(&dest, &self.rtcp[..n]);
             progress = true;
         }
@@ -901,9 +902,9 @@ impl<const N: usize> Camera<N> {
         progress
     }
 
-    /// A sender report, CNAME and BYE of `ssrc` in `self.rtcp`; its length.
-    fn goodbye(&mut self, ssrc: u32, wall: u64, _now: Instant) -> usize {
-        let sr = SenderReport { ssrc, ntp_timestamp: wall, rtp_timestamp: 0, packet_count: 0, octet_count: 0 };
+    /// `sr`, the stream's CNAME and a BYE in `self.rtcp`; its length.
+    fn goodbye(&mut self, sr: SenderReport) -> usize {
+        let ssrc = sr.ssrc;
         let mut n = sr.write(&mut self.rtcp).unwrap_or(0);
         n += write_sdes_cname(ssrc, CNAME, &mut self.rtcp[n..]).unwrap_or(0);
         n + write_bye(ssrc, &mut self.rtcp[n..]).unwrap_or(0)

@@ -224,6 +224,9 @@ pub(super) struct Request<'a> {
     pub cseq: &'a str,
     pub session: Option<&'a str>,
     pub transport: Option<&'a str>,
+    /// `Require`: options the client needs the server to support (RFC
+    /// 2326 section 12.32); this server supports none.
+    pub require: Option<&'a str>,
 }
 
 /// Parse a header block; the error is the status to answer and the `CSeq`
@@ -232,7 +235,7 @@ pub(super) fn parse_request(head: &[u8]) -> Result<Request<'_>, (Status, Option<
     let text = core::str::from_utf8(head).map_err(|_| (Status::BadRequest, None))?;
     let mut lines = text.split('\n').map(|l| l.strip_suffix('\r').unwrap_or(l));
     let request_line = lines.next().unwrap_or("");
-    let (mut cseq, mut session, mut transport) = (None, None, None);
+    let (mut cseq, mut session, mut transport, mut require) = (None, None, None, None);
     let mut malformed = false;
     for line in lines {
         if line.is_empty() {
@@ -253,6 +256,8 @@ pub(super) fn parse_request(head: &[u8]) -> Result<Request<'_>, (Status, Option<
             &mut session
         } else if name.eq_ignore_ascii_case("transport") {
             &mut transport
+        } else if name.eq_ignore_ascii_case("require") {
+            &mut require
         } else {
             continue;
         };
@@ -282,7 +287,7 @@ pub(super) fn parse_request(head: &[u8]) -> Result<Request<'_>, (Status, Option<
             .is_some_and(|v| !v.is_empty() && v.bytes().all(|b| b.is_ascii_digit() || b == b'.') && v.contains('.'));
         return Err((if other_version { Status::VersionNotSupported } else { Status::BadRequest }, Some(cseq)));
     }
-    Ok(Request { method, url, cseq, session, transport })
+    Ok(Request { method, url, cseq, session, transport, require })
 }
 
 fn is_token_byte(b: u8) -> bool {
@@ -318,8 +323,9 @@ pub enum Transport {
 /// alternatives are in the client's order of preference, RFC 2326 section
 /// 12.39), with the profile asked for; `None` if none is (recording, an
 /// unknown profile, UDP without client ports, a destination other than
-/// the client's own for unicast).
-pub(super) fn parse_transport(header: &str) -> Option<(Transport, Profile)> {
+/// the client's own for unicast, the same port or channel for RTP and
+/// RTCP). `client` is the address the request came from.
+pub(super) fn parse_transport(header: &str, client: IpAddr) -> Option<(Transport, Profile)> {
     header.split(',').find_map(|spec| {
         let mut params = spec.split(';').map(str::trim);
         let Proto { profile, tcp } = proto(params.next()?)?;
@@ -341,16 +347,23 @@ pub(super) fn parse_transport(header: &str) -> Option<(Transport, Profile)> {
             } else if name.eq_ignore_ascii_case("destination") && !multicast {
                 // A unicast stream goes to the client that asked only: a
                 // destination elsewhere would make the board a flooder.
-                return None;
+                if value.parse::<IpAddr>().ok() != Some(client) {
+                    return None;
+                }
             }
         }
         let transport = match (tcp, multicast, ports, channels) {
             (true, false, _, channels) => {
                 let (rtp_channel, rtcp_channel) = channels.unwrap_or((0, 1));
+                if rtp_channel == rtcp_channel {
+                    return None;
+                }
                 Transport::Interleaved { rtp_channel, rtcp_channel }
             }
             (false, true, _, _) => Transport::Multicast,
-            (false, false, Some((a, b)), _) if a != 0 && b != 0 => Transport::Udp { rtp_port: a, rtcp_port: b },
+            (false, false, Some((a, b)), _) if a != 0 && b != 0 && a != b => {
+                Transport::Udp { rtp_port: a, rtcp_port: b }
+            }
             _ => return None,
         };
         Some((transport, profile))
@@ -440,7 +453,8 @@ mod tests {
     #[test]
     fn transports_parse_in_the_clients_order() {
         let udp = Transport::Udp { rtp_port: 6000, rtcp_port: 6001 };
-        let t = |h: &str| parse_transport(h);
+        let client = IpAddr::V4(core::net::Ipv4Addr::new(10, 0, 0, 7));
+        let t = |h: &str| parse_transport(h, client);
         assert_eq!(t("RTP/AVP;unicast;client_port=6000-6001"), Some((udp, Profile::Avp)));
         assert_eq!(t("RTP/AVP/UDP;unicast;client_port=6000"), Some((udp, Profile::Avp)));
         assert_eq!(t("rtp/avpf;unicast;client_port=6000-6001"), Some((udp, Profile::Avpf)));
@@ -457,6 +471,11 @@ mod tests {
             Some((Transport::Interleaved { rtp_channel: 2, rtcp_channel: 3 }, Profile::Avp)),
             "the first acceptable alternative"
         );
+        assert_eq!(
+            t("RTP/AVP;unicast;client_port=6000-6001;destination=10.0.0.7"),
+            Some((udp, Profile::Avp)),
+            "a destination that is the client itself"
+        );
         for bad in [
             "RTP/AVP;unicast",
             "RTP/AVP;unicast;client_port=0-1",
@@ -464,6 +483,9 @@ mod tests {
             "RTP/AVP;unicast;client_port=6000;destination=10.9.9.9",
             "RTP/AVP/SCTP;client_port=6000",
             "RTP/AVP/TCP;interleaved=300-301",
+            "RTP/AVP/TCP;interleaved=0-0",
+            "RTP/AVP;unicast;client_port=6000-6000",
+            "RTP/AVP;unicast;client_port=6000;destination=not-an-address",
             "RTP/AVP/UDP/X;client_port=6000",
             "RAW/RAW/UDP;client_port=6000",
             "",

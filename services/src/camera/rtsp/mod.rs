@@ -64,8 +64,9 @@
 //! | 453 Not Enough Bandwidth | `SETUP` of a new session with [`MAX_SESSIONS`] open, or one the sender has no room for |
 //! | 454 Session Not Found | a `Session` header naming no session of the requesting address |
 //! | 455 Method Not Valid in This State | `PLAY`, `PAUSE`, `TEARDOWN` or a non-empty `SET_PARAMETER` without a session (state Init); `SETUP` of a playing session |
-//! | 461 Unsupported Transport | `SETUP` asking for recording, no client ports, unicast to another address, or multicast where the sender has no group |
+//! | 461 Unsupported Transport | `SETUP` asking for recording, no client ports, unicast to another address (a `destination` that is the client's own is taken), one port or channel for both RTP and RTCP, or multicast where the sender has no group |
 //! | 501 Not Implemented | any other method (`ANNOUNCE`, `RECORD`, ...) |
+//! | 551 Option not supported | any request with `Require` (no option is supported), the options named in `Unsupported` |
 //! | 505 RTSP Version Not Supported | any version but `RTSP/1.0` |
 //!
 //! No peer input panics; a buffer of [`MAX_RESPONSE_BYTES`] holds every
@@ -376,6 +377,8 @@ pub enum Status {
     InternalServerError,
     /// 501 Not Implemented.
     NotImplemented,
+    /// 551 Option not supported: a `Require` the server does not meet.
+    OptionNotSupported,
     /// 505 RTSP Version Not Supported.
     VersionNotSupported,
 }
@@ -404,6 +407,7 @@ impl Status {
             Status::UnsupportedTransport => 461,
             Status::InternalServerError => 500,
             Status::NotImplemented => 501,
+            Status::OptionNotSupported => 551,
             Status::VersionNotSupported => 505,
         }
     }
@@ -421,6 +425,7 @@ impl Status {
             Status::UnsupportedTransport => "Unsupported Transport",
             Status::InternalServerError => "Internal Server Error",
             Status::NotImplemented => "Not Implemented",
+            Status::OptionNotSupported => "Option not supported",
             Status::VersionNotSupported => "RTSP Version Not Supported",
         }
     }
@@ -683,6 +688,13 @@ impl<const N: usize> Server<N> {
                 None => Err(()),
             },
         };
+        if let Some(options) = req.require {
+            // RFC 2326 section 12.32: an option required and not supported
+            // is 551, naming it in `Unsupported`.
+            status_line(out, Status::OptionNotSupported, cseq);
+            let _ = write!(out, "Unsupported: {options}\r\n\r\n");
+            return Status::OptionNotSupported;
+        }
         match req.method {
             "OPTIONS" => {
                 status_line(out, Status::Ok, cseq);
@@ -822,7 +834,7 @@ impl<const N: usize> Server<N> {
             Err(e) => return fail(out, e.into()),
         };
         let Some(transport) = req.transport else { return fail(out, Status::BadRequest) };
-        let Some((mut transport, profile)) = parse_transport(transport) else {
+        let Some((mut transport, profile)) = parse_transport(transport, peer.addr) else {
             return fail(out, Status::UnsupportedTransport);
         };
         if let Transport::Interleaved { rtp_channel, rtcp_channel } = &mut transport {

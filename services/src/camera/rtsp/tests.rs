@@ -694,3 +694,18 @@ fn rtp_info_names_the_stream_by_the_sdps_control_url_byte_for_byte() {
         );
     }
 }
+
+/// RFC 2326 section 12.32: a `Require` the server does not support is
+/// answered 551 with the options in `Unsupported`, and nothing is done.
+#[test]
+fn a_required_option_is_refused_551_and_named() {
+    let mut r = Rig::new();
+    let a = r.ask(&request(
+        "SETUP",
+        URL,
+        5,
+        "Require: com.example.thing\r\nTransport: RTP/AVP;unicast;client_port=6000-6001\r\n",
+    ));
+    assert_eq!(a.text, "RTSP/1.0 551 Option not supported\r\nCSeq: 5\r\nUnsupported: com.example.thing\r\n\r\n");
+    assert!(r.calls().is_empty(), "no session set up");
+}

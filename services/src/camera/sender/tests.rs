@@ -655,6 +655,16 @@ fn teardown_says_goodbye_and_lets_every_slot_go_and_a_live_light_moves() {
     let byes: Vec<_> = r.sink.rtcp.iter().filter(|(_, d)| d[d.len() - rtcp::BYE_BYTES + 1] == rtcp::RTCP_BYE).collect();
     assert_eq!(byes.len(), 2, "a BYE to each");
     assert_eq!(byes[0].1[1], rtcp::RTCP_SR, "in a compound packet that starts with a report");
+    // The report counts what the stream sent (RFC 3550 section 6.4.1),
+    // not zeros: the live stream's frames went to client 1 alone.
+    for (dest, d) in &byes {
+        let (packets, octets) =
+            (u32::from_be_bytes(d[20..24].try_into().unwrap()), u32::from_be_bytes(d[24..28].try_into().unwrap()));
+        let sent = r.sink.rows_to(*dest).len() as u32;
+        assert!(packets >= sent && sent > 0, "{dest:?}: {packets} packets counted, {sent} sent");
+        assert!(octets >= sent * 1_440, "{dest:?}: {octets} octets");
+        assert_ne!(u32::from_be_bytes(d[16..20].try_into().unwrap()), 0, "an RTP timestamp");
+    }
     assert_eq!((r.camera.streams(), r.camera.held(), r.ring.held()), (0, 0, 0));
     assert_eq!(r.ring.free_slots(), 8, "nothing left in use");
 }
