@@ -65,6 +65,11 @@ pub const MAX_NACK_BYTES: usize = 12 + 4 * 2 * ENTRIES_PER_FRAME;
 /// (32,768 is also as far back as a NACK's 16-bit PID reaches).
 const RESYNC_JUMP: u32 = 0x8000;
 
+/// The longest a closed frame waits for repairs, however slow they are
+/// (the sender's repair hold once a stream stops,
+/// [`MIN_REPAIR_HOLD`](crate::camera::sender::MIN_REPAIR_HOLD)).
+pub const MAX_REPAIR_WAIT: Duration = Duration::from_secs(1);
+
 /// How the receiver waits for repairs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ReceiverConfig {
@@ -72,12 +77,16 @@ pub struct ReceiverConfig {
     pub ssrc: u32,
     /// The payload type to accept (the SDP's, [`PAYLOAD_TYPE`]).
     pub payload_type: u8,
-    /// Time between NACKs for the same frame.
+    /// Time between NACKs for the same frame, at least: once repairs were
+    /// seen, twice the time they take (smoothed), so a slow path is not
+    /// asked again before the rows already asked for could arrive.
     pub nack_interval: Duration,
     /// NACKs per frame, the first included (0: never ask).
     pub max_nacks: u8,
-    /// How long a closed frame waits for its missing rows, and how long an
-    /// open one waits for its next packet before it is closed.
+    /// How long a closed frame waits for its missing rows, at least (longer
+    /// when the NACK rounds take longer: room for `max_nacks` of them, up
+    /// to [`MAX_REPAIR_WAIT`]), and how long an open one waits for its
+    /// next packet before it is closed.
     pub repair_wait: Duration,
 }
 
@@ -215,6 +224,10 @@ struct Closing {
     give_up: Instant,
     next_nack: Instant,
     nacks_sent: u8,
+    /// When the last NACK for the frame went, and whether a row it asked
+    /// for has come since (the repair delay was sampled).
+    asked_at: Option<Instant>,
+    sampled: bool,
 }
 
 /// A frame in progress.
@@ -263,6 +276,9 @@ pub struct Receiver<B> {
     newest_base: Option<u32>,
     media_ssrc: Option<u32>,
     counts: ReceiverCounts,
+    /// The time from a NACK to the first row it brought, smoothed (RFC
+    /// 6298's gain of 1/8).
+    repair_delay: Option<Duration>,
 }
 
 impl<B: AsRef<[u8]> + AsMut<[u8]>> Receiver<B> {
@@ -282,12 +298,25 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> Receiver<B> {
             newest_base: None,
             media_ssrc: None,
             counts: ReceiverCounts::default(),
+            repair_delay: None,
         })
     }
 
     /// What happened so far.
     pub fn counts(&self) -> ReceiverCounts {
         self.counts
+    }
+
+    /// The time repairs take, smoothed, once one was seen: from a NACK to
+    /// the first row it asked for.
+    pub fn repair_delay(&self) -> Option<Duration> {
+        self.repair_delay
+    }
+
+    /// The time between NACKs for one frame ([`ReceiverConfig::nack_interval`]).
+    fn nack_interval(&self) -> Duration {
+        let measured = self.repair_delay.map_or(Duration::ZERO, |d| 2 * d);
+        self.config.nack_interval.max(measured).min(MAX_REPAIR_WAIT / 2)
     }
 
     /// The stream's SSRC, once a packet arrived.
@@ -365,6 +394,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> Receiver<B> {
         if due.iter().all(Option::is_none) {
             return None;
         }
+        let interval = self.nack_interval();
         let mut len = 12;
         let mut entry: Option<(u32, u16)> = None;
         let mut rows = 0u64;
@@ -387,7 +417,9 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> Receiver<B> {
             }
             if let Some(c) = a.closed.as_mut() {
                 c.nacks_sent += 1;
-                c.next_nack = now + self.config.nack_interval;
+                c.next_nack = now + interval;
+                c.asked_at = Some(now);
+                c.sampled = false;
             }
         }
         if let Some(e) = entry {
@@ -494,6 +526,16 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> Receiver<B> {
         a.last_packet = now;
         if a.nacked.has(y) {
             a.repaired = true;
+            if let Some(c) = a.closed.as_mut().filter(|c| !c.sampled) {
+                if let Some(asked) = c.asked_at {
+                    c.sampled = true;
+                    let sample = now.saturating_duration_since(asked);
+                    self.repair_delay = Some(match self.repair_delay {
+                        None => sample,
+                        Some(d) => (d * 7 + sample) / 8,
+                    });
+                }
+            }
         }
         let base = a.base;
         let close = packet.marker && a.closed.is_none();
@@ -520,8 +562,11 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> Receiver<B> {
 
     /// The sender is done with the frame in `slot`: ask for what is missing.
     fn close(&mut self, slot: usize, now: Instant) {
+        let rounds = self.nack_interval() * u32::from(self.config.max_nacks);
+        let wait = self.config.repair_wait.max(rounds.min(MAX_REPAIR_WAIT));
         if let Some(a) = self.slots[slot].as_mut() {
-            a.closed = Some(Closing { give_up: now + self.config.repair_wait, next_nack: now, nacks_sent: 0 });
+            a.closed =
+                Some(Closing { give_up: now + wait, next_nack: now, nacks_sent: 0, asked_at: None, sampled: false });
         }
     }
 
@@ -855,6 +900,36 @@ mod tests {
         assert_eq!(rx.feed(71, &f1[7]), Verdict::Late);
         let c = rx.r.counts();
         assert_eq!((c.exact, c.damaged, c.nacks, c.rows_nacked, c.rows_filled), (1, 1, 3, 6, 2));
+    }
+
+    /// On a path whose repairs take 80 ms, asking again every 15 ms spends
+    /// every NACK before the first answer can come (a lost resend is then
+    /// never asked for): once a repair was seen, NACKs for a frame are
+    /// twice the repair delay apart, and the frame waits for all of them.
+    #[test]
+    fn on_a_slow_path_nacks_are_spaced_by_the_repair_delay_and_the_wait_grows() {
+        let (mut s, mut rx) = (Sender::new(0), Rx::new());
+        let f0 = s.frame();
+        rx.feed_all(0, f0.iter().enumerate().filter(|&(y, _)| y != 5).map(|(_, d)| d));
+        assert!(rx.nack(0).is_some());
+        rx.feed(80, &f0[5]);
+        assert_eq!(rx.r.repair_delay(), Some(Duration::from_millis(80)));
+        let f1 = s.frame();
+        rx.feed_all(100, f1.iter().enumerate().filter(|&(y, _)| y != 7).map(|(_, d)| d));
+        let mut nacks = vec![];
+        let mut t = 100;
+        loop {
+            if rx.nack(t).is_some() {
+                nacks.push(t);
+            }
+            rx.poll(t);
+            if rx.got.len() == 2 {
+                break;
+            }
+            t = rx.r.deadline().expect("a frame waits").millis();
+        }
+        assert_eq!(nacks, [100, 260, 420], "160 ms apart, not 15");
+        assert_eq!(t, 100 + 3 * 160, "given up after three rounds, not 50 ms");
     }
 
     #[test]

@@ -143,6 +143,26 @@ pub const UNREACHABLE_LIMIT: u8 = 3;
 /// second, for a request that crosses a slow or lossy path.
 pub const MIN_REPAIR_HOLD: Duration = Duration::from_secs(1);
 
+/// How long a stream counts as losing packets after a NACK asked for one
+/// of its packets: meanwhile its frames stay repairable for
+/// [`REPAIR_ROUNDS`] NACK rounds (a clean stream is never slowed).
+pub const LOSS_MEMORY: Duration = Duration::from_secs(2);
+
+/// NACK rounds a frame stays repairable for after its end on a stream that
+/// is losing packets, at least: at 10% loss a frame of 360 rows has a
+/// resend lost nine times in ten, so the first round is often not enough,
+/// and a NACK itself is lost one time in ten (three rounds still left one
+/// frame in twenty given up in the suite's lossy test).
+pub const REPAIR_ROUNDS: u32 = 4;
+
+/// A receiver's time to notice what is missing and ask again, added to
+/// the round trip for a NACK round.
+pub const NACK_REACTION: Duration = Duration::from_millis(20);
+
+/// The longest a frame is held for repair before the one after next may
+/// begin (a path this slow gets frames given up rather than none).
+pub const MAX_FRAME_HOLD: Duration = Duration::from_millis(500);
+
 /// The CNAME in the sender reports' SDES (RFC 3550 section 6.5.1).
 pub const CNAME: &[u8] = b"raytracer@board";
 
@@ -315,10 +335,36 @@ struct Media {
     /// Row 0's sequence number of the frame before the current one (or of
     /// the last one): the oldest the repair window keeps.
     previous_first: Option<u32>,
+    /// When the frame at `previous_first` ended, and the one before it: the
+    /// oldest frame in the window, which the next frame's begin drops.
+    ended_at: Option<Instant>,
+    oldest_ended_at: Option<Instant>,
+    /// Until when the stream counts as losing packets ([`LOSS_MEMORY`]
+    /// after a NACK asked for one).
+    lossy_until: Option<Instant>,
+    /// The next frame waits until then for the oldest frame's repairs
+    /// ([`Media::repairable_until`]), as the last poll found.
+    repair_wait: Option<Instant>,
     stats: StreamStats,
 }
 
 impl Media {
+    /// The frame whose row 0 is `first` ended (sent, failed or abandoned)
+    /// at `now`.
+    fn frame_ended(&mut self, first: u32, now: Instant) {
+        self.previous_first = Some(first);
+        self.oldest_ended_at = self.ended_at;
+        self.ended_at = Some(now);
+    }
+
+    /// When the next frame may begin as far as repair goes: on a stream
+    /// losing packets, once the oldest frame in the window (which that
+    /// begin drops) has been held for `hold` since its end.
+    fn repairable_until(&self, now: Instant, hold: Duration) -> Option<Instant> {
+        let lossy = self.lossy_until.is_some_and(|t| now < t);
+        self.oldest_ended_at.filter(|_| lossy).map(|t| t + hold)
+    }
+
     fn media_ticks(&self, now: Instant) -> u64 {
         if self.running {
             self.media_at_resume + rtp::ticks(now).saturating_sub(rtp::ticks(self.resumed_at))
@@ -585,6 +631,10 @@ impl<const N: usize> Camera<N> {
                     due: now,
                     current: None,
                     previous_first: None,
+                    ended_at: None,
+                    oldest_ended_at: None,
+                    lossy_until: None,
+                    repair_wait: None,
                     stats: StreamStats::default(),
                 });
                 self.windows[i].clear(MIN_REPAIR_HOLD);
@@ -705,7 +755,7 @@ impl<const N: usize> Camera<N> {
             source.end(f.slot);
             m.packetiser.skip_to(f.first_seq.wrapping_add(u32::from(ROWS)));
             self.windows[media].restart_hold(f.first_seq, now);
-            m.previous_first = Some(f.first_seq);
+            m.frame_ended(f.first_seq, now);
             m.stats.failed += 1;
             self.frame_edges = self.frame_edges.wrapping_add(1);
         }
@@ -826,7 +876,9 @@ impl<const N: usize> Camera<N> {
         }
         let mut room = affordable - o.repairs.len();
         let log = &mut self.resends[i];
+        let mut asked = false;
         for seq in NackRequests::new(datagram, media.packetiser.ssrc(), media.packetiser.highest_seq()) {
+            asked = true;
             if window.lookup(seq).is_none() {
                 o.stats.unrepairable += 1;
             } else if !log.may_resend(seq, now, o.round_trip) {
@@ -841,7 +893,30 @@ impl<const N: usize> Camera<N> {
             }
         }
         send_repairs(o, window, &media.packetiser, source, sink);
+        if asked {
+            let m = o.media;
+            if let Some(media) = self.media[m].as_mut() {
+                media.lossy_until = Some(now + LOSS_MEMORY);
+            }
+        }
         Some(session)
+    }
+
+    /// How long stream `media`'s frames stay repairable after their end
+    /// while it loses packets: [`REPAIR_ROUNDS`] NACK rounds over its
+    /// slowest output's round trip, at most [`MAX_FRAME_HOLD`]. The window
+    /// keeps two frames, so on a stream whose frames take less than this,
+    /// a frame waits (the repair window is sized by time, not frames).
+    fn frame_hold(&self, media: usize) -> Duration {
+        let round = self
+            .outputs
+            .iter()
+            .flatten()
+            .filter(|o| o.media == media)
+            .map(|o| o.round_trip)
+            .max()
+            .unwrap_or(DEFAULT_ROUND_TRIP);
+        ((round + NACK_REACTION) * REPAIR_ROUNDS).min(MAX_FRAME_HOLD)
     }
 
     /// The host at `to` answered a packet of the stream with SSRC `ssrc` to
@@ -932,6 +1007,7 @@ impl<const N: usize> Camera<N> {
         source: &mut S,
         sink: &mut K,
     ) -> bool {
+        let hold = self.frame_hold(mi);
         let Some(media) = self.media[mi].as_mut() else { return false };
         let window = &mut self.windows[mi];
         let mut progress = false;
@@ -957,6 +1033,10 @@ impl<const N: usize> Camera<N> {
             }
             let interval = media.spec.fps.interval();
             if interval.is_some_and(|_| now < media.due) {
+                return progress;
+            }
+            media.repair_wait = media.repairable_until(now, hold).filter(|&t| now < t);
+            if media.repair_wait.is_some() {
                 return progress;
             }
             let ticks = media.media_ticks(now);
@@ -1107,7 +1187,7 @@ impl<const N: usize> Camera<N> {
             } else {
                 media.stats.frames += 1;
             }
-            media.previous_first = Some(frame.first_seq);
+            media.frame_ended(frame.first_seq, now);
             media.current = None;
             self.frame_edges = self.frame_edges.wrapping_add(1);
             progress = true;
@@ -1122,11 +1202,13 @@ impl<const N: usize> Camera<N> {
     /// waits for rows, the sink or a slot; the caller polls at least this
     /// often, and whenever the source may have progressed.
     pub fn next_deadline(&self) -> Option<Instant> {
-        let frames = self
-            .media
-            .iter()
-            .flatten()
-            .filter_map(|m| (m.running && m.current.is_none() && m.spec.fps.interval().is_some()).then_some(m.due));
+        let frames = self.media.iter().flatten().filter_map(|m| {
+            if !m.running || m.current.is_some() {
+                return None;
+            }
+            let due = m.spec.fps.interval().map(|_| m.due);
+            due.max(m.repair_wait).or(m.repair_wait)
+        });
         let outputs = self.outputs.iter().flatten().flat_map(|o| {
             let reports = (o.cursor != Cursor::Paused).then(|| o.reports.deadline());
             let silence = match o.dest {

@@ -801,9 +801,11 @@ pub fn suite_test() -> Result<()> {
     Ok(())
 }
 
-/// RTSP frames per phase in the suite (the emulated board renders about
-/// three a second on its CPU; one frame given up in 40 is 2.5%).
-const SUITE_RTSP_FRAMES: usize = 40;
+/// RTSP frames per phase in the suite (the emulated board sends about five
+/// a second at fps=max; one frame given up in 60 is 1.7%, so the 95% bar
+/// allows three: 40 frames allowed two, and a slow machine met the bar or
+/// not by luck).
+const SUITE_RTSP_FRAMES: usize = 60;
 
 /// A bar for RTP through a lossy link: the share of frames byte-exact and
 /// the share of the clean run's rate, at least.

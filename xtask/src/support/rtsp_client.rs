@@ -67,6 +67,37 @@ pub struct Stream {
     /// A line to ignore the first time it arrives (a loss made on
     /// purpose, for the repair to fill).
     pub drop_once: Option<usize>,
+    /// The time from a NACK to the first row it brought, smoothed: how
+    /// long to wait before asking again ([`Stream::renack_interval`]).
+    repair_delay: Option<Duration>,
+}
+
+/// Bounds of the time between NACKs for one frame: a little more than a
+/// LAN's answer takes, and at most 100 ms (a fixed 100 ms let only two
+/// rounds fit in the time the server kept a frame on a slow machine, and
+/// the suite's lossy test failed on it).
+const RENACK_MIN: Duration = Duration::from_millis(20);
+const RENACK_MAX: Duration = Duration::from_millis(100);
+
+/// The time to wait before asking again for rows still missing after a
+/// NACK: twice the smoothed repair delay (the rows asked for are on their
+/// way until then), within [`RENACK_MIN`]..=[`RENACK_MAX`]; 50 ms before
+/// any repair was seen.
+fn renack_interval(repair_delay: Option<Duration>) -> Duration {
+    repair_delay.map_or(Duration::from_millis(50), |d| (2 * d).clamp(RENACK_MIN, RENACK_MAX))
+}
+
+/// The smoothed repair delay after one more sample: every row a NACK
+/// brought is a sample, and the estimate follows the latest of them (a
+/// NACK's rows come in a burst whose tail is what a second NACK must not
+/// overtake): halfway up to a longer sample at once, an eighth of the way
+/// down to a shorter one.
+fn smooth(delay: Option<Duration>, sample: Duration) -> Duration {
+    match delay {
+        None => sample,
+        Some(d) if sample > d => (d + sample) / 2,
+        Some(d) => (d * 7 + sample) / 8,
+    }
 }
 
 /// A frame being received.
@@ -147,6 +178,7 @@ impl Stream {
             repaired_rows: 0,
             nacks: 0,
             drop_once: None,
+            repair_delay: None,
             given_up: 0,
         };
         let url = s.url.clone();
@@ -406,8 +438,9 @@ impl Stream {
         if self.drop_once == Some(line) {
             self.drop_once = None;
         } else if f.rows[line].is_none() {
-            if f.nacked_at.is_some() {
+            if let Some(asked) = f.nacked_at {
                 self.repaired_rows += 1;
+                self.repair_delay = Some(smooth(self.repair_delay, asked.elapsed()));
             }
             f.rows[line] = Some(p[HEADER..].to_vec());
         }
@@ -453,7 +486,8 @@ impl Stream {
         self.given_up += before - self.partial.len();
     }
 
-    /// NACK the missing rows of marked frames (again every 100 ms).
+    /// NACK the missing rows of marked frames, again after
+    /// [`renack_interval`] while rows are still missing.
     fn ask_for_missing(&mut self) -> Result<()> {
         if self.transport == Transport::Tcp {
             return Ok(()); // TCP loses nothing
@@ -466,10 +500,11 @@ impl Stream {
             }
         }
         let now = Instant::now();
+        let again = renack_interval(self.repair_delay);
         let mut lost = Vec::new();
         for f in self.partial.values_mut() {
             let Some((seq, line)) = f.known else { continue };
-            if !f.marked || f.nacked_at.is_some_and(|t| now - t < Duration::from_millis(100)) {
+            if !f.marked || f.nacked_at.is_some_and(|t| now - t < again) {
                 continue;
             }
             f.nacked_at = Some(now);
@@ -533,4 +568,25 @@ fn bind_rtp(port: u16) -> std::io::Result<UdpSocket> {
     let _ = socket.set_recv_buffer_size(4 << 20);
     socket.bind(&std::net::SocketAddr::from(([0, 0, 0, 0], port)).into())?;
     Ok(socket.into())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_client_asks_again_after_twice_the_repair_delay_within_bounds() {
+        let ms = Duration::from_millis;
+        assert_eq!(renack_interval(None), ms(50));
+        assert_eq!(renack_interval(Some(ms(15))), ms(30));
+        assert_eq!(renack_interval(Some(ms(2))), RENACK_MIN, "a LAN's answer");
+        assert_eq!(renack_interval(Some(ms(400))), RENACK_MAX, "a slow path still gets rounds");
+        let mut d = None;
+        for _ in 0..40 {
+            d = Some(smooth(d, ms(30)));
+        }
+        assert_eq!(d, Some(ms(30)));
+        assert_eq!(smooth(Some(ms(80)), ms(0)), ms(70), "a shorter sample moves it an eighth");
+        assert_eq!(smooth(Some(ms(30)), ms(90)), ms(60), "a longer one halfway");
+    }
 }

@@ -616,8 +616,14 @@ fn the_frame_before_stays_repairable_and_the_one_before_that_does_not() {
     let first_of = |k: u32| (65_500 + k * u32::from(ROWS)) as u16;
     r.nack_from(CLIENT, 6001, &nack(SSRC, &[(first_of(0), 0)]), t(150));
     assert_eq!(r.camera.stats(SessionId(1)).unwrap().resent, 1);
+    // The stream is losing packets: frame 3, due at 200 ms, waits until
+    // frame 1 (ended at 0) has been held for three NACK rounds.
+    let hold = (DEFAULT_ROUND_TRIP + NACK_REACTION) * REPAIR_ROUNDS;
     r.settle(t(200));
-    r.nack_from(CLIENT, 6001, &nack(SSRC, &[(first_of(0) + 1, 0), (first_of(1), 0)]), t(250));
+    assert_eq!(r.camera.next_deadline(), Some(t(0) + hold), "frame 3 waits for frame 1's repairs");
+    r.settle(t(0) + hold);
+    let at = t(0) + hold + Duration::from_millis(10);
+    r.nack_from(CLIENT, 6001, &nack(SSRC, &[(first_of(0) + 1, 0), (first_of(1), 0)]), at);
     let stats = r.camera.stats(SessionId(1)).unwrap();
     assert_eq!((stats.resent, stats.unrepairable), (2, 1), "frame 2 repaired, frame 1 gone");
     assert_eq!(r.ring.held().count_ones(), 2);
