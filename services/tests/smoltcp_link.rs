@@ -687,3 +687,86 @@ fn a_request_sent_with_its_fin_is_still_answered() {
         assert!(clients[0].received == frame(&light), "{} bytes ({mode:?}); log: {log}", clients[0].received.len());
     }
 }
+
+/// Four SYNs to the seed ports that are never completed (a phone leaving
+/// WiFi mid-connect, a scanner) take every socket, and smoltcp alone would
+/// keep them in SYN-RECEIVED, resending its SYN-ACK, for its timeout or
+/// for ever: the services' policy (`rt_services::tcp`) drops each after
+/// `HANDSHAKE_LIMIT`, and a client arriving then is served.
+#[test]
+fn handshakes_never_finished_hold_the_sockets_seconds_not_for_ever() {
+    use rt_services::tcp::HANDSHAKE_LIMIT;
+    let (mut server_dev, mut client_dev) = cable_with(Faults::default(), 0);
+    let mut server_if = interface(&mut server_dev, 1);
+    let mut client_if = interface(&mut client_dev, 2);
+    let mut buffers: Box<[SocketBuffers; 4]> = Box::default();
+    let mut server_sockets = SocketSet::new(vec![]);
+    let mut service = FrameService::new(&mut server_sockets, &mut buffers, 2);
+    let mut frames = RowFrames::<_, 4>::new(SoftwareRenderer);
+    let mut log = String::new();
+    let mut ghosts = SocketSet::new(vec![]);
+    let mut clients = SocketSet::new(vec![]);
+    let ports = [FRAME_PORT, FRAME_PORT, PERSISTENT_PORT, PERSISTENT_PORT];
+    let limit = HANDSHAKE_LIMIT.as_millis() as u64;
+    let light = Light::from_world(3.0, 4.0, -2.0).unwrap();
+    let mut visitor = None;
+    let mut received = Vec::new();
+    let mut held_at_1s = None;
+    let mut ghosts_sending = true;
+    for step in 0..limit + 3_000 {
+        let now = Instant::from_millis(step as i64);
+        server_if.poll(now, &mut server_dev, &mut server_sockets);
+        service.poll(now, &mut server_sockets, &mut frames, &mut log);
+        server_if.poll(now, &mut server_dev, &mut server_sockets);
+        if step == 10 {
+            for (i, port) in ports.iter().enumerate() {
+                let mut s = tcp::Socket::new(tcp::SocketBuffer::new(vec![0; 64]), tcp::SocketBuffer::new(vec![0; 64]));
+                s.connect(client_if.context(), (IpAddress::Ipv4(SERVER), *port), 40_000 + i as u16).expect("connect");
+                ghosts.add(s);
+            }
+        }
+        if step >= 10 && ghosts_sending {
+            // The ghosts send their SYNs (after ARP) and are heard of no
+            // more once the server has them: their SYN-ACKs go unread.
+            if service.listening(&server_sockets) == 0 {
+                ghosts_sending = false;
+            } else {
+                client_if.poll(now, &mut client_dev, &mut ghosts);
+            }
+        }
+        if !ghosts_sending && visitor.is_none() {
+            client_dev.rx.borrow_mut().clear();
+        }
+        if visitor.is_some() {
+            client_if.poll(now, &mut client_dev, &mut clients);
+        }
+        if step == 1_000 {
+            held_at_1s = Some(service.listening(&server_sockets));
+        }
+        if step == limit + 500 {
+            assert_eq!(service.listening(&server_sockets), 4, "every socket listens again; log: {log}");
+            let mut s = tcp::Socket::new(tcp::SocketBuffer::new(vec![0; 1 << 20]), tcp::SocketBuffer::new(vec![0; 64]));
+            s.connect(client_if.context(), (IpAddress::Ipv4(SERVER), FRAME_PORT), 50_000).expect("connect");
+            visitor = Some(clients.add(s));
+        }
+        if let Some(h) = visitor {
+            let s = clients.get_mut::<tcp::Socket>(h);
+            if s.may_send() && s.send_queue() == 0 && received.is_empty() {
+                let _ = s.send_slice(&request(&light));
+            }
+            while s.can_recv() {
+                s.recv(|b| {
+                    received.extend_from_slice(b);
+                    (b.len(), ())
+                })
+                .expect("recv");
+            }
+            if received.len() == FRAME_BYTES {
+                break;
+            }
+        }
+    }
+    assert_eq!(held_at_1s, Some(0), "the ghosts held every socket at first; log: {log}");
+    assert!(log.contains("a handshake never finished"), "{log}");
+    assert!(received == frame(&light), "the visitor after them got its frame ({} bytes); log: {log}", received.len());
+}

@@ -15,7 +15,8 @@
 //! rather than a refused connection. A connection is closed when the
 //! server's deadlines say so (`rtsp::Server::connection_expired`: half a
 //! request left for 5 s, or no session and no request for 10 s), and by
-//! smoltcp when its peer stops answering ([`KEEP_ALIVE`], [`TCP_TIMEOUT`]).
+//! smoltcp when its peer stops answering, or when its handshake is never
+//! finished ([`crate::tcp`]'s policy, the same for every service).
 //!
 //! # What the received frames tell
 //!
@@ -37,7 +38,7 @@ use core::net::{IpAddr, Ipv4Addr, SocketAddrV4};
 use smoltcp::iface::{SocketHandle, SocketSet};
 use smoltcp::phy::{self, Device, DeviceCapabilities};
 use smoltcp::socket::{tcp, udp};
-use smoltcp::time::{Duration as NetDuration, Instant};
+use smoltcp::time::Instant;
 use smoltcp::wire::{
     EthernetAddress, EthernetFrame, EthernetProtocol, Icmpv4Message, Icmpv4Packet, IpEndpoint, IpProtocol, Ipv4Packet,
     UdpPacket,
@@ -48,6 +49,7 @@ use super::rtp::{Endpoints, HeaderTemplate, Packetiser, RowPacket, UdpChecksum, 
 use super::rtsp::{self, ConnId, Connection, Server, CONNECTIONS, MAX_RESPONSE_BYTES, MAX_SESSIONS, RTSP_PORT};
 use super::sender::{Bound, Camera, Dest, RtpSink, SlotSource};
 use crate::frames::FrameSource;
+use crate::tcp::Handshake;
 use crate::time;
 
 /// TCP sockets listening for RTSP: one per session's player and two
@@ -58,13 +60,6 @@ pub const RTSP_SOCKETS: usize = CONNECTIONS;
 /// (RTP over the RTSP connection needs room for a run; responses alone
 /// would need 2.5 KiB).
 pub const RTSP_TX_BYTES: usize = 64 * 1024;
-
-/// Idle time after which smoltcp probes an RTSP connection's peer.
-pub const KEEP_ALIVE: NetDuration = NetDuration::from_secs(10);
-
-/// A peer that acknowledges nothing for this long loses its connection
-/// (smoltcp's timeout: retransmissions and keep-alive probes unanswered).
-pub const TCP_TIMEOUT: NetDuration = NetDuration::from_secs(30);
 
 /// Most [`Camera::poll`] calls per [`CameraService::poll`], a bound of
 /// last resort. One call already sends what the streams' frames have
@@ -304,6 +299,7 @@ impl Default for CameraBuffers {
 struct RtspSocket {
     handle: SocketHandle,
     conn: Option<Connection>,
+    handshake: Handshake,
 }
 
 /// A UDP or multicast output's 62-byte header template, made when its
@@ -365,12 +361,10 @@ impl<'c> CameraService<'c> {
         entropy: &[u8],
     ) -> Result<CameraService<'c>, udp::BindError> {
         let CameraBuffers { rtsp, rtcp_meta, rtcp_rx, rtcp_tx_meta, rtcp_tx } = buffers;
-        let tcp_sockets = rtsp.each_mut().map(|b| {
-            let mut socket = b.socket();
-            socket.set_keep_alive(Some(KEEP_ALIVE));
-            socket.set_timeout(Some(TCP_TIMEOUT));
-            socket.set_nagle_enabled(false);
-            RtspSocket { handle: sockets.add(socket), conn: None }
+        let tcp_sockets = rtsp.each_mut().map(|b| RtspSocket {
+            handle: sockets.add(b.socket()),
+            conn: None,
+            handshake: Handshake::new(),
         });
         let mut rtcp = udp::Socket::new(
             udp::PacketBuffer::new(&mut rtcp_meta[..], &mut rtcp_rx[..]),
@@ -523,6 +517,9 @@ impl<'c> CameraService<'c> {
         let socket = sockets.get_mut::<tcp::Socket>(self.sockets[i].handle);
         if socket.state() == tcp::State::TimeWait {
             socket.abort();
+        }
+        if self.sockets[i].handshake.check(socket, now) {
+            let _ = writeln!(log, "rtsp: a handshake never finished; socket taken back");
         }
         if !socket.is_open() {
             if let Some(conn) = self.sockets[i].conn.take() {

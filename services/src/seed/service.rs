@@ -16,6 +16,7 @@ use smoltcp::time::Instant;
 use crate::frames::FrameSource;
 use crate::seed::server::{drive, Action, Closed, Mode, Session};
 use crate::seed::wire::{FRAME_PORT, PERSISTENT_PORT};
+use crate::tcp::Handshake;
 use crate::time;
 
 /// Receive buffer of one socket: room for 42 pipelined requests.
@@ -35,6 +36,7 @@ struct Slot<F> {
     handle: SocketHandle,
     mode: Mode,
     session: Option<Session<F>>,
+    handshake: Handshake,
 }
 
 impl<F> Slot<F> {
@@ -63,7 +65,7 @@ impl<F: Copy, const N: usize> FrameService<F, N> {
             let socket = b.socket();
             let mode = if i < frame_port { Mode::Single } else { Mode::Persistent };
             i += 1;
-            Slot { handle: sockets.add(socket), mode, session: None }
+            Slot { handle: sockets.add(socket), mode, session: None, handshake: Handshake::new() }
         });
         FrameService { slots }
     }
@@ -111,6 +113,9 @@ fn serve_slot<S: FrameSource>(
         // so drop that state at once.
         if socket.state() == tcp::State::TimeWait {
             socket.abort();
+        }
+        if slot.handshake.check(socket, now) {
+            let _ = writeln!(log, "seed[{index}] a handshake never finished; socket taken back");
         }
         if !socket.is_open() {
             if let Err(e) = socket.listen(slot.port()) {

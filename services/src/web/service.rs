@@ -19,6 +19,7 @@ use super::server::{drive, Action, Connection, Context};
 use super::status::BoardStatus;
 use super::{WEB_PORT, WEB_VIEWERS};
 use crate::frames::FrameSource;
+use crate::tcp::Handshake;
 use crate::time;
 
 /// Receive buffer of one socket: a whole request head.
@@ -42,6 +43,7 @@ struct Slot<F> {
     connection: Option<Connection<F>>,
     /// When the last connection was closed, while its socket finishes.
     closing_since: Option<time::Instant>,
+    handshake: Handshake,
 }
 
 /// The page on `N` smoltcp TCP sockets, serving frames whose handles are
@@ -56,7 +58,7 @@ impl<F: Copy, const N: usize> WebService<F, N> {
     pub fn new<'a>(sockets: &mut SocketSet<'a>, buffers: &'a mut [SocketBuffers; N]) -> Self {
         let slots = buffers.each_mut().map(|b| {
             let socket = b.socket();
-            Slot { handle: sockets.add(socket), connection: None, closing_since: None }
+            Slot { handle: sockets.add(socket), connection: None, closing_since: None, handshake: Handshake::new() }
         });
         WebService { slots, frames_sent: 0 }
     }
@@ -116,6 +118,9 @@ fn serve_slot<S: FrameSource>(
         // TIME-WAIT would refuse clients for 10 s: our FIN was acknowledged.
         if socket.state() == tcp::State::TimeWait {
             socket.abort();
+        }
+        if slot.handshake.check(socket, cx.now) {
+            let _ = writeln!(log, "web[{index}] a handshake never finished; socket taken back");
         }
         if let Some(since) = slot.closing_since {
             if socket.is_open() && cx.now < since + CLOSE_LINGER {
