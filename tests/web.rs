@@ -194,3 +194,32 @@ fn another_sites_page_cannot_open_the_websocket_and_a_rebound_name_cannot_read_t
     let (head, _) = split(&http(addr, b"GET /status HTTP/1.1\r\nHost: raytracer.local\r\n\r\n"));
     assert!(head.starts_with("HTTP/1.1 200 "), "{head}");
 }
+
+/// A flood of connections does not start threads without bound: hps-sim
+/// serves as many at once as the board has web sockets and closes the
+/// rest at once, as the board refuses a SYN with no socket listening; the
+/// places come back when connections end.
+#[test]
+fn connections_beyond_the_boards_sockets_are_refused_at_once() {
+    use rt_services::web::WEB_SOCKETS;
+    let (_sim, addr) = board();
+    let held: Vec<TcpStream> = (0..WEB_SOCKETS + 12).map(|_| TcpStream::connect(addr).expect("connect")).collect();
+    // Every connection accepted (and the extra ones closed) by then; the
+    // ones served wait for a request head (5 s) meanwhile.
+    std::thread::sleep(Duration::from_millis(500));
+    let mut open = 0;
+    for mut s in &held {
+        s.set_read_timeout(Some(Duration::from_millis(100))).expect("timeout");
+        let mut byte = [0u8; 1];
+        match s.read(&mut byte) {
+            Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => open += 1,
+            _ => {}
+        }
+    }
+    assert_eq!(open, WEB_SOCKETS, "served at once: as many as the board's sockets");
+    drop(held);
+    // The places came back: a page request is answered.
+    std::thread::sleep(Duration::from_millis(200));
+    let (head, _) = split(&http(addr, b"GET /status HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
+    assert!(head.starts_with("HTTP/1.1 200 "), "{head}");
+}

@@ -37,7 +37,7 @@ pub use rt_services::camera::sender::CAMERA_SLOTS;
 /// 14 seed-port clients wait their turn beyond those four
 /// (docs/reliability.md#overload), and one more arriving while all are
 /// taken is refused.
-pub const SOCKETS: usize = 24;
+pub const SOCKETS: usize = rt_services::seed::SEED_SOCKETS;
 
 /// Sockets on the seed port.
 pub const FRAME_PORT_SOCKETS: usize = 18;
@@ -55,7 +55,7 @@ pub const WEB_FRAMES: usize = 2;
 pub use rt_services::web::WEB_VIEWERS;
 
 /// TCP sockets of the web page (module docs).
-pub const WEB_SOCKETS: usize = 8;
+pub use rt_services::web::WEB_SOCKETS;
 
 /// Frame slots of the ring: the sum of its users' bounds (module docs).
 pub const RING_SLOTS: usize = DISPLAY_SLOTS + SEED_FRAMES + CAMERA_SLOTS + WEB_FRAMES;

@@ -246,11 +246,12 @@ impl HpsSim {
             web: None,
         };
         let ids = Arc::new(AtomicU64::new(1));
+        let cap = ConnectionCap::new(rt_services::seed::SEED_SOCKETS);
         for (listener, mode) in [(single, Mode::Single), (persistent, Mode::Persistent)] {
-            let (stop, ids, shared) = (sim.stop.clone(), ids.clone(), sim.shared.clone());
+            let (stop, ids, shared, cap) = (sim.stop.clone(), ids.clone(), sim.shared.clone(), cap.clone());
             thread::Builder::new()
                 .name(format!("accept {mode:?}"))
-                .spawn(move || accept_loop(listener, mode, config, &stop, &ids, &shared, verbose))?;
+                .spawn(move || accept_loop(listener, mode, config, &stop, &ids, &shared, &cap, verbose))?;
         }
         Ok(sim)
     }
@@ -334,6 +335,7 @@ fn bind_pair(addr: SocketAddr) -> io::Result<(TcpListener, TcpListener)> {
     Err(last_err.unwrap_or_else(|| io::Error::new(io::ErrorKind::AddrInUse, "no free port pair")))
 }
 
+#[allow(clippy::too_many_arguments)]
 fn accept_loop(
     listener: TcpListener,
     mode: Mode,
@@ -341,6 +343,7 @@ fn accept_loop(
     stop: &AtomicBool,
     ids: &AtomicU64,
     shared: &Arc<web::Shared>,
+    cap: &Arc<ConnectionCap>,
     verbose: bool,
 ) {
     for stream in listener.incoming() {
@@ -349,9 +352,15 @@ fn accept_loop(
         }
         match stream {
             Ok(stream) => {
+                let Some(place) = cap.take() else {
+                    // Every socket is taken: refused, as on the board.
+                    drop(stream);
+                    continue;
+                };
                 let id = ids.fetch_add(1, Ordering::Relaxed);
                 let shared = shared.clone();
                 let spawned = thread::Builder::new().name(format!("client {id}")).spawn(move || {
+                    let _place = place;
                     // The page's status counts the seed clients.
                     shared.seed_clients.fetch_add(1, Ordering::Relaxed);
                     serve_connection(stream, mode, config, Log::new(id, verbose));
@@ -363,6 +372,39 @@ fn accept_loop(
             }
             Err(e) => eprintln!("accept failed: {e}"),
         }
+    }
+}
+
+/// Connections served at once, as the board has sockets: each costs two
+/// threads (its own and its reader), so a flood of connections must not
+/// start threads without bound. One more is closed at once, as the board
+/// answers a SYN with no socket listening with a reset.
+#[derive(Debug)]
+pub(crate) struct ConnectionCap {
+    open: std::sync::atomic::AtomicUsize,
+    max: usize,
+}
+
+/// One connection's place under a [`ConnectionCap`], given back on drop.
+pub(crate) struct Place(Arc<ConnectionCap>);
+
+impl ConnectionCap {
+    pub(crate) fn new(max: usize) -> Arc<ConnectionCap> {
+        Arc::new(ConnectionCap { open: std::sync::atomic::AtomicUsize::new(0), max })
+    }
+
+    /// A place, if one is free.
+    pub(crate) fn take(self: &Arc<Self>) -> Option<Place> {
+        self.open
+            .fetch_update(Ordering::SeqCst, Ordering::SeqCst, |n| (n < self.max).then_some(n + 1))
+            .ok()
+            .map(|_| Place(self.clone()))
+    }
+}
+
+impl Drop for Place {
+    fn drop(&mut self) {
+        self.0.open.fetch_sub(1, Ordering::SeqCst);
     }
 }
 

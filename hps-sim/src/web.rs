@@ -15,10 +15,10 @@ use std::time::{Duration, Instant};
 use model::ROW_BYTES;
 use rt_services::web::server::{drive, Action, Connection, Context, SEND_TIMEOUT};
 use rt_services::web::status::{BoardStatus, Viewers};
-use rt_services::web::WEB_VIEWERS;
+use rt_services::web::{WEB_SOCKETS, WEB_VIEWERS};
 use rt_services::{FrameSource, Instant as ProtocolInstant};
 
-use crate::{close_gracefully, frame_ring, spawn_reader, Input, Log};
+use crate::{close_gracefully, frame_ring, spawn_reader, ConnectionCap, Input, Log};
 
 /// What the connections share: the board's figures.
 #[derive(Debug)]
@@ -68,6 +68,7 @@ impl WebServer {
         let listener = TcpListener::bind(addr)?;
         let server = WebServer { addr: listener.local_addr()?, stop: Arc::new(AtomicBool::new(false)) };
         let stop = server.stop.clone();
+        let cap = ConnectionCap::new(WEB_SOCKETS);
         thread::Builder::new().name("accept web".into()).spawn(move || {
             let mut id = 0u64;
             for stream in listener.incoming() {
@@ -75,11 +76,18 @@ impl WebServer {
                     return;
                 }
                 let Ok(stream) = stream else { continue };
+                let Some(place) = cap.take() else {
+                    // Every socket is taken: refused, as on the board.
+                    drop(stream);
+                    continue;
+                };
                 id += 1;
                 let shared = shared.clone();
                 let log = Log::new(id, verbose);
-                let spawned =
-                    thread::Builder::new().name(format!("web {id}")).spawn(move || serve(stream, &shared, log));
+                let spawned = thread::Builder::new().name(format!("web {id}")).spawn(move || {
+                    let _place = place;
+                    serve(stream, &shared, log)
+                });
                 if let Err(e) = spawned {
                     eprintln!("web: cannot start a thread: {e}");
                 }
@@ -98,6 +106,37 @@ impl Drop for WebServer {
     fn drop(&mut self) {
         self.stop.store(true, Ordering::SeqCst);
         let _ = TcpStream::connect_timeout(&self.addr, Duration::from_millis(200));
+    }
+}
+
+/// A frame source made when its first frame is begun: a connection that
+/// asks for a page file or `/status` never allocates a frame ring.
+struct OnDemand<S> {
+    source: Option<S>,
+    make: fn() -> S,
+}
+
+impl<S: FrameSource> FrameSource for OnDemand<S> {
+    type Frame = S::Frame;
+    type Error = S::Error;
+
+    fn begin(&mut self, light: &model::Light) -> Result<Option<S::Frame>, S::Error> {
+        self.source.get_or_insert_with(self.make).begin(light)
+    }
+
+    // A frame exists only once the source does: these see it made.
+    fn rows_ready(&mut self, frame: S::Frame) -> Result<u16, S::Error> {
+        self.source.get_or_insert_with(self.make).rows_ready(frame)
+    }
+
+    fn copy_row(&mut self, frame: S::Frame, y: u16, offset: usize, out: &mut [u8]) -> usize {
+        self.source.as_mut().map_or(0, |s| s.copy_row(frame, y, offset, out))
+    }
+
+    fn end(&mut self, frame: S::Frame) {
+        if let Some(s) = self.source.as_mut() {
+            s.end(frame);
+        }
     }
 }
 
@@ -133,7 +172,7 @@ impl<S: FrameSource> FrameSource for Counted<'_, S> {
 }
 
 fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
-    let mut ring = frame_ring();
+    let mut ring = OnDemand { source: None, make: frame_ring };
     let mut frames = Counted { frames: &mut ring, rendered: &shared.frames_rendered };
     let _ = stream.set_nodelay(true);
     let _ = stream.set_write_timeout(Some(SEND_TIMEOUT));

@@ -6,6 +6,12 @@
 //!   the firmware runs it.
 
 pub mod server;
+
+/// TCP sockets of the frame service on the board (both ports; the
+/// firmware's `limits` module splits them): a client beyond them is
+/// refused. hps-sim serves as many connections at once.
+pub const SEED_SOCKETS: usize = 24;
+
 #[cfg(feature = "smoltcp")]
 pub mod service;
 pub mod wire;

@@ -28,6 +28,12 @@ pub mod websocket;
 /// The page's TCP port on the board.
 pub const WEB_PORT: u16 = 80;
 
+/// TCP sockets of the web page on the board: up to [`WEB_VIEWERS`] hold a
+/// viewer each, the others answer the page's files and `/status` (the
+/// firmware's `limits` module has the arithmetic); hps-sim serves as many
+/// connections at once.
+pub const WEB_SOCKETS: usize = 8;
+
 /// WebSocket viewers at once: each holds a frame slot while its frame is
 /// rendered and sent (within the ring's web quota), and a socket; more are
 /// answered 503 and the page retries.
