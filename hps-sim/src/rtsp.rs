@@ -446,7 +446,7 @@ fn run<E: FrameEngine<SharedMemory>>(
         loop {
             match sockets.rtcp.recv_from(&mut datagram) {
                 Ok((n, from)) => {
-                    if server.rtcp_received(now(), from.ip(), from.port()).is_some() {
+                    if server.rtcp_received(now(), from.ip(), from.port(), &datagram[..n]).is_some() {
                         camera.rtcp_received(from, &datagram[..n], now(), wall(), &mut ring, &mut sink);
                     }
                     busy = true;

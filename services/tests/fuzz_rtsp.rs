@@ -484,10 +484,9 @@ fn run(c: &Case) -> Result<(), TestCaseError> {
             Piece::Junk(k, j) => (*k, j.clone(), None),
             Piece::Rtcp(peer, port, is_nack) => {
                 let at = Instant::from_millis(now);
-                if server.rtcp_received(at, PEERS[*peer], *port).is_some() {
-                    let ssrc = server.sessions().first().map_or(0, |s| s.ssrc());
-                    let d =
-                        if *is_nack { nack(ssrc, (now % 65_536) as u16) } else { vec![0x80, 201, 0, 1, 0, 0, 0, 1] };
+                let ssrc = server.sessions().first().map_or(0, |s| s.ssrc());
+                let d = if *is_nack { nack(ssrc, (now % 65_536) as u16) } else { vec![0x80, 201, 0, 1, 0, 0, 0, 1] };
+                if server.rtcp_received(at, PEERS[*peer], *port, &d).is_some() {
                     camera.rtcp_received(
                         std::net::SocketAddr::new(PEERS[*peer], *port),
                         &d,

@@ -307,7 +307,7 @@ pub const MAX_NACKED_PER_DATAGRAM: u16 = 256;
 /// Whether `data` is a well-formed run of RTCP packets (RFC 3550 appendix
 /// A.2, less the rule that the first be a report: RFC 5506 allows a
 /// feedback packet alone).
-fn valid_compound(mut data: &[u8]) -> bool {
+pub fn valid_compound(mut data: &[u8]) -> bool {
     if data.is_empty() {
         return false;
     }

@@ -466,7 +466,7 @@ impl<'c> CameraService<'c> {
             let IpAddr::V4(from) = IpAddr::from(meta.endpoint.addr) else { continue };
             let from = IpAddr::V4(from);
             let port = meta.endpoint.port;
-            if self.server.rtcp_received(now_ms, from, port).is_some() {
+            if self.server.rtcp_received(now_ms, from, port, &self.datagram[..n]).is_some() {
                 let from = core::net::SocketAddr::new(from, port);
                 self.camera.rtcp_received(from, &self.datagram[..n], now_ms, wall, source, &mut sink);
             } else {

@@ -583,19 +583,24 @@ impl<const N: usize> Server<N> {
         self.sessions.iter().map(Session::expires).min()
     }
 
-    /// An RTCP packet arrived over UDP from `from:port`: the session whose
-    /// client that is stays alive (its unicast RTCP port, or the address of
-    /// a multicast session's member, whose reports may come from any port).
-    /// Returns it.
-    pub fn rtcp_received(&mut self, now: Instant, from: IpAddr, port: u16) -> Option<SessionId> {
-        let s = self.sessions.iter_mut().find(|s| {
-            s.client.addr == from
-                && match s.transport {
-                    Transport::Udp { rtcp_port, .. } => rtcp_port == port,
-                    Transport::Multicast => true,
-                    Transport::Interleaved { .. } => false,
-                }
-        })?;
+    /// A datagram arrived at the RTCP port from `from:port`: if it is RTCP
+    /// (a well-formed compound packet; anything else refreshes nothing),
+    /// the session whose client sent it stays alive and is returned: the
+    /// unicast session with that RTCP port, else one from that address (a
+    /// NAT may have given its reports another port; the sender takes them
+    /// by address too), or a multicast session's member, whose reports may
+    /// come from any port.
+    pub fn rtcp_received(&mut self, now: Instant, from: IpAddr, port: u16, datagram: &[u8]) -> Option<SessionId> {
+        if !crate::camera::rtcp::valid_compound(datagram) {
+            return None;
+        }
+        let exact = |s: &Session| {
+            s.client.addr == from && matches!(s.transport, Transport::Udp { rtcp_port, .. } if rtcp_port == port)
+        };
+        let by_addr =
+            |s: &Session| s.client.addr == from && matches!(s.transport, Transport::Udp { .. } | Transport::Multicast);
+        let i = self.sessions.iter().position(exact).or_else(|| self.sessions.iter().position(by_addr))?;
+        let s = &mut self.sessions[i];
         s.last_heard = now;
         Some(s.id)
     }

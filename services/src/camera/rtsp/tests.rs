@@ -537,9 +537,12 @@ fn sessions_time_out_after_60_s_unheard() {
     // Requests naming a session and RTCP from its client refresh it.
     r.now = at(69_999);
     r.ask(&with_session("OPTIONS", a, 5));
-    assert_eq!(r.server.rtcp_received(at(75_000), CLIENT, 6001), Some(a));
-    assert_eq!(r.server.rtcp_received(at(75_000), OTHER, 6001), None, "not its client");
-    assert_eq!(r.server.rtcp_received(at(75_000), CLIENT, 6000), None, "not its RTCP port");
+    let rr = [0x80, 201, 0, 1, 0, 0, 0, 1];
+    assert_eq!(r.server.rtcp_received(at(74_000), CLIENT, 6001, b"\x80not RTCP"), None, "not RTCP: no refresh");
+    assert_eq!(r.server.rtcp_received(at(74_000), CLIENT, 6001, &rr[..6]), None, "cut short");
+    assert_eq!(r.server.rtcp_received(at(75_000), CLIENT, 6001, &rr), Some(a));
+    assert_eq!(r.server.rtcp_received(at(75_000), OTHER, 6001, &rr), None, "not its client");
+    assert_eq!(r.server.rtcp_received(at(75_000), CLIENT, 40_123, &rr), Some(a), "a port a NAT gave it");
     assert_eq!(r.server.poll(at(79_999), &mut r.streams), None);
     assert_eq!(r.server.poll(at(80_000), &mut r.streams), Some(b));
     assert_eq!(r.server.poll(at(80_000), &mut r.streams), None);
