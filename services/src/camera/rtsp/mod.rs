@@ -32,8 +32,11 @@
 //! playing applies its new stream and transport. `SET_PARAMETER` with body
 //! `light: x,y,z` moves a live stream's light. A session not heard of (a
 //! request naming it, or an RTCP packet from its client,
-//! [`Server::rtcp_received`]) for [`SESSION_TIMEOUT`] ends ([`Server::poll`]);
-//! an interleaved session ends with its connection
+//! [`Server::rtcp_received`]) for [`SESSION_TIMEOUT`] ends ([`Server::poll`]),
+//! one never played after [`UNPLAYED_TIMEOUT`]; with every session taken, a
+//! new `SETUP` takes the place of the never-played one heard of longest ago
+//! (at least [`RECLAIM_AFTER`] ago), so that set-up sessions alone cannot
+//! keep viewers out; an interleaved session ends with its connection
 //! ([`Server::connection_closed`]).
 //!
 //! A session belongs to the address that set it up: requests naming it from
@@ -109,6 +112,18 @@ pub const CONNECTIONS: usize = MAX_SESSIONS + 2;
 /// A session not heard of for this long ends; announced as `timeout=60` in
 /// the `Session` header.
 pub const SESSION_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// A session that was set up and never played ends after this long
+/// unheard of, not [`SESSION_TIMEOUT`]: players send `PLAY` within
+/// milliseconds of their `SETUP`, and a session that only holds a place
+/// keeps other viewers out.
+pub const UNPLAYED_TIMEOUT: Duration = Duration::from_secs(15);
+
+/// With every session taken, a new `SETUP` takes the place of the session
+/// that never played and was heard of longest ago, if that was at least
+/// this long ago (a player between its `SETUP` and its `PLAY` keeps its
+/// place).
+pub const RECLAIM_AFTER: Duration = Duration::from_secs(2);
 
 /// A request left unfinished this long closes its connection (a client
 /// that sends half a request and waits holds a socket no longer).
@@ -243,6 +258,9 @@ pub enum EndReason {
     Timeout,
     /// The connection its interleaved stream went through closed.
     ConnectionClosed,
+    /// Never played, and its place given to a new session
+    /// ([`RECLAIM_AFTER`]).
+    Reclaimed,
 }
 
 impl fmt::Display for EndReason {
@@ -251,6 +269,7 @@ impl fmt::Display for EndReason {
             EndReason::Teardown => "teardown",
             EndReason::Timeout => "timeout",
             EndReason::ConnectionClosed => "connection closed",
+            EndReason::Reclaimed => "never played, place reclaimed",
         })
     }
 }
@@ -309,6 +328,8 @@ pub struct Session {
     ssrc: u32,
     group: Option<Group>,
     last_heard: Instant,
+    /// Whether it was ever played.
+    played: bool,
 }
 
 impl Session {
@@ -349,7 +370,7 @@ impl Session {
 
     /// When it times out unless heard of before.
     pub fn expires(&self) -> Instant {
-        self.last_heard + SESSION_TIMEOUT
+        self.last_heard + if self.played { SESSION_TIMEOUT } else { UNPLAYED_TIMEOUT }
     }
 }
 
@@ -746,6 +767,7 @@ impl<const N: usize> Server<N> {
                     ("PLAY", State::Ready) => match streams.play(id) {
                         Ok(p) => {
                             s.state = State::Playing;
+                            s.played = true;
                             position = Some(p);
                         }
                         Err(status) => return fail(out, status),
@@ -881,7 +903,16 @@ impl<const N: usize> Server<N> {
             }
             Ok(None) => {
                 if self.sessions.is_full() {
-                    return fail(out, Status::NotEnoughBandwidth);
+                    let unplayed = self
+                        .sessions
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, s)| !s.played && now.saturating_duration_since(s.last_heard) >= RECLAIM_AFTER)
+                        .min_by_key(|(_, s)| s.last_heard)
+                        .map(|(i, _)| i);
+                    let Some(oldest) = unplayed else { return fail(out, Status::NotEnoughBandwidth) };
+                    let gone = self.sessions.swap_remove(oldest);
+                    streams.end(gone.id, EndReason::Reclaimed);
                 }
                 // 64 random bits; a source that keeps repeating itself gets
                 // no session rather than a shared one.
@@ -904,6 +935,7 @@ impl<const N: usize> Server<N> {
                     ssrc: set.ssrc,
                     group: set.group,
                     last_heard: now,
+                    played: false,
                 };
                 if self.sessions.push(session).is_err() {
                     streams.end(id, EndReason::Teardown);

@@ -347,6 +347,7 @@ fn get_parameter_keeps_a_session_alive() {
     let a = r.ask(&request("GET_PARAMETER", URL, 2, ""));
     assert_eq!(a.text, "RTSP/1.0 200 OK\r\nCSeq: 2\r\n\r\n");
     let id = r.setup(URL);
+    r.ask(&with_session("PLAY", id, 3));
     r.now = at(59_000);
     let a = r.ask(&with_session("GET_PARAMETER", id, 4));
     assert_eq!(a.text, format!("RTSP/1.0 200 OK\r\nCSeq: 4\r\nSession: {id};timeout=60\r\n\r\n"));
@@ -531,8 +532,10 @@ fn sessions_time_out_after_60_s_unheard() {
     let mut r = Rig::new();
     r.now = at(10_000);
     let a = r.setup(URL);
+    r.ask(&with_session("PLAY", a, 4));
     r.now = at(20_000);
     let b = r.setup("rtsp://h/live");
+    r.ask(&with_session("PLAY", b, 4));
     assert_eq!(r.server.next_deadline(), Some(at(70_000)));
     // Requests naming a session and RTCP from its client refresh it.
     r.now = at(69_999);
@@ -711,4 +714,44 @@ fn a_required_option_is_refused_551_and_named() {
     ));
     assert_eq!(a.text, "RTSP/1.0 551 Option not supported\r\nCSeq: 5\r\nUnsupported: com.example.thing\r\n\r\n");
     assert!(r.calls().is_empty(), "no session set up");
+}
+
+/// One address that sets up every session and plays none cannot keep
+/// others out: a session never played ends 15 s after it was last heard
+/// of, and with every place taken a new SETUP takes the place of the one
+/// heard of longest ago, once it is 2 s old.
+#[test]
+fn sessions_set_up_and_never_played_give_their_places_to_a_new_viewer() {
+    let mut r = Rig::new();
+    let hoarded: Vec<SessionId> = (0..MAX_SESSIONS as u64)
+        .map(|k| {
+            r.now = at(k * 100);
+            r.setup(URL)
+        })
+        .collect();
+    r.calls();
+    r.now = at(1_000);
+    let a = r.ask(&request("SETUP", URL, 9, "Transport: RTP/AVP;unicast;client_port=7000-7001\r\n"));
+    assert_eq!(a.status, Status::NotEnoughBandwidth, "a player between SETUP and PLAY keeps its place");
+    r.now = at(2_500);
+    let a = r.ask(&request("SETUP", URL, 10, "Transport: RTP/AVP;unicast;client_port=7000-7001\r\n"));
+    assert_eq!(a.status, Status::Ok, "{}", a.text);
+    let calls = r.calls();
+    assert_eq!(calls.first(), Some(&Call::End(hoarded[0], EndReason::Reclaimed)), "the oldest: {calls:?}");
+    assert!(r.server.session(hoarded[0]).is_none());
+    // A session that plays is never reclaimed, and one never played times
+    // out in 15 s.
+    let fresh = session_of(&a.text);
+    r.ask(&with_session("PLAY", fresh, 11));
+    assert_eq!(r.server.next_deadline(), Some(at(100) + UNPLAYED_TIMEOUT), "the next oldest never played");
+    r.now = at(20_000);
+    for k in 0..3 {
+        assert!(
+            r.ask(&request("SETUP", URL, 12 + k, "Transport: RTP/AVP;unicast;client_port=7002-7003\r\n")).status
+                == Status::Ok
+        );
+    }
+    let a = r.ask(&request("SETUP", URL, 20, "Transport: RTP/AVP;unicast;client_port=7004-7005\r\n"));
+    assert_eq!(a.status, Status::NotEnoughBandwidth, "the playing one keeps its place; the rest are new");
+    assert!(r.server.session(fresh).is_some());
 }
