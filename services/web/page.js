@@ -111,20 +111,41 @@ function savePng() {
 
 // ---- Input ----
 
+// One pointer drags the light around the sphere; two (a pinch on a touch
+// screen) bring it closer or farther as they spread or close.
 let dragId = null, dragX = 0, dragY = 0;
+const touches = new Map();  // pointerId -> {x, y}, while two are down
+let pinchGap = 0;
+const gap = () => { const [a, b] = [...touches.values()]; return Math.hypot(a.x - b.x, a.y - b.y); };
 canvas.addEventListener("pointerdown", (e) => {
   if (e.pointerType === "mouse" && e.button !== 0) return;
-  dragId = e.pointerId; dragX = e.clientX; dragY = e.clientY;
+  canvas.focus({ preventScroll: true });
   canvas.setPointerCapture(e.pointerId);
   e.preventDefault();
+  if (e.pointerType === "touch") {
+    touches.set(e.pointerId, { x: e.clientX, y: e.clientY });
+    if (touches.size === 2) { dragId = null; pinchGap = gap(); return; }
+  }
+  dragId = e.pointerId; dragX = e.clientX; dragY = e.clientY;
 });
 canvas.addEventListener("pointermove", (e) => {
+  if (touches.has(e.pointerId)) touches.set(e.pointerId, { x: e.clientX, y: e.clientY });
+  if (touches.size === 2) {
+    const g = gap();
+    if (pinchGap > 0 && g > 0) move((o) => { o.d *= pinchGap / g; });
+    pinchGap = g;
+    return;
+  }
   if (e.pointerId !== dragId) return;
   const dx = e.clientX - dragX, dy = e.clientY - dragY;
   dragX = e.clientX; dragY = e.clientY;
   if (dx || dy) move((o) => { o.az += dx * DRAG_RAD_PER_PX; o.el -= dy * DRAG_RAD_PER_PX; });
 });
-const endDrag = (e) => { if (e.pointerId === dragId) dragId = null; };
+const endDrag = (e) => {
+  touches.delete(e.pointerId);
+  if (touches.size < 2) pinchGap = 0;
+  if (e.pointerId === dragId) dragId = null;
+};
 canvas.addEventListener("pointerup", endDrag);
 canvas.addEventListener("pointercancel", endDrag);
 canvas.addEventListener("wheel", (e) => {
@@ -147,11 +168,10 @@ const KEYS = {
   p: savePng,
   P: savePng,
 };
-document.addEventListener("keydown", (e) => {
+// Keys move the light only while the picture has focus (a click or Tab
+// gives it), so they never take the page's scrolling or a form's keys.
+canvas.addEventListener("keydown", (e) => {
   if (e.ctrlKey || e.metaKey || e.altKey) return;
-  const t = e.target, tag = t.tagName;
-  if (tag === "SELECT" || tag === "TEXTAREA" || (tag === "INPUT" && t.type !== "checkbox")) return;
-  if ((tag === "BUTTON" || tag === "INPUT") && (e.key === " " || e.key === "Enter")) return; // its own click
   const f = KEYS[e.key];
   if (!f) return;
   e.preventDefault();
@@ -215,6 +235,10 @@ function showFps() {
 // ---- Frames ----
 
 let ws = null, retry = null, timer = null;
+// Reconnecting: 1 s after the first failure, doubling to 30 s, each wait
+// drawn from 70-130% of that so that many pages do not come back at once.
+const RETRY_FIRST_MS = 1000, RETRY_MAX_MS = 30000, SLOW_FRAME_MS = 5000;
+let backoff = RETRY_FIRST_MS;
 let inFlight = null;  // { raw, at } of the request whose frame is awaited
 let lastSent = -Infinity;
 
@@ -228,6 +252,9 @@ function pump() {
   clearTimeout(timer);
   timer = null;
   if (!ws || ws.readyState !== WebSocket.OPEN || inFlight) return;
+  // A hidden tab asks for nothing (the board renders for visible pages);
+  // it asks again when shown (visibilitychange).
+  if (document.hidden) return;
   const now = performance.now();
   const wait = lastSent + interval() - now;
   if (wait > 0) { timer = setTimeout(pump, wait); return; }
@@ -262,6 +289,8 @@ function draw(buf) {
   showFps();
   showRtspUrl();
   inFlight = null;
+  backoff = RETRY_FIRST_MS;
+  if (state.connected) setConn("Connected");
 }
 
 function connect() {
@@ -292,18 +321,52 @@ function connect() {
   sock.onclose = (e) => closed(sock, e);
 }
 
-function closed(sock, e) {
+// Why a connection that never opened failed: the WebSocket API does not
+// say, so ask the board for its status: an answer means the board is there
+// and refused the viewer (every web place taken, 503).
+async function whyRefused() {
+  try {
+    const ctl = new AbortController();
+    const t = setTimeout(() => ctl.abort(), 3000);
+    const r = await fetch("/status", { cache: "no-store", signal: ctl.signal });
+    clearTimeout(t);
+    return r.ok ? "every viewer place on the board is taken" : `the board answered HTTP ${r.status}`;
+  } catch {
+    return "the board is unreachable (check its power, cable and address)";
+  }
+}
+
+async function closed(sock, e) {
   if (sock !== ws) return;
+  const opened = state.connected;
   ws = null;
   state.connected = false;
   inFlight = null;
   clearTimeout(timer);
+  const wait = Math.round(backoff * (0.7 + 0.6 * Math.random()));
+  backoff = Math.min(RETRY_MAX_MS, backoff * 2);
   if (e) {
     let why = `Connection closed (code ${e.code}${e.reason ? `: ${e.reason}` : ""})`;
-    if (e.code === 1006) why += ": the board is unreachable or refused the viewer (all web places may be taken)";
-    setError(`${why}. Retrying in 2 s…`);
+    if (!opened) why = `No viewer connection: ${await whyRefused()}`;
+    const later = document.hidden ? "when this tab is shown again" : `in ${(wait / 1000).toFixed(1)} s`;
+    setError(`${why}. Retrying ${later}…`);
   }
-  if (!retry) retry = setTimeout(connect, 2000);
+  if (document.hidden) return;  // visibilitychange reconnects
+  if (!retry) retry = setTimeout(connect, wait);
+}
+
+document.addEventListener("visibilitychange", () => {
+  if (document.hidden) return;
+  if (!ws && !retry) connect();
+  else pump();
+});
+
+// A frame asked for long ago and not here: say so (the board may be busy
+// with other viewers, or the path slow) rather than show a frozen picture.
+function watchFrame() {
+  if (!inFlight || !state.connected) return;
+  const waited = performance.now() - inFlight.at;
+  if (waited > SLOW_FRAME_MS) setConn(`Waiting for the board's frame (${(waited / 1000).toFixed(0)} s)…`, true);
 }
 
 // ---- Board status ----
@@ -316,6 +379,7 @@ function hms(s) {
 }
 async function status() {
   showFps();
+  watchFrame();
   if (statusBusy) return;
   statusBusy = true;
   const note = $("status-note");

@@ -14,6 +14,11 @@
 4. Saves a screenshot of the page: OUT/page.png.
 5. Fails on SEVERE browser console entries (the favicon aside):
    OUT/console.log.
+6. Takes every other viewer place with WebSocket handshakes of its own,
+   opens the page in a second tab, which must say that every place is
+   taken (not that the board is unreachable), then lets the places go:
+   the second tab must connect by itself (its retries back off) and draw
+   a frame. Its console is not judged (Chromium logs the 503 as SEVERE).
 
 With --during "CMD ARGS", CMD runs after step 1 while the page plays (the
 hostile clients against the board): the page must draw frames while it
@@ -30,6 +35,8 @@ python3-selenium (Selenium 4).
 
 import argparse
 import base64
+import socket
+import urllib.parse
 import json
 import math
 import os
@@ -183,7 +190,7 @@ def attack(driver, out, timeout, command):
 def check(driver, base, out, timeout, during=None):
     # 1. The light from the query, exactly.
     url = base.rstrip("/") + "/?light=3,4,-2"
-    step(f"1/5 opening {url}")
+    step(f"1/6 opening {url}")
     driver.get(url)
     wait_for(driver, "the page script (window.rtPage)", timeout, lambda: rt(driver))
     wait_for(driver, "two frames drawn", timeout, lambda: (rt(driver) or {}).get("framesDrawn", 0) >= 2)
@@ -200,7 +207,7 @@ def check(driver, base, out, timeout, during=None):
     judged = attack(driver, out, timeout, during) if during else []
 
     # 2. A drag moves the light; wait for a frame of the new light.
-    step(f"2/5 dragging on the canvas by {DRAG} CSS pixels")
+    step(f"2/6 dragging on the canvas by {DRAG} CSS pixels")
     canvas = driver.find_element(By.ID, "frame")
     actions = ActionChains(driver).move_to_element(canvas).click_and_hold()
     for dx, dy in DRAG_STEPS:
@@ -225,7 +232,7 @@ def check(driver, base, out, timeout, during=None):
         raise CheckFailed(f"read back light {drag}, expected {target}")
 
     # 3. The board's counters move while the page plays.
-    step("3/5 reading /status twice while the page plays")
+    step("3/6 reading /status twice while the page plays")
 
     def status():
         r = driver.execute_async_script(FETCH_STATUS)
@@ -266,12 +273,12 @@ def check(driver, base, out, timeout, during=None):
 
     # 4. The screenshot for the README.
     path = os.path.join(out, "page.png")
-    step(f"4/5 screenshot {path}")
+    step(f"4/6 screenshot {path}")
     if not driver.save_screenshot(path):
         raise CheckFailed("the screenshot failed")
 
     # 5. The console.
-    step("5/5 browser console")
+    step("5/6 browser console")
     entries = judged + driver.get_log("browser")
     with open(os.path.join(out, "console.log"), "w") as f:
         for e in entries:
@@ -280,7 +287,63 @@ def check(driver, base, out, timeout, during=None):
     if severe:
         raise CheckFailed("SEVERE console entries:\n" + "\n".join(f"  {e.get('message')}" for e in severe))
     step(f"{len(entries)} console entries, none severe")
-    return rt(driver)["framesDrawn"]
+    drawn = rt(driver)["framesDrawn"]
+    every_place_taken(driver, base, timeout)
+    return drawn
+
+
+HANDSHAKE = ("GET /ws HTTP/1.1\r\nHost: {host}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+             "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n")
+
+
+def take_places(base, timeout, most=16):
+    """WebSocket handshakes until the board answers 503: the sockets that
+    got a place (101), to be closed to give them back."""
+    u = urllib.parse.urlsplit(base)
+    held = []
+    for _ in range(most):
+        s = socket.create_connection((u.hostname, u.port or 80), timeout=timeout)
+        s.sendall(HANDSHAKE.format(host=u.netloc).encode())
+        head = b""
+        while b"\r\n\r\n" not in head:
+            chunk = s.recv(1024)
+            if not chunk:
+                break
+            head += chunk
+        code = head[9:12]
+        if code == b"101":
+            held.append(s)
+            continue
+        s.close()
+        if code == b"503":
+            return held
+        raise CheckFailed(f"a viewer handshake was answered {head[:40]!r}, not 101 or 503")
+    raise CheckFailed(f"{most} viewer handshakes and no 503")
+
+
+def every_place_taken(driver, base, timeout):
+    """Step 6 (module docs)."""
+    step("6/6 taking every viewer place; a second tab must say so, then connect when they are free")
+    held = take_places(base, timeout)
+    first = driver.current_window_handle
+    try:
+        driver.switch_to.new_window("tab")
+        driver.get(base.rstrip("/") + "/")
+
+        def said():
+            t = driver.find_element(By.ID, "conn").text
+            return "every viewer place on the board is taken" in t and t
+
+        shown = wait_for(driver, "the second tab to say every place is taken", timeout, said, poll=0.2)
+        step(f"the second tab says: {shown!r} ({len(held)} places held here)")
+    finally:
+        for s in held:
+            s.close()
+    wait_for(driver, "the second tab to connect by itself and draw a frame", timeout,
+             lambda: (rt(driver) or {}).get("framesDrawn", 0) >= 1)
+    step(f"the second tab connected and drew a frame: {driver.find_element(By.ID, 'conn').text!r}")
+    driver.close()
+    driver.switch_to.window(first)
 
 
 def console_on_failure(driver):
