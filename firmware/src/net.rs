@@ -223,7 +223,11 @@ pub fn run<B: Board, P: RegisterPort>(
     let mut camera = match slot_addresses.zip(live_light) {
         Some((_, live_light)) => {
             let multicast = multicast_config();
-            camera_senders.configure(sender::Config { live_light, multicast });
+            camera_senders.configure(sender::Config {
+                live_light,
+                multicast,
+                cname: sender::Cname::for_address(cidr.address()),
+            });
             let config = rtsp::Config { server_ip: cidr.address(), rtp_port: SERVER_RTP_PORT };
             let mac_addr = EthernetAddress(B::MAC_ADDR);
             // What the board has to key its random numbers with: the time

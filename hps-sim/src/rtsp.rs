@@ -352,7 +352,11 @@ fn run<E: FrameEngine<SharedMemory>>(
     let rtp_port = sockets.rtp.local_addr()?.port();
     let mut server: Server<MAX_SESSIONS> = Server::new(rtsp::Config { server_ip, rtp_port });
     let mut camera: Box<Camera<MAX_SESSIONS>> = Box::new(Camera::new());
-    camera.configure(sender::Config { live_light, multicast: options.multicast });
+    camera.configure(sender::Config {
+        live_light,
+        multicast: options.multicast,
+        cname: sender::Cname::for_address(server_ip),
+    });
     let mut clients: Vec<Client> = Vec::new();
     let mut rng = SessionRng::new(&entropy());
     let mut next_conn = 0u32;

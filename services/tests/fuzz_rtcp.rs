@@ -200,7 +200,11 @@ fn run(events: &[Event]) -> Result<(), TestCaseError> {
     let mut camera: Box<Camera> = Box::new(Camera::new());
     let light = Light::from_world(3.0, 4.0, -2.0).unwrap();
     let multicast = Some(Multicast { group: Ipv4Addr::new(239, 255, 42, 1), base_port: 5006, ttl: 1 });
-    camera.configure(sender::Config { live_light: light, multicast });
+    camera.configure(sender::Config {
+        live_light: light,
+        multicast,
+        cname: sender::Cname::for_address(std::net::Ipv4Addr::new(10, 0, 0, 9)),
+    });
     let mut source = Slots::default();
     let mut wire = Wire::default();
     // Sessions: two of one stream from client 0 (UDP ports 6000, 7000),

@@ -434,7 +434,11 @@ fn run(c: &Case) -> Result<(), TestCaseError> {
     let mut camera: Box<Camera> = Box::new(Camera::new());
     let live = Light::from_world(3.0, 4.0, -2.0).unwrap();
     let multicast = Some(Multicast { group: Ipv4Addr::new(239, 255, 42, 1), base_port: 5006, ttl: 1 });
-    camera.configure(sender::Config { live_light: live, multicast });
+    camera.configure(sender::Config {
+        live_light: live,
+        multicast,
+        cname: sender::Cname::for_address(std::net::Ipv4Addr::new(10, 0, 0, 1)),
+    });
     let mut source = Slots::default();
     let mut sink = Count::default();
     let mut next_conn = 0u32;

@@ -515,7 +515,11 @@ impl CameraRig {
 
         let buffers = Box::leak(Box::new(CameraBuffers::new()));
         let camera: &'static mut Camera<MAX_SESSIONS> = Box::leak(Box::new(Camera::new()));
-        camera.configure(rt_services::camera::sender::Config { live_light: light, multicast: None });
+        camera.configure(rt_services::camera::sender::Config {
+            live_light: light,
+            multicast: None,
+            cname: rt_services::camera::sender::Cname::for_address(std::net::Ipv4Addr::new(10, 0, 0, 1)),
+        });
         let mut server_sockets = SocketSet::new(vec![]);
         let config = rtsp::Config { server_ip: SERVER, rtp_port: SERVER_RTP_PORT };
         let server_mac = EthernetAddress([0x02, 0, 0, 0, 0, 1]);

@@ -163,8 +163,36 @@ pub const NACK_REACTION: Duration = Duration::from_millis(20);
 /// begin (a path this slow gets frames given up rather than none).
 pub const MAX_FRAME_HOLD: Duration = Duration::from_millis(500);
 
-/// The CNAME in the sender reports' SDES (RFC 3550 section 6.5.1).
-pub const CNAME: &[u8] = b"raytracer@board";
+/// The longest [`Cname`]: `raytracer@` and a dotted IPv4 address.
+pub const MAX_CNAME_BYTES: usize = 32;
+
+/// The CNAME in the sender reports' SDES (RFC 3550 section 6.5.1): `user@host`
+/// with the host's numeric address (a board has no domain name), so two
+/// boards on one network are two sources to a receiver, and every stream
+/// of one board is one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Cname {
+    bytes: [u8; MAX_CNAME_BYTES],
+    len: u8,
+}
+
+impl Cname {
+    /// `raytracer@A.B.C.D` for the board at `ip`.
+    pub fn for_address(ip: Ipv4Addr) -> Cname {
+        use core::fmt::Write;
+        let mut text: heapless::String<MAX_CNAME_BYTES> = heapless::String::new();
+        // At most 10 + 15 bytes: it fits.
+        let _ = write!(text, "raytracer@{ip}");
+        let mut bytes = [0u8; MAX_CNAME_BYTES];
+        bytes[..text.len()].copy_from_slice(text.as_bytes());
+        Cname { bytes, len: text.len() as u8 }
+    }
+
+    /// The CNAME's octets.
+    pub fn as_bytes(&self) -> &[u8] {
+        &self.bytes[..usize::from(self.len)]
+    }
+}
 
 /// Where an output's packets go.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -230,6 +258,8 @@ pub struct Config {
     pub live_light: Light,
     /// Where multicast streams go; `None`: no multicast (461).
     pub multicast: Option<Multicast>,
+    /// The CNAME of its reports: the board's ([`Cname::for_address`]).
+    pub cname: Cname,
 }
 
 /// The multicast groups streams are sent to.
@@ -435,7 +465,7 @@ struct Member {
 
 /// A sender report, an SDES CNAME chunk and a BYE: the largest compound
 /// packet sent.
-const RTCP_BYTES: usize = SENDER_REPORT_BYTES + rtcp::sdes_cname_bytes(CNAME.len()) + BYE_BYTES;
+const RTCP_BYTES: usize = SENDER_REPORT_BYTES + rtcp::sdes_cname_bytes(MAX_CNAME_BYTES) + BYE_BYTES;
 
 /// The RTP sender of up to `N` sessions: up to `N` streams and outputs,
 /// with a repair window per stream and a resend log per output.
@@ -489,6 +519,11 @@ impl<const N: usize> Camera<N> {
     /// multicast).
     pub fn configure(&mut self, config: Config) {
         self.config = Some(config);
+    }
+
+    /// The CNAME its reports carry.
+    fn cname(&self) -> Cname {
+        self.config.map_or(Cname::for_address(Ipv4Addr::UNSPECIFIED), |c| c.cname)
     }
 
     /// The sessions it sends to, with their output's statistics.
@@ -981,7 +1016,8 @@ impl<const N: usize> Camera<N> {
     fn goodbye(&mut self, sr: SenderReport) -> usize {
         let ssrc = sr.ssrc;
         let mut n = sr.write(&mut self.rtcp).unwrap_or(0);
-        n += write_sdes_cname(ssrc, CNAME, &mut self.rtcp[n..]).unwrap_or(0);
+        let cname = self.cname();
+        n += write_sdes_cname(ssrc, cname.as_bytes(), &mut self.rtcp[n..]).unwrap_or(0);
         n + write_bye(ssrc, &mut self.rtcp[n..]).unwrap_or(0)
     }
 
@@ -994,7 +1030,8 @@ impl<const N: usize> Camera<N> {
         }
         let sr = SenderReport::now(&m.packetiser, wall, m.media_ticks(now));
         let n = sr.write(&mut self.rtcp).unwrap_or(0);
-        let k = write_sdes_cname(m.packetiser.ssrc(), CNAME, &mut self.rtcp[n..]).unwrap_or(0);
+        let cname = self.config.map_or(Cname::for_address(Ipv4Addr::UNSPECIFIED), |c| c.cname);
+        let k = write_sdes_cname(m.packetiser.ssrc(), cname.as_bytes(), &mut self.rtcp[n..]).unwrap_or(0);
         let _ = sink.send_rtcp(&o.dest, &self.rtcp[..n + k]);
         true
     }

@@ -196,7 +196,11 @@ fn rig(step: u16) -> Rig {
         Sink { mem, room: usize::MAX, blocked: None, rows: vec![], rtcp: vec![], yield_at: None, yield_asked: 0 };
     let mut camera = Box::new(Camera::new());
     let multicast = Some(Multicast { group: GROUP, base_port: 5006, ttl: 1 });
-    camera.configure(Config { live_light: light(0.5), multicast });
+    camera.configure(Config {
+        live_light: light(0.5),
+        multicast,
+        cname: Cname::for_address(Ipv4Addr::new(10, 0, 2, 15)),
+    });
     Rig { camera, ring, sink, cap, started }
 }
 
@@ -759,6 +763,12 @@ fn sender_reports_go_to_each_output_while_playing() {
     assert_eq!(u32::from_be_bytes(d[4..8].try_into().unwrap()), SSRC);
     assert_eq!(u32::from_be_bytes(d[20..24].try_into().unwrap()), 2 * u32::from(ROWS), "packets so far");
     assert_eq!(d[SENDER_REPORT_BYTES + 1], rtcp::RTCP_SDES);
+    // The CNAME item (type 1) names this board by its address: two boards
+    // are two sources to a receiver.
+    let item = &d[SENDER_REPORT_BYTES + 8..];
+    assert_eq!((item[0], &item[2..2 + usize::from(item[1])]), (1, &b"raytracer@10.0.2.15"[..]));
+    assert_ne!(Cname::for_address(Ipv4Addr::new(10, 0, 2, 15)), Cname::for_address(Ipv4Addr::new(10, 0, 2, 16)));
+    assert_eq!(Cname::for_address(Ipv4Addr::new(255, 255, 255, 255)).as_bytes().len(), 25);
 }
 
 #[test]
