@@ -165,22 +165,12 @@ fn serve_slot<S: FrameSource>(
         connection.receive_eof();
     }
     let was_viewer = connection.is_viewer();
-    // Whole words at a time, as the seed service (rows are 1,440 bytes).
-    let action = drive(
-        connection,
-        cx,
-        frames,
-        |fill| {
-            socket
-                .send(|buf| {
-                    let words = buf.len() & !3;
-                    let n = if words == 0 { 0 } else { fill(&mut buf[..words]) };
-                    (n, n)
-                })
-                .unwrap_or(0)
-        },
-        log,
-    );
+    // Where the socket's next byte goes (an empty send shows it), so that
+    // a frame's rows are laid out word aligned in the buffer.
+    if let Ok(align) = socket.send(|buf| (0, buf.as_ptr() as usize % 4)) {
+        connection.transport_at(align);
+    }
+    let action = drive(connection, cx, frames, |fill| socket.send(|buf| take_words(buf, fill)).unwrap_or(0), log);
     let sent = connection.frames_sent().wrapping_sub(before);
     if !was_viewer && connection.is_viewer() {
         if let Some(peer) = socket.remote_endpoint() {
@@ -200,4 +190,40 @@ fn serve_slot<S: FrameSource>(
         slot.connection = None;
     }
     sent
+}
+
+/// Fill the free space `buf` that smoltcp offers at its transmit ring's
+/// write position: whole words (rows are 1,440 bytes, so a copy that starts
+/// word aligned stays so), but the last one to three bytes before the
+/// ring's end too. The WebSocket head (10 bytes) leaves the write position
+/// at 2 mod 4, so the ring's end is reached with 2 bytes free; smoltcp
+/// offers only the bytes up to the end until something is written there,
+/// and left unwritten they held the frame until every byte queued had been
+/// acknowledged (the ring then starts again at 0).
+fn take_words(buf: &mut [u8], fill: &mut dyn FnMut(&mut [u8]) -> usize) -> (usize, usize) {
+    let n = match buf.len() {
+        0 => 0,
+        len @ 1..=3 => fill(&mut buf[..len]),
+        len => fill(&mut buf[..len & !3]),
+    };
+    (n, n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::take_words;
+
+    #[test]
+    fn the_rings_last_bytes_are_written_and_otherwise_whole_words() {
+        let mut taken = Vec::new();
+        let mut fill = |b: &mut [u8]| {
+            taken.push(b.len());
+            b.len()
+        };
+        for len in [0usize, 2, 3, 4, 6, 1_443] {
+            let mut buf = vec![0u8; len];
+            take_words(&mut buf, &mut fill);
+        }
+        assert_eq!(taken, [2, 3, 4, 4, 1_440], "nothing asked of 0 bytes; 2 and 3 whole; words of the rest");
+    }
 }

@@ -174,6 +174,18 @@ pub fn unmask(payload: &mut [u8], mask: [u8; 4]) {
 /// The head of an unfragmented, unmasked server frame with `len` payload
 /// bytes: the bytes and how many of them are used (2, 4 or 10).
 pub fn server_head(opcode: Opcode, len: u64) -> ([u8; 10], usize) {
+    server_head_fin(opcode, len, true)
+}
+
+/// A first fragment of a binary message with no payload (section 5.4: FIN
+/// clear, opcode 2, length 0): two bytes that move what follows by two, so
+/// that a frame's rows after its 10-byte head land word aligned in the
+/// transport (`server::Connection`). The message goes on in a
+/// continuation frame; browsers join the fragments.
+pub const EMPTY_FIRST_FRAGMENT: [u8; 2] = [0x02, 0x00];
+
+/// A server frame head with FIN as given.
+fn server_head_fin(opcode: Opcode, len: u64, fin: bool) -> ([u8; 10], usize) {
     let bits = match opcode {
         Opcode::Continuation => 0,
         Opcode::Text => 1,
@@ -183,7 +195,7 @@ pub fn server_head(opcode: Opcode, len: u64) -> ([u8; 10], usize) {
         Opcode::Pong => 10,
     };
     let mut head = [0u8; 10];
-    head[0] = 0x80 | bits;
+    head[0] = if fin { 0x80 } else { 0 } | bits;
     if len < 126 {
         head[1] = len as u8;
         (head, 2)

@@ -227,10 +227,20 @@ pub fn ws_frame(s: &mut TcpStream, raw: [i32; 3]) -> Result<Vec<u8>> {
     m.extend(rt_services::encode_raw_request(raw).iter().enumerate().map(|(i, b)| b ^ mask[i % 4]));
     s.write_all(&m).map_err(|e| format!("request: {e}"))?;
     let mut head = [0u8; 10];
-    s.read_exact(&mut head).map_err(|e| format!("frame head: {e}"))?;
-    if head[..2] != [0x82, 127] {
-        return Err(format!("not a binary frame of 64-bit length: {:02x?}", &head[..2]));
+    s.read_exact(&mut head[..2]).map_err(|e| format!("frame head: {e}"))?;
+    // The board may open the message with an empty first fragment (so
+    // that the rows land word aligned in its buffer): the frame follows as
+    // its continuation.
+    let want = if head[..2] == rt_services::web::websocket::EMPTY_FIRST_FRAGMENT {
+        s.read_exact(&mut head[..2]).map_err(|e| format!("frame head: {e}"))?;
+        [0x80, 127]
+    } else {
+        [0x82, 127]
+    };
+    if head[..2] != want {
+        return Err(format!("not a final frame of 64-bit length: {:02x?}", &head[..2]));
     }
+    s.read_exact(&mut head[2..]).map_err(|e| format!("frame head: {e}"))?;
     let len = u64::from_be_bytes([head[2], head[3], head[4], head[5], head[6], head[7], head[8], head[9]]);
     let mut frame = vec![0u8; usize::try_from(len).map_err(|e| e.to_string())?];
     s.read_exact(&mut frame).map_err(|e| format!("frame: {e}"))?;
