@@ -25,8 +25,11 @@
 //! ([`StreamSpec::light_at`]). Rows go to every output as they land, in
 //! runs; an output that cannot take rows for [`OUTPUT_STALL`]
 //! ([`TCP_OUTPUT_STALL`] inside an RTSP connection) is cut from
-//! the frame and joins the next, so a slow client never holds the others
-//! back for long. When every output has the frame it is ended, and its
+//! the frame and joins the next, and so is one still behind when another
+//! output has the whole frame and the next frame is due (`fps=N`), or
+//! after as long again as the frame took (`fps=max`, at least
+//! [`MIN_LAG`]): a slow client loses frames and never holds the others
+//! back (gst-rtsp-server drops a client's backlog likewise). When every output has the frame it is ended, and its
 //! packets stay in the stream's repair window until the frame after next
 //! begins (and at most [`MIN_REPAIR_HOLD`] after their frame's end if the
 //! stream stops): a stream holds at most two slots, the frame being sent
@@ -122,6 +125,11 @@ pub const MAX_ROUND_TRIP: Duration = Duration::from_secs(1);
 /// A UDP or multicast output that takes no row for this long is cut from
 /// the frame it is on and joins the next (a transmitter that stays full).
 pub const OUTPUT_STALL: Duration = Duration::from_millis(500);
+
+/// The least time an `fps=max` output that is behind gets, after the first
+/// output had the whole frame, before it is cut from it (it gets as long
+/// again as the frame took, at least this).
+pub const MIN_LAG: Duration = Duration::from_millis(5);
 
 /// The same for an output inside an RTSP connection: longer than TCP's
 /// retransmission timeout (smoltcp's is a second at least), so that one
@@ -339,6 +347,9 @@ struct Frame {
     /// recorded in one run just before any of them is sent, not a look
     /// at a time (a look often lands a single row).
     recorded: u16,
+    /// When it began, and when the first output had all its rows.
+    begun_at: Instant,
+    done_at: Option<Instant>,
 }
 
 impl Frame {
@@ -1085,7 +1096,8 @@ impl<const N: usize> Camera<N> {
                     }
                     let stamp = media.packetiser.begin_frame(ticks);
                     let first_seq = media.packetiser.next_seq();
-                    media.current = Some(Frame { slot, stamp, first_seq, landed: 0, recorded: 0 });
+                    media.current =
+                        Some(Frame { slot, stamp, first_seq, landed: 0, recorded: 0, begun_at: now, done_at: None });
                     self.frame_edges = self.frame_edges.wrapping_add(1);
                     if let Some(iv) = interval {
                         // Keep the rate; after a stall, start afresh.
@@ -1197,6 +1209,18 @@ impl<const N: usize> Camera<N> {
         record_landed(window, &mut frame, now);
         // Outputs done with the frame, or stalled too long, wait for the next.
         let next_frame = frame.first_seq.wrapping_add(u32::from(ROWS));
+        if self.outputs.iter().flatten().any(|o| o.media == mi && o.cursor == Cursor::Sending { next: ROWS }) {
+            frame.done_at.get_or_insert(now);
+        }
+        // Outputs still sending once the next frame is due (fps=N), or once
+        // the first output has had the frame for as long again as it took
+        // (fps=max), lose the rest of it, as gst-rtsp-server drops a slow
+        // client's backlog: a laggard slows only itself.
+        let lag_limit = frame.done_at.map(|done| match media.spec.fps.interval() {
+            Some(_) => media.due.max(done),
+            None => done + done.saturating_duration_since(frame.begun_at).max(MIN_LAG),
+        });
+        let lagging = frame.landed == ROWS && lag_limit.is_some_and(|t| now >= t);
         for o in self.outputs.iter_mut().flatten().filter(|o| o.media == mi) {
             match o.cursor {
                 Cursor::Sending { next } if next == ROWS => {
@@ -1204,6 +1228,10 @@ impl<const N: usize> Camera<N> {
                     o.stats.frames += 1;
                 }
                 Cursor::Sending { .. } if failed => o.cursor = Cursor::Waiting { from: next_frame },
+                Cursor::Sending { .. } if lagging => {
+                    o.cursor = Cursor::Waiting { from: next_frame };
+                    o.stats.cut += 1;
+                }
                 Cursor::Sending { .. }
                     if o.stalled_since.is_some_and(|t| now.saturating_duration_since(t) >= o.stall_limit()) =>
                 {

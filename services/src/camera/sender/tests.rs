@@ -493,9 +493,9 @@ fn a_stalled_output_is_cut_from_the_frame_and_the_others_go_on() {
     r.settle(t(0));
     assert_eq!(r.sink.rows_to(udp_dest(CLIENT, 6000)).len(), usize::from(ROWS));
     assert_eq!(r.started.get(), 1, "fps=max: the next frame waits for the slow output");
-    r.settle(t(499));
-    assert_eq!(r.started.get(), 1, "for a while");
-    r.settle(t(500));
+    r.settle(t(0) + (MIN_LAG - Duration::from_millis(1)));
+    assert_eq!(r.started.get(), 1, "for as long again as the frame took, at least MIN_LAG");
+    r.settle(t(0) + MIN_LAG);
     assert_eq!(r.camera.stats(SessionId(2)).unwrap().cut, 1);
     assert!(r.started.get() > 1, "then it is cut and the stream goes on");
     r.sink.blocked = None;
@@ -816,4 +816,34 @@ fn the_software_renderer_s_frame_arrives_equal_to_the_model_s() {
     assert_eq!(rows, (0..ROWS).collect::<Vec<_>>());
     drop(ring);
     assert_eq!(bytes, model::render_frame(&l), "the slot the packets point at holds the model's frame");
+}
+
+/// gst-rtsp-server drops a client's backlog rather than slow the others:
+/// here a viewer that reads nothing (interleaved, its connection never
+/// drained) is cut from each frame when the next is due, so a UDP viewer
+/// of the same fps=30 stream gets its frames on time (it had one frame per
+/// 3 s, `TCP_OUTPUT_STALL`, before).
+#[test]
+fn a_viewer_that_reads_nothing_slows_only_itself() {
+    let mut r = rig(ROWS);
+    let fixed = spec(Kind::Light(light(1.0)), Fps::Rate(30));
+    r.join(1, fixed, udp(6000), CLIENT, t(0));
+    let laggard = Transport::Interleaved { rtp_channel: 0, rtcp_channel: 1 };
+    r.join(2, fixed, laggard, CLIENT2, t(0));
+    r.sink.blocked = Some(Dest::Interleaved { conn: ConnId(2), rtp_channel: 0, rtcp_channel: 1 });
+    for ms in 0..=1_000 {
+        r.settle(t(ms));
+    }
+    let frames = r.sink.rows_to(udp_dest(CLIENT, 6000)).iter().filter(|x| x.line() == ROWS - 1).count();
+    assert!(frames >= 25, "the UDP viewer got {frames} frames in a second");
+    let s = r.camera.stats(SessionId(2)).unwrap();
+    assert!(s.cut >= 25, "the laggard was cut from each frame: {s:?}");
+    // The laggard's place in the stream: when it reads again it starts at
+    // a frame's first row.
+    r.sink.blocked = None;
+    for ms in 1_001..=1_100 {
+        r.settle(t(ms));
+    }
+    let late = r.sink.rows_to(Dest::Interleaved { conn: ConnId(2), rtp_channel: 0, rtcp_channel: 1 });
+    assert_eq!(late.first().map(|x| x.line()), Some(0), "back at a frame's start");
 }
