@@ -68,7 +68,7 @@ pub struct Stream {
     /// purpose, for the repair to fill).
     pub drop_once: Option<usize>,
     /// The time from a NACK to the first row it brought, smoothed: how
-    /// long to wait before asking again ([`Stream::renack_interval`]).
+    /// long to wait before asking again ([`renack_interval`]).
     repair_delay: Option<Duration>,
 }
 
