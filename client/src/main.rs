@@ -36,7 +36,7 @@ struct Cli {
 enum Command {
     /// Fetch one frame over the seed protocol and save it as PNG.
     Frame {
-        /// The server's frame port, HOST:PORT. Without it, a simulated
+        /// The server's frame port, HOST:PORT or HOST (port 7878). Without it, a simulated
         /// board is started in-process.
         #[arg(long)]
         server: Option<String>,
@@ -76,7 +76,7 @@ enum Command {
     /// title shows the light, frames/s and median latency of the last
     /// second, the server and the connection state.
     Live {
-        /// The server's frame port, HOST:PORT (the persistent port is the
+        /// The server's frame port, HOST:PORT or HOST (7878; the persistent port is the
         /// next one). Without it, a simulated board is started in-process.
         #[arg(long)]
         server: Option<String>,
@@ -136,7 +136,7 @@ enum Command {
 
 #[derive(Args)]
 struct RunArgs {
-    /// The server's frame port, HOST:PORT (the persistent port is the next
+    /// The server's frame port, HOST:PORT or HOST (7878; the persistent port is the next
     /// one). Without it, a simulated board is started in-process.
     #[arg(long)]
     server: Option<String>,
@@ -224,7 +224,11 @@ fn board(server: Option<&str>) -> Result<(SocketAddr, Option<HpsSim>), String> {
         None => {
             let board = HpsSim::start_quiet(SocketAddr::from(([127, 0, 0, 1], 0)))
                 .map_err(|e| format!("cannot start the simulated board: {e}"))?;
-            eprintln!("rt-client: simulated board on {}", board.frame_addr());
+            eprintln!(
+                "rt-client: no --server: the frames come from a board simulated in this process ({}), \
+                 not from a board; give --server HOST for one",
+                board.frame_addr()
+            );
             Ok((board.frame_addr(), Some(board)))
         }
     }
@@ -242,7 +246,10 @@ fn rtsp_board(server: Option<&str>, rtsp: Option<&str>) -> Result<(SocketAddr, O
             let addr = board
                 .start_rtsp(SocketAddr::from(([127, 0, 0, 1], 0)), hps_sim::Device::Sim, false)
                 .map_err(|e| format!("cannot start the simulated board's RTSP server: {e}"))?;
-            eprintln!("rt-client: simulated board, RTSP on {addr}");
+            eprintln!(
+                "rt-client: no --server: the stream comes from a board simulated in this process (RTSP on \
+                 {addr}), not from a board; give --server HOST for one"
+            );
             Ok((addr, Some(board)))
         }
     }

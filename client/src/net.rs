@@ -6,7 +6,7 @@ use std::net::{Shutdown, SocketAddr, TcpStream, ToSocketAddrs};
 use std::time::Duration;
 
 use model::{Light, FRAME_BYTES};
-use rt_services::{encode_request, persistent_port};
+use rt_services::{encode_request, persistent_port, FRAME_PORT};
 
 /// How long a read may stall before the client gives up on the server.
 const READ_TIMEOUT: Duration = Duration::from_secs(30);
@@ -27,6 +27,14 @@ pub enum ClientError {
     },
     /// The server sent more than it was asked for.
     ExtraBytes,
+    /// What answered is another of the board's services, not its frame
+    /// port: the answer began as `what`'s does.
+    WrongService {
+        /// Where it answered.
+        addr: SocketAddr,
+        /// Which service it looked like.
+        what: &'static str,
+    },
     /// The frame port has no port above it for the persistent protocol.
     NoPersistentPort(SocketAddr),
     /// Reading or writing failed.
@@ -47,11 +55,21 @@ impl fmt::Display for ClientError {
                  (light out of range, or the server failed)"
             ),
             ClientError::ExtraBytes => f.write_str("the server sent bytes after the last frame"),
+            ClientError::WrongService { addr, what } => write!(
+                f,
+                "{addr} answered as {what}, not as the frame port: give the board's frame port, \
+                 HOST:{FRAME_PORT} (or the host alone)"
+            ),
             ClientError::NoPersistentPort(a) => {
                 write!(f, "{a}: the persistent port is the frame port + 1, and port 65535 has none")
             }
-            ClientError::Io(what, e) if e.kind() == io::ErrorKind::WouldBlock => {
-                write!(f, "{what}: no data from the server for {} s", READ_TIMEOUT.as_secs())
+            ClientError::Io(what, e) if matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => {
+                write!(
+                    f,
+                    "{what}: no data from the server for {} s (is it the board's frame port? does the board's \
+                     /status page or UART say it renders?)",
+                    READ_TIMEOUT.as_secs()
+                )
             }
             ClientError::Io(what, e) => write!(f, "{what}: {e}"),
         }
@@ -67,13 +85,40 @@ impl std::error::Error for ClientError {
     }
 }
 
-/// Resolve `HOST:PORT` to its first address.
+/// `server` with the frame port added when it names a host alone
+/// (`board.local`, `192.168.1.20`, `::1`, `[::1]`).
+pub fn with_frame_port(server: &str) -> String {
+    let has_port = server.parse::<SocketAddr>().is_ok()
+        || server.rsplit_once(':').is_some_and(|(h, p)| !h.contains(':') && p.parse::<u16>().is_ok());
+    if has_port {
+        server.to_string()
+    } else if server.contains(':') && !server.starts_with('[') {
+        format!("[{server}]:{FRAME_PORT}")
+    } else {
+        format!("{server}:{FRAME_PORT}")
+    }
+}
+
+/// Resolve `HOST:PORT`, or `HOST` on the frame port, to its first address.
 pub fn resolve(server: &str) -> Result<SocketAddr, ClientError> {
-    server
+    let target = with_frame_port(server);
+    target
         .to_socket_addrs()
         .map_err(|e| ClientError::Resolve(server.into(), e))?
         .next()
         .ok_or_else(|| ClientError::Resolve(server.into(), io::ErrorKind::NotFound.into()))
+}
+
+/// The service whose answer `bytes` begins like, if it is not a frame's:
+/// the board's web page (HTTP) or its camera (RTSP).
+fn service_of(bytes: &[u8]) -> Option<&'static str> {
+    if bytes.starts_with(b"HTTP/1.") {
+        Some("a web server (the board's page is on port 80)")
+    } else if bytes.starts_with(b"RTSP/1.") {
+        Some("an RTSP server (the board's camera is on port 8554)")
+    } else {
+        None
+    }
 }
 
 /// The persistent port's address: the frame port + 1 (a frame port of
@@ -95,9 +140,13 @@ pub fn connect(addr: SocketAddr) -> Result<TcpStream, ClientError> {
 /// Read exactly one frame into `out`; `index` names it in errors.
 pub fn read_frame(stream: &mut TcpStream, index: usize, out: &mut [u8]) -> Result<(), ClientError> {
     let mut got = 0;
+    let wrong = |got: usize, out: &[u8], stream: &TcpStream| {
+        let what = service_of(&out[..got])?;
+        Some(ClientError::WrongService { addr: stream.peer_addr().ok()?, what })
+    };
     while got < out.len() {
         match stream.read(&mut out[got..]) {
-            Ok(0) => return Err(ClientError::ShortFrame { frame: index, got }),
+            Ok(0) => return Err(wrong(got, out, stream).unwrap_or(ClientError::ShortFrame { frame: index, got })),
             Ok(n) => got += n,
             Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
             Err(e) if e.kind() == io::ErrorKind::ConnectionReset => {
@@ -138,4 +187,44 @@ pub fn send_request(stream: &mut TcpStream, light: &Light) -> Result<(), ClientE
 /// Tell the server no more requests will come.
 pub fn finish_requests(stream: &TcpStream) -> Result<(), ClientError> {
     stream.shutdown(Shutdown::Write).map_err(|e| ClientError::Io("closing the request stream", e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::net::TcpListener;
+
+    #[test]
+    fn a_host_alone_means_the_frame_port() {
+        assert_eq!(with_frame_port("192.168.1.20"), "192.168.1.20:7878");
+        assert_eq!(with_frame_port("raytracer.local"), "raytracer.local:7878");
+        assert_eq!(with_frame_port("::1"), "[::1]:7878");
+        assert_eq!(with_frame_port("[::1]"), "[::1]:7878");
+        assert_eq!(with_frame_port("127.0.0.1:9000"), "127.0.0.1:9000");
+        assert_eq!(with_frame_port("[::1]:9000"), "[::1]:9000");
+        assert_eq!(resolve("127.0.0.1").unwrap(), SocketAddr::from(([127, 0, 0, 1], FRAME_PORT)));
+    }
+
+    /// A server on another of the board's ports answers the 12 bytes with
+    /// its own protocol's error and closes: named, not "short frame".
+    #[test]
+    fn the_web_page_or_the_camera_on_the_frame_port_is_named() {
+        for (answer, named) in [
+            (&b"HTTP/1.1 400 Bad Request\r\nConnection: close\r\n\r\n"[..], "web server"),
+            (&b"RTSP/1.0 400 Bad Request\r\n\r\n"[..], "RTSP server"),
+        ] {
+            let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+            let addr = listener.local_addr().unwrap();
+            let server = std::thread::spawn(move || {
+                let (mut s, _) = listener.accept().unwrap();
+                let mut request = [0u8; 12];
+                s.read_exact(&mut request).unwrap();
+                s.write_all(answer).unwrap();
+            });
+            let light = Light::from_raw(3072, 4096, -2048).unwrap();
+            let e = fetch_frame(addr, &light).unwrap_err().to_string();
+            server.join().unwrap();
+            assert!(e.contains(named) && e.contains("not as the frame port"), "{e}");
+        }
+    }
 }
