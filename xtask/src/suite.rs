@@ -167,7 +167,11 @@ pub fn hostile() -> Result<()> {
 
 /// `cargo xtask players`' GStreamer checks against the emulated board.
 pub fn players_on_the_emulated_board(elf: &std::path::Path) -> Result<()> {
-    let g = crate::images::firmware::Guest::boot(elf, &[])?;
+    let mut g = crate::images::firmware::Guest::boot(elf, &[])?;
+    // The documented boot log's service lines, as this build prints them
+    // (the display's line comes last of them).
+    g.wait_for_line(0, "display: VGA scan-out", std::time::Duration::from_secs(30))?;
+    println!("==> {}", crate::emulated::boot_log::check(&g.uart())?);
     let f = g.forwards.ok_or("the guest has no forwarded ports")?;
     if f.rtcp != rt_services::camera::rtsp::SERVER_RTP_PORT + 1 {
         println!("players: host UDP port 5005 is taken: GStreamer's RTCP will not reach the board (no repair)");

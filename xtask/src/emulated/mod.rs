@@ -7,6 +7,7 @@
 //! runs (`build`, `Guest`); nothing in `images` needs the tests.
 
 pub mod bench_fw;
+pub mod boot_log;
 pub mod cost_model;
 pub mod early_frames;
 pub mod hostile;
