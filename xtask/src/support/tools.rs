@@ -161,27 +161,90 @@ pub fn debian_source(deb822: &str, release: &str) -> Option<DebianSource> {
     })
 }
 
+/// The keyring of Debian's own archive (package debian-archive-keyring),
+/// for a one-line entry that names none: apt trusts it by default.
+const DEBIAN_ARCHIVE_KEYRING: &str = "/usr/share/keyrings/debian-archive-keyring.gpg";
+
+/// A classic one-line entry (`deb [options] URI suite components`, the
+/// format of `/etc/apt/sources.list`): its type, URI, suite and
+/// `signed-by` option.
+#[derive(Debug, PartialEq, Eq)]
+pub struct OneLineSource {
+    /// `deb` or `deb-src`.
+    pub kind: String,
+    /// The archive's URI.
+    pub uri: String,
+    /// Its suite.
+    pub suite: String,
+    /// Its `signed-by` option, if it has one.
+    pub signed_by: Option<String>,
+}
+
+/// The one-line entries of `text` (comments and blank lines skipped).
+pub fn one_line_sources(text: &str) -> Vec<OneLineSource> {
+    text.lines()
+        .filter_map(|line| {
+            let line = line.split('#').next().unwrap_or("").trim();
+            let (kind, rest) = line.split_once(char::is_whitespace)?;
+            if kind != "deb" && kind != "deb-src" {
+                return None;
+            }
+            let rest = rest.trim_start();
+            let (options, rest) = match rest.strip_prefix('[') {
+                Some(r) => r.split_once(']')?,
+                None => ("", rest),
+            };
+            let mut words = rest.split_whitespace();
+            let (uri, suite) = (words.next()?.to_string(), words.next()?.to_string());
+            let signed_by = options
+                .split_whitespace()
+                .find_map(|o| o.strip_prefix("signed-by=").or_else(|| o.strip_prefix("Signed-By=")))
+                .map(str::to_string);
+            Some(OneLineSource { kind: kind.to_string(), uri, suite, signed_by })
+        })
+        .collect()
+}
+
 /// Make sure apt has an entry of `types` (`deb` or `deb-src`) for `suite`,
 /// writing `/etc/apt/sources.list.d/{file}.sources` from the machine's own
-/// Debian entry for `release` when none exists.
+/// Debian entry for `release` when none exists: a deb822 entry in
+/// `sources.list.d`, or a one-line entry there or in the classic
+/// `/etc/apt/sources.list`.
 pub fn ensure_apt_source(file: &str, types: &str, suite: &str, release: &str) -> Result<()> {
     let dir = Path::new("/etc/apt/sources.list.d");
     let texts: Vec<String> = std::fs::read_dir(dir)
         .map(|d| d.flatten().filter_map(|e| std::fs::read_to_string(e.path()).ok()).collect())
         .unwrap_or_default();
+    let classic = std::fs::read_to_string("/etc/apt/sources.list").unwrap_or_default();
+    let one_line: Vec<OneLineSource> =
+        texts.iter().chain(std::iter::once(&classic)).flat_map(|t| one_line_sources(t)).collect();
     let has = texts.iter().any(|t| {
         t.split("\n\n").any(|stanza| {
             stanza.lines().any(|l| l.starts_with("Types:") && l.split_whitespace().any(|w| w == types))
                 && stanza.lines().any(|l| l.starts_with("Suites:") && l.split_whitespace().any(|w| w == suite))
         })
-    });
+    }) || one_line.iter().any(|s| s.kind == types && s.suite == suite);
     if has {
         return Ok(());
     }
-    let source = texts
-        .iter()
-        .find_map(|t| debian_source(t, release))
-        .ok_or_else(|| format!("no Debian {release} entry in {} to copy URIs and Signed-By from", dir.display()))?;
+    let from_one_line = || {
+        let s = one_line.iter().find(|s| s.kind == "deb" && s.suite == release)?;
+        let signed_by = s.signed_by.clone().unwrap_or_else(|| DEBIAN_ARCHIVE_KEYRING.to_string());
+        Some(DebianSource { uris: s.uri.clone(), signed_by })
+    };
+    let source = texts.iter().find_map(|t| debian_source(t, release)).or_else(from_one_line).ok_or_else(|| {
+        format!(
+            "no Debian {release} entry to copy URIs and Signed-By from, in {} (deb822) or /etc/apt/sources.list \
+             (one line): apt needs an entry for Debian {release} itself",
+            dir.display()
+        )
+    })?;
+    if !Path::new(&source.signed_by).exists() {
+        return Err(format!(
+            "the Debian {release} entry's keyring {} is missing (Debian's package debian-archive-keyring has it)",
+            source.signed_by
+        ));
+    }
     let text = format!(
         "Types: {types}\nURIs: {}\nSuites: {suite}\nComponents: main\nSigned-By: {}\n",
         source.uris, source.signed_by
@@ -287,5 +350,27 @@ mod tests {
         assert_eq!(s.uris, "file:///srv/mirror/debian");
         assert_eq!(s.signed_by, "/usr/share/keyrings/k.gpg");
         assert_eq!(debian_source(text, "trixie"), None);
+    }
+
+    #[test]
+    fn a_classic_sources_list_gives_its_entries() {
+        let text = "# comment\ndeb http://archive.example/debian bookworm main contrib\n\
+                    deb-src [arch=amd64 signed-by=/k.gpg] http://archive.example/debian bookworm-updates main\n\
+                    deb cdrom:[Debian]/ bookworm main\nnot an entry\n";
+        let s = one_line_sources(text);
+        assert_eq!(s.len(), 3);
+        assert_eq!(
+            s[0],
+            OneLineSource {
+                kind: "deb".into(),
+                uri: "http://archive.example/debian".into(),
+                suite: "bookworm".into(),
+                signed_by: None
+            }
+        );
+        assert_eq!(
+            (s[1].kind.as_str(), s[1].suite.as_str(), s[1].signed_by.as_deref()),
+            ("deb-src", "bookworm-updates", Some("/k.gpg"))
+        );
     }
 }
