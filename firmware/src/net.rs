@@ -13,6 +13,7 @@ use dwmac::phy::LinkMonitor;
 use dwmac::regs::Regs;
 use dwmac::{DmaArea, Dwmac};
 use hal_avalon::RegisterPort;
+use rt_services::camera::random::TimingPool;
 use rt_services::camera::rtsp::{self, MAX_SESSIONS, RTSP_PORT, SERVER_RTP_PORT};
 use rt_services::camera::sender::Camera;
 use rt_services::camera::sender::{self, Multicast};
@@ -271,6 +272,11 @@ pub fn run<B: Board, P: RegisterPort>(
         }
     };
     let mut peers = Snooped::new(SERVER_RTP_PORT);
+    // The arrival times of received frames, for the camera's generator
+    // (docs/streaming.md, "Session ids"): the timer's count at each main
+    // loop turn in which frames arrived.
+    let mut arrivals = TimingPool::new(timer.ticks());
+    let mut frames_seen = 0u32;
     let mut in_flight = [None; RING_SLOTS];
     let mut refused = 0u32;
     // Frames the seed server holds (its quota's count).
@@ -317,6 +323,10 @@ pub fn run<B: Board, P: RegisterPort>(
         }
         let now = Instant::from_micros(i64::try_from(now_us).unwrap_or(i64::MAX));
         iface.poll(now, &mut Snoop { inner: &mut mac, peers: &mut peers }, &mut sockets);
+        if peers.frames_seen() != frames_seen {
+            frames_seen = peers.frames_seen();
+            arrivals.add(timer.ticks());
+        }
         // The seed server's frames count for the display (its attract
         // mode waits while they come) and stay within its quota of slots.
         let mut counted = Counting { frames: &mut *frames, begun: &mut requests, ended: &mut ended };
@@ -333,7 +343,7 @@ pub fn run<B: Board, P: RegisterPort>(
             };
             // The camera's frames count as clients' for the display too.
             let mut counted = Counting { frames: &mut *frames, begun: &mut requests, ended: &mut ended };
-            let entropy = timer.ticks();
+            let entropy = arrivals.value() ^ timer.ticks();
             crate::bench::camera(|| c.poll(now, &mut sockets, &mut peers, &mut counted, &mut tx, entropy, &mut log));
         }
         // The web page: its viewers' frames count for the display too, and

@@ -68,6 +68,9 @@ enum Command {
     /// The suite's lossy-link checks on their own: frames through 2% loss
     /// over TCP, RTP with NACK repair at 2% and 10% loss.
     LossyTest,
+    /// The camera's session ids and SSRCs on two boots of one image under
+    /// QEMU's -icount: they must differ.
+    EntropyTest,
     /// A long run of the emulated board: 1,000 frames in one boot, every
     /// one checked, nothing leaked.
     Soak(emulated::soak::SoakArgs),
@@ -128,6 +131,10 @@ fn main() -> ExitCode {
         Command::WebTest => suite::web(),
         Command::Hostile => suite::hostile(),
         Command::LossyTest => support::tools::ensure_qemu().and_then(|()| emulated::lossy::suite_test()),
+        Command::EntropyTest => support::tools::ensure_qemu()
+            .and_then(|()| images::firmware::build("qemu-npcm750", &["sim-accelerator"]))
+            .and_then(|elf| emulated::entropy::run(&elf))
+            .map(|summary| println!("{summary}")),
         Command::BenchFw(args) => emulated::bench_fw::run(&args),
         Command::Sdcard(args) => images::sdcard::run(&args),
         Command::SdcardTest => images::sdcard::suite_test(),

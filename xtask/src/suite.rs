@@ -209,6 +209,8 @@ pub fn qemu_tests() -> Result<()> {
     // forwarded RTSP port (the rows leave through two-buffer descriptors).
     let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
     players_on_the_emulated_board(&elf)?;
+    println!("==> the camera's session ids and SSRCs on two boots under -icount");
+    println!("{}", crate::emulated::entropy::run(&elf)?);
     // Many viewers of the emulated board, players through a relay, and the
     // camera on a hostile network.
     many_viewers(&elf)?;

@@ -18,6 +18,37 @@ use sha2::{Digest, Sha256};
 
 use super::rtsp::Random;
 
+/// The arrival times of the frames the board receives, folded into one
+/// word: each frame's cycle count at arrival is stirred in (a multiply and
+/// a rotate, a few instructions a frame), and the camera's generator takes
+/// the word at every new connection ([`SessionRng::stir`]). Where a frame
+/// lands in the board's clock depends on the network and the peers, not on
+/// the board: two boots of one image, even under QEMU's `-icount` (where
+/// the board's own time is its instruction count), see their first frames
+/// at other counts. Hand-written: it is a mixing step, not a generator
+/// (SplitMix64's constants).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TimingPool(u64);
+
+impl TimingPool {
+    /// A pool that starts from `seed` (the boot's own count).
+    pub const fn new(seed: u64) -> TimingPool {
+        TimingPool(seed)
+    }
+
+    /// Stir in one arrival's count.
+    pub fn add(&mut self, count: u64) {
+        let z = (self.0 ^ count).wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        self.0 = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB).rotate_left(17);
+    }
+
+    /// What the pool holds now.
+    pub const fn value(&self) -> u64 {
+        self.0
+    }
+}
+
 /// The camera's generator.
 pub struct SessionRng {
     rng: ChaCha20Rng,
@@ -51,6 +82,20 @@ impl Random for SessionRng {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn arrival_times_change_the_pool_and_their_order_counts() {
+        let fold = |counts: &[u64]| {
+            let mut p = TimingPool::new(7);
+            counts.iter().for_each(|&c| p.add(c));
+            p.value()
+        };
+        assert_eq!(fold(&[100, 200]), fold(&[100, 200]), "the same arrivals, the same pool");
+        assert_ne!(fold(&[100, 200]), fold(&[100, 201]), "one count apart");
+        assert_ne!(fold(&[100, 200]), fold(&[200, 100]), "another order");
+        assert_ne!(fold(&[]), fold(&[0]), "an arrival at count 0 still counts");
+    }
+
     use super::*;
 
     #[test]

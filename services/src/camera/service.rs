@@ -115,6 +115,9 @@ pub struct Snooped {
     entries: heapless::Deque<(Ipv4Addr, EthernetAddress), PEERS>,
     unreachable: heapless::Deque<Unreachable, UNREACHABLE_NOTES>,
     rtp_port: u16,
+    /// Frames seen (wrapping): the caller stirs its clock into the camera's
+    /// entropy when this moves ([`random::TimingPool`](super::random::TimingPool)).
+    frames: u32,
 }
 
 /// An ICMP port unreachable about one of the camera's RTP packets, as
@@ -135,12 +138,13 @@ impl Snooped {
     /// Nothing learnt; port unreachable is noted for packets that left
     /// from `rtp_port`.
     pub const fn new(rtp_port: u16) -> Snooped {
-        Snooped { entries: heapless::Deque::new(), unreachable: heapless::Deque::new(), rtp_port }
+        Snooped { entries: heapless::Deque::new(), unreachable: heapless::Deque::new(), rtp_port, frames: 0 }
     }
 
     /// Learn from one received Ethernet frame (anything but IPv4 is
     /// ignored, as are broadcast and multicast sources).
     pub fn learn(&mut self, frame: &[u8]) {
+        self.frames = self.frames.wrapping_add(1);
         let Ok(eth) = EthernetFrame::new_checked(frame) else { return };
         if eth.ethertype() != EthernetProtocol::Ipv4 || !eth.src_addr().is_unicast() {
             return;
@@ -208,6 +212,11 @@ impl Snooped {
     /// The next hop towards `addr`, if a frame from it was seen.
     pub fn lookup(&self, addr: Ipv4Addr) -> Option<EthernetAddress> {
         self.entries.iter().rev().find(|(a, _)| *a == addr).map(|(_, m)| *m)
+    }
+
+    /// Frames received so far (wrapping).
+    pub const fn frames_seen(&self) -> u32 {
+        self.frames
     }
 
     /// The next port unreachable noted.

@@ -10,6 +10,7 @@ pub mod bench_fw;
 pub mod boot_log;
 pub mod cost_model;
 pub mod early_frames;
+pub mod entropy;
 pub mod hostile;
 pub mod lossy;
 pub mod qemu_e2e;

@@ -307,6 +307,11 @@ impl Stream {
         self.request("SET_PARAMETER", &url, &headers, &format!("light: {x},{y},{z}\r\n")).map(|_| ())
     }
 
+    /// The session id the SETUP answer gave.
+    pub fn session_id(&self) -> &str {
+        &self.session
+    }
+
     /// End the session.
     pub fn teardown(mut self) -> Result<()> {
         let (url, session) = (self.url.clone(), self.session.clone());
