@@ -20,6 +20,10 @@
    the second tab must connect by itself (its retries back off) and draw
    a frame. Its console is not judged (Chromium logs the 503 as SEVERE).
 
+With --play SECONDS, after step 5 the page plays on for that long: every
+10-second window must bring new frames, the page must stay connected on
+one socket the whole time (no close, no reconnect) and show no error.
+
 With --during "CMD ARGS", CMD runs after step 1 while the page plays (the
 hostile clients against the board): the page must draw frames while it
 runs; one of them is read back (OUT/during.rgb, OUT/during.light), and
@@ -187,7 +191,7 @@ def attack(driver, out, timeout, command):
     return before
 
 
-def check(driver, base, out, timeout, during=None):
+def check(driver, base, out, timeout, during=None, play_s=0):
     # 1. The light from the query, exactly.
     url = base.rstrip("/") + "/?light=3,4,-2"
     step(f"1/6 opening {url}")
@@ -287,6 +291,8 @@ def check(driver, base, out, timeout, during=None):
     if severe:
         raise CheckFailed("SEVERE console entries:\n" + "\n".join(f"  {e.get('message')}" for e in severe))
     step(f"{len(entries)} console entries, none severe")
+    if play_s:
+        play(driver, play_s)
     drawn = rt(driver)["framesDrawn"]
     every_place_taken(driver, base, timeout)
     return drawn
@@ -319,6 +325,34 @@ def take_places(base, timeout, most=16):
             return held
         raise CheckFailed(f"a viewer handshake was answered {head[:40]!r}, not 101 or 503")
     raise CheckFailed(f"{most} viewer handshakes and no 503")
+
+
+PLAY_STATE = """
+return {drawn: window.rtPage.framesDrawn, connected: window.rtPage.connected,
+        error: window.rtPage.lastError, conn: document.getElementById('conn').textContent};
+"""
+
+
+def play(driver, seconds, window=10):
+    """The page plays for `seconds` (module docs)."""
+    step(f"playing for {seconds:g} s: frames in every {window} s window, one socket, no close")
+    start = driver.execute_script(PLAY_STATE)
+    last = start
+    t0 = time.monotonic()
+    windows = 0
+    while time.monotonic() - t0 < seconds:
+        time.sleep(window)
+        now = driver.execute_script(PLAY_STATE)
+        windows += 1
+        if not now["connected"] or now["error"] != start["error"]:
+            raise CheckFailed(f"after {time.monotonic() - t0:.0f} s the page shows {now['conn']!r} "
+                              f"(error {now['error']!r}): the viewer was closed")
+        if now["drawn"] <= last["drawn"]:
+            raise CheckFailed(f"no frame drawn in the {window} s window ending at {time.monotonic() - t0:.0f} s "
+                              f"({last['drawn']} frames then and now)")
+        last = now
+    step(f"played {time.monotonic() - t0:.0f} s: {last['drawn'] - start['drawn']} frames in {windows} windows, "
+         f"each with frames, no close")
 
 
 def every_place_taken(driver, base, timeout):
@@ -362,6 +396,7 @@ def main():
     ap.add_argument("--out", required=True, help="directory for the read-back frames, status and screenshot")
     ap.add_argument("--timeout", type=float, default=60, help="seconds to wait for each step (default 60)")
     ap.add_argument("--during", help="a command (words split at spaces) to run while the page plays")
+    ap.add_argument("--play", type=float, default=0, help="seconds the page then plays on, watched (default 0)")
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
 
@@ -380,7 +415,8 @@ def main():
         driver = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
         driver.set_page_load_timeout(args.timeout)
         driver.set_script_timeout(args.timeout)
-        frames = check(driver, args.url, args.out, args.timeout, args.during.split() if args.during else None)
+        frames = check(driver, args.url, args.out, args.timeout, args.during.split() if args.during else None,
+                       args.play)
         print(f"page check: passed ({frames} frames drawn)", flush=True)
         return 0
     except CheckFailed as e:

@@ -42,7 +42,15 @@ pub fn run(elf: &Path) -> Result<()> {
     let xtask = std::env::current_exe().map_err(|e| e.to_string())?;
     let during = [xtask.display().to_string(), "hostile-web".into(), "--addr".into(), format!("127.0.0.1:{}", f.web)];
     let out = root().join("target/web/emulated");
-    let check = PageCheck { url: format!("http://127.0.0.1:{}", f.web), out, timeout_s: 300, during: Some(&during) };
+    // Ten minutes of play after the attack: the viewer was closed 30 s
+    // after it connected until its idle deadline counted from requests.
+    let check = PageCheck {
+        url: format!("http://127.0.0.1:{}", f.web),
+        out,
+        timeout_s: 300,
+        during: Some(&during),
+        play_s: 600,
+    };
     let from = guest.uart().len();
     let summary = check_page(&check).map_err(|e| format!("{e}\nthe board's UART:\n{}", tail(&guest)))?;
     println!("web (emulated board): {summary}");

@@ -36,7 +36,7 @@ pub fn run() -> Result<()> {
         .map_err(|e| format!("hps-sim: {e}"))?;
     let mut sim = Guard(sim, "hps-sim");
     wait_for_port(&mut sim, http, &log)?;
-    let check = PageCheck { url: format!("http://{http}"), out: dir.clone(), timeout_s: 60, during: None };
+    let check = PageCheck { url: format!("http://{http}"), out: dir.clone(), timeout_s: 60, during: None, play_s: 0 };
     let summary = check_page(&check)?;
     if let Ok(Some(status)) = sim.0.try_wait() {
         return Err(format!("hps-sim exited during the test ({status}); see {}", log.display()));

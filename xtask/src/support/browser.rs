@@ -31,6 +31,9 @@ pub struct PageCheck<'a> {
     pub timeout_s: u32,
     /// A command to run while the page plays (the hostile clients).
     pub during: Option<&'a [String]>,
+    /// Seconds the page then plays on, watched: frames in every 10 s
+    /// window, one socket, no close (0: none).
+    pub play_s: u32,
 }
 
 /// The pictures the check leaves (`NAME.rgb` with `NAME.light`): the held
@@ -50,6 +53,9 @@ pub fn check_page(check: &PageCheck<'_>) -> Result<String> {
         .args(["--url", &check.url, "--out"])
         .arg(&check.out)
         .args(["--timeout", &check.timeout_s.to_string()]);
+    if check.play_s > 0 {
+        c.args(["--play", &check.play_s.to_string()]);
+    }
     if let Some(during) = check.during {
         // One argument; the script splits it at spaces (no word has one).
         c.arg("--during").arg(during.join(" "));
