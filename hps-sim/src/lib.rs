@@ -21,7 +21,10 @@
 //! protocol on the listen port + 1. Every connection is served concurrently
 //! on its own thread with its own simulated accelerator (a board has one
 //! accelerator and interleaves its clients; on the host a device per client
-//! keeps the clients independent and the frames identical).
+//! keeps the clients independent and the frames identical), at most as
+//! many at once as the board has sockets (`rt_services::seed::SEED_SOCKETS`,
+//! `rt_services::web::WEB_SOCKETS`); one more is closed at once, as the
+//! board refuses it.
 
 pub mod rtsp;
 pub mod web;
