@@ -256,15 +256,7 @@ fn rtsp_board(server: Option<&str>, rtsp: Option<&str>) -> Result<(SocketAddr, O
 }
 
 fn url(server: &str) -> Result<(), String> {
-    let with_port = if server.parse::<SocketAddr>().is_ok()
-        || server.rsplit_once(':').is_some_and(|(h, p)| !h.contains(':') && p.parse::<u16>().is_ok())
-    {
-        server.to_string()
-    } else if server.contains(':') && !server.starts_with('[') {
-        format!("[{server}]:{}", rt_services::camera::rtsp::RTSP_PORT)
-    } else {
-        format!("{server}:{}", rt_services::camera::rtsp::RTSP_PORT)
-    };
+    let with_port = net::with_port(server, rt_services::camera::rtsp::RTSP_PORT);
     let base = format!("rtsp://{with_port}");
     println!("{base}/light/3,4,-2?fps=30        fixed light at (3, 4, -2), 30 frames/s");
     println!("{base}/orbit?radius=3&height=4&period=2&fps=max   orbiting light, one turn per 2 s, as fast as rendered");

@@ -85,18 +85,23 @@ impl std::error::Error for ClientError {
     }
 }
 
-/// `server` with the frame port added when it names a host alone
-/// (`board.local`, `192.168.1.20`, `::1`, `[::1]`).
-pub fn with_frame_port(server: &str) -> String {
+/// `server` with `port` added when it names a host alone (`board.local`,
+/// `192.168.1.20`, `::1`, `[::1]`).
+pub fn with_port(server: &str, port: u16) -> String {
     let has_port = server.parse::<SocketAddr>().is_ok()
         || server.rsplit_once(':').is_some_and(|(h, p)| !h.contains(':') && p.parse::<u16>().is_ok());
     if has_port {
         server.to_string()
     } else if server.contains(':') && !server.starts_with('[') {
-        format!("[{server}]:{FRAME_PORT}")
+        format!("[{server}]:{port}")
     } else {
-        format!("{server}:{FRAME_PORT}")
+        format!("{server}:{port}")
     }
+}
+
+/// `server` with the frame port added when it names a host alone.
+pub fn with_frame_port(server: &str) -> String {
+    with_port(server, FRAME_PORT)
 }
 
 /// Resolve `HOST:PORT`, or `HOST` on the frame port, to its first address.
