@@ -226,7 +226,13 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
             }
         };
         let action = if viewer {
-            let cx = Context { now: now(), room: false, status: &status_now, name: rt_services::DEFAULT_HOST_NAME };
+            let cx = Context {
+                now: now(),
+                room: false,
+                status: &status_now,
+                name: rt_services::DEFAULT_HOST_NAME,
+                may_begin: true,
+            };
             drive(&mut connection, &cx, &mut frames, &mut send, &mut log)
         } else {
             // The cap holds across threads: a handshake is answered under
@@ -237,6 +243,7 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
                 room: *count < WEB_VIEWERS,
                 status: &status_now,
                 name: rt_services::DEFAULT_HOST_NAME,
+                may_begin: true,
             };
             let action = drive(&mut connection, &cx, &mut frames, &mut send, &mut log);
             if connection.is_viewer() {

@@ -54,6 +54,13 @@ pub const SEND_TIMEOUT: Duration = Duration::from_secs(30);
 /// least once a second at its slowest rate).
 pub const VIEWER_IDLE: Duration = Duration::from_secs(30);
 
+/// How long one frame may take to go out whole (its slot is held
+/// meanwhile): 518,400 bytes in 20 s is 0.2 Mbit/s, far below any
+/// browser on a LAN or the emulated board's pace. A reader slower than that is
+/// dropped rather than keep a slot other viewers wait for (the send
+/// deadline alone restarts on every byte).
+pub const FRAME_LIMIT: Duration = Duration::from_secs(20);
+
 /// The page's content security policy: its own files only, its WebSocket
 /// and `/status` on its own origin (`connect-src 'self'`, which covers
 /// `ws:` to the same host in CSP Level 3), never inside another site's
@@ -149,6 +156,49 @@ pub struct Context<'a> {
     /// The board's host name (mDNS, without `.local`): the one name besides
     /// `localhost` that a request's `Host` may carry ([`guard`]).
     pub name: &'a str,
+    /// Whether it is this viewer's turn to begin a frame ([`Turns`]); a
+    /// viewer whose turn it is not waits with its request.
+    pub may_begin: bool,
+}
+
+/// Whose turn it is to begin a frame among `N` connections sharing a few
+/// frame slots: the viewers waiting for one, first come first served. A
+/// viewer that has just sent a frame and asks for the next one queues
+/// behind those already waiting, so two that always keep a request queued
+/// cannot hold both slots while others wait (they had, polled first).
+#[derive(Debug, Default)]
+pub struct Turns<const N: usize> {
+    waiting: heapless::Deque<u8, N>,
+}
+
+impl<const N: usize> Turns<N> {
+    /// Nobody waiting.
+    pub const fn new() -> Turns<N> {
+        Turns { waiting: heapless::Deque::new() }
+    }
+
+    /// Whether connection `i` may begin a frame now: nobody waits, or it
+    /// waits first.
+    pub fn may_begin(&self, i: usize) -> bool {
+        self.waiting.front().is_none_or(|&w| usize::from(w) == i)
+    }
+
+    /// After connection `i` was served: whether it still wants a frame
+    /// begun (it waits its turn) or not (it began one, or left).
+    pub fn served(&mut self, i: usize, wants: bool) {
+        let Ok(i8) = u8::try_from(i) else { return };
+        let queued = self.waiting.iter().any(|&w| w == i8);
+        if wants && !queued {
+            let _ = self.waiting.push_back(i8);
+        } else if !wants && queued {
+            let mut kept = heapless::Deque::new();
+            for w in self.waiting.iter().copied().filter(|&w| w != i8) {
+                // No more than were there.
+                let _ = kept.push_back(w);
+            }
+            self.waiting = kept;
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -157,6 +207,7 @@ struct Sending<F> {
     row: u16,
     offset: usize,
     ready: u16,
+    begun_at: Instant,
 }
 
 #[derive(Debug)]
@@ -212,6 +263,8 @@ pub struct Connection<F> {
     eof: bool,
     /// The request was a HEAD: answers go without their body.
     head_only: bool,
+    /// Closing, once the frame going out has been given back.
+    dropping: Option<Closed>,
 }
 
 impl<F: Copy> Connection<F> {
@@ -230,12 +283,19 @@ impl<F: Copy> Connection<F> {
             align: 0,
             eof: false,
             head_only: false,
+            dropping: None,
         }
     }
 
     /// Whether the connection is a WebSocket viewer.
     pub fn is_viewer(&self) -> bool {
         matches!(self.state, State::Viewer(_)) || matches!(self.state, State::Respond { then_viewer: true, .. })
+    }
+
+    /// Whether the connection is a viewer with a request waiting for a
+    /// frame to begin ([`Turns`]).
+    pub fn wants_frame(&self) -> bool {
+        matches!(&self.state, State::Viewer(v) if v.sending.is_none() && v.wanted.is_some() && v.close.is_none())
     }
 
     /// Frames a viewer has been sent whole.
@@ -332,9 +392,12 @@ impl<F: Copy> Connection<F> {
     /// The next action.
     pub fn poll(&mut self, cx: &Context<'_>) -> Action<F> {
         let now = cx.now;
+        if let Some(closed) = self.dropping.take() {
+            return self.close(closed);
+        }
         // Output first: it goes out before anything else happens.
         if self.output_pending() {
-            if now >= self.moved_at + SEND_TIMEOUT {
+            if now >= self.moved_at + SEND_TIMEOUT || self.frame_overdue(now) {
                 return self.close(Closed::Stalled);
             }
             return Action::Write;
@@ -363,13 +426,20 @@ impl<F: Copy> Connection<F> {
                     self.close(c)
                 }
             }
-            State::Viewer(_) => self.poll_viewer(now),
+            State::Viewer(_) => self.poll_viewer(now, cx.may_begin),
         }
+    }
+
+    /// Whether a frame going out has taken [`FRAME_LIMIT`] already.
+    fn frame_overdue(&self, now: Instant) -> bool {
+        matches!(&self.state, State::Viewer(Viewer { sending: Some(s), .. }) if now >= s.begun_at + FRAME_LIMIT)
     }
 
     fn close(&mut self, closed: Closed) -> Action<F> {
         if let State::Viewer(v) = &mut self.state {
             if let Some(s) = v.sending.take() {
+                // The frame goes back first; the next poll closes.
+                self.dropping = Some(closed);
                 return Action::End { frame: s.frame };
             }
         }
@@ -498,7 +568,7 @@ impl<F: Copy> Connection<F> {
         }
     }
 
-    fn poll_viewer(&mut self, now: Instant) -> Action<F> {
+    fn poll_viewer(&mut self, now: Instant, may_begin: bool) -> Action<F> {
         let State::Viewer(v) = &mut self.state else { return Action::Wait { deadline: None } };
         if let Some(s) = &mut v.sending {
             if s.row == ROWS {
@@ -507,7 +577,7 @@ impl<F: Copy> Connection<F> {
                 v.frames = v.frames.wrapping_add(1);
                 return Action::End { frame };
             }
-            if now >= self.moved_at + SEND_TIMEOUT {
+            if now >= self.moved_at + SEND_TIMEOUT || now >= s.begun_at + FRAME_LIMIT {
                 return self.close(Closed::Stalled);
             }
             if s.row < s.ready {
@@ -530,6 +600,9 @@ impl<F: Copy> Connection<F> {
             // A request waiting is a viewer asking: the idle deadline
             // counts from the last one seen.
             v.asked_at = now;
+            if !may_begin {
+                return Action::Wait { deadline: None };
+            }
             return Action::Begin { light };
         }
         if self.eof {
@@ -538,7 +611,7 @@ impl<F: Copy> Connection<F> {
         let deadline = v.asked_at + VIEWER_IDLE;
         if now >= deadline {
             v.close = Some((CloseCode::GoingAway.code(), Closed::Viewer(CloseCode::GoingAway)));
-            return self.poll_viewer(now);
+            return self.poll_viewer(now, may_begin);
         }
         Action::Wait { deadline: Some(deadline) }
     }
@@ -560,7 +633,7 @@ impl<F: Copy> Connection<F> {
         let Some(frame) = frame else { return };
         if let State::Viewer(v) = &mut self.state {
             v.wanted = None;
-            v.sending = Some(Sending { frame, row: 0, offset: 0, ready: 0 });
+            v.sending = Some(Sending { frame, row: 0, offset: 0, ready: 0, begun_at: now });
             let (head, n) = websocket::server_head(Opcode::Binary, FRAME_BYTES as u64);
             self.small.clear();
             self.small_sent = 0;
@@ -877,7 +950,7 @@ mod tests {
         }
 
         fn step(&mut self) -> Action<usize> {
-            let cx = Context { now: self.now, room: self.room, status: &STATUS, name: "raytracer" };
+            let cx = Context { now: self.now, room: self.room, status: &STATUS, name: "raytracer", may_begin: true };
             let out = &mut self.out;
             drive(
                 &mut self.c,
@@ -953,7 +1026,7 @@ mod tests {
     fn a_client_that_reads_nothing_is_dropped() {
         let mut p = Peer::new();
         p.send(b"GET / HTTP/1.1\r\nHost: raytracer\r\n\r\n");
-        let cx = Context { now: Instant::ZERO, room: true, status: &STATUS, name: "raytracer" };
+        let cx = Context { now: Instant::ZERO, room: true, status: &STATUS, name: "raytracer", may_begin: true };
         assert_eq!(p.c.poll(&cx), Action::Write);
         let later = Context { now: Instant::ZERO + SEND_TIMEOUT, ..cx };
         assert_eq!(p.c.poll(&later), Action::Close(Closed::Stalled));
@@ -990,7 +1063,7 @@ mod tests {
 
     /// Drive with a transport that takes `chunks` buffers of 1,000 bytes.
     fn step_limited(p: &mut Peer, mut chunks: usize) {
-        let cx = Context { now: p.now, room: true, status: &STATUS, name: "raytracer" };
+        let cx = Context { now: p.now, room: true, status: &STATUS, name: "raytracer", may_begin: true };
         let out = &mut p.out;
         drive(
             &mut p.c,
@@ -1221,6 +1294,91 @@ mod tests {
             let body = &p.out[head..];
             assert!(body == model::render_frame(&Light::from_raw(3072, 4096, -2048).unwrap()), "at {align}");
         }
+    }
+
+    /// Four viewers over two frame slots, two of them greedy (a request
+    /// always queued behind the frame going out): with [`Turns`] each gets
+    /// a fair share; without, the two polled first keep both slots.
+    #[test]
+    fn viewers_over_too_few_slots_take_turns() {
+        let run = |fair: bool| {
+            let mut src = source();
+            let mut viewers: std::vec::Vec<Connection<usize>> = (0..4).map(|_| viewer().c).collect();
+            let mut turns = Turns::<4>::new();
+            let mut frames = [0u32; 4];
+            for ms in 0..1_000u64 {
+                let now = Instant::ZERO + Duration::from_millis(ms);
+                for (i, c) in viewers.iter_mut().enumerate() {
+                    let greedy = i < 2;
+                    // A greedy viewer asks again as soon as a frame begins;
+                    // the others once the last frame arrived.
+                    if !c.wants_frame() && (greedy || c.take_frame_for_test().is_none()) {
+                        let _ = c.receive(&request([3072, 4096, -2048 + i as i32]));
+                    }
+                    let may_begin = !fair || turns.may_begin(i);
+                    let cx = Context { now, room: true, status: &STATUS, name: "raytracer", may_begin };
+                    let before = c.frames_sent();
+                    // A link of 100 KB a millisecond.
+                    let mut budget = 100_000usize;
+                    drive(
+                        c,
+                        &cx,
+                        &mut src,
+                        |fill| {
+                            let mut buf = [0u8; 1440];
+                            let n = fill(&mut buf[..budget.min(1440)]);
+                            budget -= n;
+                            n
+                        },
+                        &mut String::new(),
+                    );
+                    frames[i] += c.frames_sent() - before;
+                    turns.served(i, c.wants_frame());
+                }
+            }
+            frames
+        };
+        let fair = run(true);
+        let total: u32 = fair.iter().sum();
+        assert!(fair.iter().all(|&f| f * 5 >= total), "each at least a fifth of {total}: {fair:?}");
+        let unfair = run(false);
+        std::eprintln!("frames each: with turns {fair:?}, without {unfair:?}");
+        assert!(
+            unfair[2] + unfair[3] < (unfair[0] + unfair[1]) / 4,
+            "without turns the greedy two take it: {unfair:?}"
+        );
+    }
+
+    /// A reader that takes a byte a second keeps the send deadline fresh
+    /// for ever; the frame's own limit drops it and frees its slot.
+    #[test]
+    fn a_reader_too_slow_for_a_frame_is_dropped_at_the_frame_limit() {
+        let mut p = viewer();
+        p.send(&request([3072, 4096, -2048]));
+        let mut closed = None;
+        for s in 0..=FRAME_LIMIT.as_secs() {
+            p.now = Instant::ZERO + Duration::from_secs(s);
+            let cx = Context { now: p.now, room: true, status: &STATUS, name: "raytracer", may_begin: true };
+            let mut one = 1usize;
+            let a = drive(
+                &mut p.c,
+                &cx,
+                &mut p.src,
+                |fill| {
+                    let mut buf = [0u8; 1];
+                    let n = if one > 0 { fill(&mut buf) } else { 0 };
+                    one -= n;
+                    n
+                },
+                &mut String::new(),
+            );
+            if let Action::Close(c) = a {
+                closed = Some((s, c));
+                break;
+            }
+        }
+        assert_eq!(closed, Some((FRAME_LIMIT.as_secs(), Closed::Stalled)));
+        assert_eq!(p.c.take_frame_for_test(), None, "its frame was given back");
     }
 
     #[test]

@@ -15,7 +15,7 @@ use smoltcp::socket::tcp;
 use smoltcp::time::Instant;
 
 use super::http::HEAD_BYTES;
-use super::server::{drive, Action, Connection, Context};
+use super::server::{drive, Action, Connection, Context, Turns};
 use super::status::BoardStatus;
 use super::{WEB_PORT, WEB_VIEWERS};
 use crate::frames::FrameSource;
@@ -51,6 +51,7 @@ struct Slot<F> {
 pub struct WebService<F, const N: usize> {
     slots: [Slot<F>; N],
     frames_sent: u64,
+    turns: Turns<N>,
 }
 
 impl<F: Copy, const N: usize> WebService<F, N> {
@@ -60,7 +61,7 @@ impl<F: Copy, const N: usize> WebService<F, N> {
             let socket = b.socket();
             Slot { handle: sockets.add(socket), connection: None, closing_since: None, handshake: Handshake::new() }
         });
-        WebService { slots, frames_sent: 0 }
+        WebService { slots, frames_sent: 0, turns: Turns::new() }
     }
 
     /// Sockets listening, of `N`.
@@ -97,10 +98,12 @@ impl<F: Copy, const N: usize> WebService<F, N> {
         let now = time::Instant::from_millis(u64::try_from(now.total_millis()).unwrap_or(0));
         for index in 0..N {
             let room = self.viewers() < WEB_VIEWERS;
-            let cx = Context { now, room, status, name };
+            let cx = Context { now, room, status, name, may_begin: self.turns.may_begin(index) };
             let slot = &mut self.slots[index];
             let socket = sockets.get_mut::<tcp::Socket>(slot.handle);
             self.frames_sent += u64::from(serve_slot(index, slot, socket, &cx, frames, log));
+            let wants = slot.connection.as_ref().is_some_and(Connection::wants_frame);
+            self.turns.served(index, wants);
         }
     }
 }
