@@ -541,7 +541,7 @@ impl<const N: usize> Camera<N> {
 
     /// The CNAME its reports carry.
     fn cname(&self) -> Cname {
-        self.config.map_or(Cname::for_address(Ipv4Addr::UNSPECIFIED), |c| c.cname)
+        self.config.map_or_else(|| Cname::for_address(Ipv4Addr::UNSPECIFIED), |c| c.cname)
     }
 
     /// The sessions it sends to, with their output's statistics.
@@ -1041,6 +1041,7 @@ impl<const N: usize> Camera<N> {
 
     /// Output `i`'s sender report, if due.
     fn poll_reports<K: RtpSink>(&mut self, i: usize, now: Instant, wall: u64, sink: &mut K) -> bool {
+        let cname = self.cname();
         let Some(o) = self.outputs[i].as_mut() else { return false };
         let Some(m) = self.media[o.media].as_ref() else { return false };
         if o.cursor == Cursor::Paused || !o.reports.poll(now) {
@@ -1048,7 +1049,6 @@ impl<const N: usize> Camera<N> {
         }
         let sr = SenderReport::now(&m.packetiser, wall, m.media_ticks(now));
         let n = sr.write(&mut self.rtcp).unwrap_or(0);
-        let cname = self.config.map_or(Cname::for_address(Ipv4Addr::UNSPECIFIED), |c| c.cname);
         let k = write_sdes_cname(m.packetiser.ssrc(), cname.as_bytes(), &mut self.rtcp[n..]).unwrap_or(0);
         let _ = sink.send_rtcp(&o.dest, &self.rtcp[..n + k]);
         true
@@ -1279,7 +1279,8 @@ impl<const N: usize> Camera<N> {
                 return None;
             }
             let due = m.spec.fps.interval().map(|_| m.due);
-            due.max(m.repair_wait).or(m.repair_wait)
+            // None orders before Some: the later of the two, or either.
+            due.max(m.repair_wait)
         });
         let outputs = self.outputs.iter().flatten().flat_map(|o| {
             let reports = (o.cursor != Cursor::Paused).then(|| o.reports.deadline());

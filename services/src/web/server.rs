@@ -660,7 +660,7 @@ impl<F: Copy> Connection<F> {
 
     /// The answer to [`Action::Send`]: `n` bytes went out.
     pub fn sent(&mut self, now: Instant, n: usize) {
-        self.align = ((usize::from(self.align) + n) % 4) as u8;
+        self.advance(n);
         if let State::Viewer(Viewer { sending: Some(s), .. }) = &mut self.state {
             if n > 0 {
                 self.moved_at = now;
