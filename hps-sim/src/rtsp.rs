@@ -32,7 +32,9 @@ use model::{Light, ROW_BYTES};
 use rt_services::camera::random::SessionRng;
 use rt_services::camera::rtcp::ntp_timestamp;
 use rt_services::camera::rtp::{self, Packetiser, RowPacket};
-use rt_services::camera::rtsp::{self, ConnId, Connection, Server, CONNECTIONS, MAX_RESPONSE_BYTES, MAX_SESSIONS};
+use rt_services::camera::rtsp::{
+    self, ConnId, Connection, Server, CONNECTIONS, CONNECTIONS_PER_ADDRESS, MAX_RESPONSE_BYTES, MAX_SESSIONS,
+};
 use rt_services::camera::sender::{self, Bound, Camera, Dest, Multicast, RtpSink, CAMERA_SLOTS};
 use rt_services::{FrameEngine, FrameMemory, FrameRing, FrameSource, Instant};
 
@@ -373,6 +375,13 @@ fn run<E: FrameEngine<SharedMemory>>(
                     busy = true;
                     if clients.len() >= CONNECTIONS {
                         let _ = writeln!(log, "rtsp: connection from {peer} refused: {CONNECTIONS} open");
+                        continue;
+                    }
+                    if !rtsp::admits(clients.iter().map(|c| c.conn.peer()), peer.ip()) {
+                        let _ = writeln!(
+                            log,
+                            "rtsp: connection from {peer} refused: {CONNECTIONS_PER_ADDRESS} open from it"
+                        );
                         continue;
                     }
                     stream.set_nonblocking(true)?;

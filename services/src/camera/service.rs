@@ -46,7 +46,9 @@ use smoltcp::wire::{
 
 use super::random::SessionRng;
 use super::rtp::{Endpoints, HeaderTemplate, Packetiser, RowPacket, UdpChecksum, HEADER_BYTES, UNICAST_TTL};
-use super::rtsp::{self, ConnId, Connection, Server, CONNECTIONS, MAX_RESPONSE_BYTES, MAX_SESSIONS, RTSP_PORT};
+use super::rtsp::{
+    self, ConnId, Connection, Server, CONNECTIONS, CONNECTIONS_PER_ADDRESS, MAX_RESPONSE_BYTES, MAX_SESSIONS, RTSP_PORT,
+};
 use super::sender::{Bound, Camera, Dest, RtpSink, SlotSource};
 use crate::frames::FrameSource;
 use crate::tcp::Handshake;
@@ -547,6 +549,13 @@ impl<'c> CameraService<'c> {
                 return;
             }
             let Some(peer) = socket.remote_endpoint() else { return };
+            let open = self.sockets.iter().filter_map(|s| s.conn.as_ref()).map(Connection::peer);
+            if !rtsp::admits(open, IpAddr::from(peer.addr)) {
+                let _ =
+                    writeln!(log, "rtsp: client {peer} refused: {CONNECTIONS_PER_ADDRESS} connections open from it");
+                socket.abort();
+                return;
+            }
             self.next_conn = self.next_conn.wrapping_add(1);
             let id = ConnId(self.next_conn);
             let _ = writeln!(log, "rtsp: client {peer} ({id})");

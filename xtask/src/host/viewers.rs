@@ -75,7 +75,10 @@ fn viewers(
             let transport = if i == n - 1 { last } else { Transport::Udp };
             thread::spawn(move || -> Result<f64> {
                 let want = want?;
-                let mut s = Stream::open_with(rtsp, &path, None, transport)?;
+                // Each from an address of its own (127.0.0.10 + i): one
+                // address holds at most SESSIONS_PER_ADDRESS sessions.
+                let local = Ipv4Addr::new(127, 0, 0, 10 + i as u8);
+                let mut s = Stream::open_from(rtsp, &path, None, transport, Some(local))?;
                 let mut first = None;
                 for k in 0..frames {
                     let f = s.next_frame(Duration::from_secs(20)).map_err(|e| format!("viewer {i}, frame {k}: {e}"))?;
@@ -176,6 +179,9 @@ fn multicast() -> Result<()> {
             .arg(&xtask)
             .args(["receive", "--rtsp", &rtsp.to_string(), "--path", path, "--frames", &frames.to_string()])
             .args(["--multicast", "127.0.0.1", "--light", "3,4,-2"])
+            // Each receiver a host of its own (127.0.0.2 to .4): the
+            // server gives one address SESSIONS_PER_ADDRESS sessions.
+            .arg(format!("--from=127.0.0.{}", 2 + i))
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
@@ -252,6 +258,10 @@ pub struct ReceiveArgs {
     /// The stream's light (X,Y,Z, world units): every frame must be its.
     #[arg(long, allow_hyphen_values = true)]
     pub light: String,
+    /// The local address to connect and receive from (a host of its own
+    /// on loopback, where the server caps sessions per address).
+    #[arg(long)]
+    pub from: Option<Ipv4Addr>,
 }
 
 /// Receive and check; print one line.
@@ -263,7 +273,7 @@ pub fn receive(args: &ReceiveArgs) -> Result<()> {
         (None, true) => Transport::Tcp,
         (None, false) => Transport::Udp,
     };
-    let mut s = Stream::open_with(args.rtsp, &args.path, None, transport)?;
+    let mut s = Stream::open_from(args.rtsp, &args.path, None, transport, args.from)?;
     let start = Instant::now();
     for k in 0..args.frames {
         let f = s.next_frame(Duration::from_secs(30))?;

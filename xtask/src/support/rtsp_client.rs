@@ -142,11 +142,25 @@ impl Stream {
 
     /// [`open`](Self::open) over `transport`.
     pub fn open_with(rtsp: SocketAddr, path: &str, rtcp: Option<SocketAddr>, transport: Transport) -> Result<Stream> {
+        Stream::open_from(rtsp, path, rtcp, transport, None)
+    }
+
+    /// [`open_with`](Self::open_with) from the local address `local` (its
+    /// RTSP connection and its UDP ports): on loopback, where all of
+    /// 127.0.0.0/8 is this host's, viewers that look like hosts of their
+    /// own to a server with per-address caps.
+    pub fn open_from(
+        rtsp: SocketAddr,
+        path: &str,
+        rtcp: Option<SocketAddr>,
+        transport: Transport,
+        local: Option<Ipv4Addr>,
+    ) -> Result<Stream> {
         // A server with every connection taken refuses more for a moment:
         // try again for up to 10 s, as a user would.
         let deadline = Instant::now() + Duration::from_secs(10);
         let ctrl = loop {
-            match TcpStream::connect_timeout(&rtsp, Duration::from_secs(10)) {
+            match connect_from(local, rtsp) {
                 Ok(c) => break c,
                 Err(e) if e.kind() == std::io::ErrorKind::ConnectionRefused && Instant::now() < deadline => {
                     std::thread::sleep(Duration::from_millis(200))
@@ -156,7 +170,7 @@ impl Stream {
         };
         ctrl.set_read_timeout(Some(Duration::from_secs(20))).map_err(|e| e.to_string())?;
         let reader = BufReader::new(ctrl.try_clone().map_err(|e| e.to_string())?);
-        let (rtp, rtcp_sock) = udp_pair()?;
+        let (rtp, rtcp_sock) = udp_pair(local.unwrap_or(Ipv4Addr::UNSPECIFIED))?;
         let mut s = Stream {
             ctrl,
             reader,
@@ -539,12 +553,12 @@ fn field(h: &Headers, name: &str) -> Result<String> {
 /// Two client UDP sockets on consecutive ports, the first even; the RTP
 /// one with a receive buffer for two frames' bursts (as much of 4 MiB as
 /// `net.core.rmem_max` grants), as a player asks for.
-fn udp_pair() -> Result<(UdpSocket, UdpSocket)> {
+fn udp_pair(local: Ipv4Addr) -> Result<(UdpSocket, UdpSocket)> {
     for _ in 0..64 {
         let probe = UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
         let port = probe.local_addr().map_err(|e| e.to_string())?.port() & !1;
         drop(probe);
-        if let (Ok(a), Ok(b)) = (bind_rtp(port), UdpSocket::bind(("0.0.0.0", port + 1))) {
+        if let (Ok(a), Ok(b)) = (bind_rtp(local, port), UdpSocket::bind((local, port + 1))) {
             return Ok((a, b));
         }
     }
@@ -566,12 +580,22 @@ fn join_group(group: Ipv4Addr, port: u16, iface: Ipv4Addr) -> Result<UdpSocket> 
     go().map_err(|e| format!("joining {group}:{port} on {iface}: {e}"))
 }
 
-fn bind_rtp(port: u16) -> std::io::Result<UdpSocket> {
+fn bind_rtp(local: Ipv4Addr, port: u16) -> std::io::Result<UdpSocket> {
     use socket2::{Domain, Protocol, Socket, Type};
     let socket = Socket::new(Domain::IPV4, Type::DGRAM, Some(Protocol::UDP))?;
     // Best effort: a smaller buffer only means more repairs.
     let _ = socket.set_recv_buffer_size(4 << 20);
-    socket.bind(&std::net::SocketAddr::from(([0, 0, 0, 0], port)).into())?;
+    socket.bind(&std::net::SocketAddr::from((local, port)).into())?;
+    Ok(socket.into())
+}
+
+/// A TCP connection to `to`, from `local` when given (10 s to connect).
+pub fn connect_from(local: Option<Ipv4Addr>, to: SocketAddr) -> std::io::Result<TcpStream> {
+    use socket2::{Domain, Protocol, Socket, Type};
+    let Some(local) = local else { return TcpStream::connect_timeout(&to, Duration::from_secs(10)) };
+    let socket = Socket::new(Domain::IPV4, Type::STREAM, Some(Protocol::TCP))?;
+    socket.bind(&SocketAddr::from((local, 0)).into())?;
+    socket.connect_timeout(&to.into(), Duration::from_secs(10))?;
     Ok(socket.into())
 }
 

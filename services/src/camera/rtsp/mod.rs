@@ -109,6 +109,22 @@ pub const MAX_SESSIONS: usize = 4;
 /// nobody uses waits for its deadline.
 pub const CONNECTIONS: usize = MAX_SESSIONS + 2;
 
+/// Sessions one address may hold: one place always stays for another
+/// host (a host that sets up sessions it never plays, or plays every
+/// stream, keeps nobody else out).
+pub const SESSIONS_PER_ADDRESS: usize = MAX_SESSIONS - 1;
+
+/// RTSP connections one address may hold ([`admits`]): a player per
+/// session it may hold and one spare, so two places stay for other hosts.
+pub const CONNECTIONS_PER_ADDRESS: usize = SESSIONS_PER_ADDRESS + 1;
+
+/// Whether a new connection from `peer` may stay, given the peers of the
+/// connections already open (`open`): at most [`CONNECTIONS_PER_ADDRESS`]
+/// from one address. The binding closes one refused.
+pub fn admits(open: impl IntoIterator<Item = IpAddr>, peer: IpAddr) -> bool {
+    open.into_iter().filter(|&a| a == peer).count() < CONNECTIONS_PER_ADDRESS
+}
+
 /// A session not heard of for this long ends; announced as `timeout=60` in
 /// the `Session` header.
 pub const SESSION_TIMEOUT: Duration = Duration::from_secs(60);
@@ -657,11 +673,13 @@ impl<const N: usize> Server<N> {
 
     /// Whether the caller should close `conn` at `now`: a request has been
     /// left unfinished for [`REQUEST_DEADLINE`], or the connection owns no
-    /// session and made no request for [`IDLE_DEADLINE`] (or a reply
-    /// closed it).
+    /// session that has played and made no request for [`IDLE_DEADLINE`]
+    /// (or a reply closed it). A session set up and never played keeps no
+    /// connection open: it would let one host hold sockets with sessions
+    /// it never plays.
     pub fn connection_expired(&self, conn: &Connection, now: Instant) -> bool {
         let unfinished = conn.partial_since.is_some_and(|t| now.saturating_duration_since(t) >= REQUEST_DEADLINE);
-        let owns = self.sessions.iter().any(|s| s.client.conn == conn.id());
+        let owns = self.sessions.iter().any(|s| s.client.conn == conn.id() && s.played);
         let idle = !owns && now.saturating_duration_since(conn.last_request) >= IDLE_DEADLINE;
         conn.closed || unfinished || idle
     }
@@ -674,6 +692,19 @@ impl<const N: usize> Server<N> {
             Some(t) => (t + REQUEST_DEADLINE).min(idle),
             None => idle,
         }
+    }
+
+    /// The session that never played and was heard of longest ago, at
+    /// least [`RECLAIM_AFTER`] ago (of `owner`'s, if given): the place a new
+    /// `SETUP` may take.
+    fn reclaimable(&self, now: Instant, owner: Option<IpAddr>) -> Option<usize> {
+        self.sessions
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| owner.is_none_or(|a| s.client.addr == a))
+            .filter(|(_, s)| !s.played && now.saturating_duration_since(s.last_heard) >= RECLAIM_AFTER)
+            .min_by_key(|(_, s)| s.last_heard)
+            .map(|(i, _)| i)
     }
 
     /// The index of the session a `Session` header names, if `peer` owns it.
@@ -902,15 +933,18 @@ impl<const N: usize> Server<N> {
                 i
             }
             Ok(None) => {
-                if self.sessions.is_full() {
-                    let unplayed = self
-                        .sessions
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, s)| !s.played && now.saturating_duration_since(s.last_heard) >= RECLAIM_AFTER)
-                        .min_by_key(|(_, s)| s.last_heard)
-                        .map(|(i, _)| i);
-                    let Some(oldest) = unplayed else { return fail(out, Status::NotEnoughBandwidth) };
+                // Over the address's cap, a place of its own is taken back;
+                // with every place taken, anyone's.
+                let own = self.sessions.iter().filter(|s| s.client.addr == peer.addr).count();
+                let reclaim = if own >= SESSIONS_PER_ADDRESS {
+                    Some(self.reclaimable(now, Some(peer.addr)))
+                } else if self.sessions.is_full() {
+                    Some(self.reclaimable(now, None))
+                } else {
+                    None
+                };
+                if let Some(place) = reclaim {
+                    let Some(oldest) = place else { return fail(out, Status::NotEnoughBandwidth) };
                     let gone = self.sessions.swap_remove(oldest);
                     streams.end(gone.id, EndReason::Reclaimed);
                 }

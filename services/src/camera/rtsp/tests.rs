@@ -158,6 +158,16 @@ impl Rig {
         session_of(&a.text)
     }
 
+    /// SETUP of `url` from a new connection of a host of its own (the
+    /// `k`th: 192.168.1.100 + k); the new session.
+    fn setup_from_host(&mut self, k: u8, url: &str) -> SessionId {
+        let c = self.connect(IpAddr::V4(Ipv4Addr::new(192, 168, 1, 100 + k)));
+        let t = "Transport: RTP/AVP;unicast;client_port=6000-6001\r\n";
+        let a = self.send_on(c, request("SETUP", url, 3, t).as_bytes());
+        assert_eq!(a[0].status, Status::Ok, "{}", a[0].text);
+        session_of(&a[0].text)
+    }
+
     /// The calls since the last look.
     fn calls(&mut self) -> Vec<Call> {
         core::mem::take(&mut self.streams.calls)
@@ -316,8 +326,11 @@ fn interleaved_and_multicast_setups_are_answered_with_their_parameters() {
         "the sender's group, whatever the client asked: {}",
         a.text
     );
-    let a = r.ask(&request("SETUP", URL, 4, "Transport: RTP/AVPF;unicast;client_port=9000-9001\r\n"));
-    assert!(a.text.contains("Transport: RTP/AVPF;unicast;client_port=9000-9001;"), "{}", a.text);
+    // (From another host: one address holds SESSIONS_PER_ADDRESS.)
+    let other = r.connect(OTHER);
+    let a =
+        r.send_on(other, request("SETUP", URL, 4, "Transport: RTP/AVPF;unicast;client_port=9000-9001\r\n").as_bytes());
+    assert!(a[0].text.contains("Transport: RTP/AVPF;unicast;client_port=9000-9001;"), "{}", a[0].text);
 }
 
 #[test]
@@ -496,10 +509,13 @@ fn a_session_belongs_to_the_address_that_set_it_up() {
 #[test]
 fn the_session_cap_answers_453() {
     let mut r = Rig::new();
-    let ids: Vec<SessionId> = (0..MAX_SESSIONS).map(|_| r.setup(URL)).collect();
+    let mut ids: Vec<SessionId> = (0..SESSIONS_PER_ADDRESS).map(|_| r.setup(URL)).collect();
+    ids.push(r.setup_from_host(0, URL));
+    assert_eq!(ids.len(), MAX_SESSIONS);
     let transport = "Transport: RTP/AVP;unicast;client_port=6000-6001\r\n";
-    let a = r.ask(&request("SETUP", URL, 7, transport));
-    assert_eq!(a.text, "RTSP/1.0 453 Not Enough Bandwidth\r\nCSeq: 7\r\n\r\n");
+    let c = r.connect(OTHER);
+    let a = r.send_on(c, request("SETUP", URL, 7, transport).as_bytes());
+    assert_eq!(a[0].text, "RTSP/1.0 453 Not Enough Bandwidth\r\nCSeq: 7\r\n\r\n");
     assert_eq!(r.server.sessions().len(), MAX_SESSIONS);
     // Re-SETUP of an open session is no new one.
     assert_eq!(r.ask(&request("SETUP", URL, 8, &format!("{transport}Session: {}\r\n", ids[1]))).status, Status::Ok);
@@ -577,6 +593,7 @@ fn an_unfinished_request_and_an_idle_connection_without_a_session_expire() {
     let c = r.connect(CLIENT);
     let a = r.send_on(c, request("SETUP", URL, 1, "Transport: RTP/AVP;unicast;client_port=6000-6001\r\n").as_bytes());
     let id = session_of(&a[0].text);
+    r.send_on(c, with_session("PLAY", id, 2).as_bytes());
     assert!(!r.server.connection_expired(&r.conns[c], at(50_000)));
     r.server.remove(id);
     assert!(r.server.connection_expired(&r.conns[c], at(50_000)));
@@ -726,7 +743,7 @@ fn sessions_set_up_and_never_played_give_their_places_to_a_new_viewer() {
     let hoarded: Vec<SessionId> = (0..MAX_SESSIONS as u64)
         .map(|k| {
             r.now = at(k * 100);
-            r.setup(URL)
+            r.setup_from_host(k as u8, URL)
         })
         .collect();
     r.calls();
@@ -746,12 +763,59 @@ fn sessions_set_up_and_never_played_give_their_places_to_a_new_viewer() {
     assert_eq!(r.server.next_deadline(), Some(at(100) + UNPLAYED_TIMEOUT), "the next oldest never played");
     r.now = at(20_000);
     for k in 0..3 {
-        assert!(
-            r.ask(&request("SETUP", URL, 12 + k, "Transport: RTP/AVP;unicast;client_port=7002-7003\r\n")).status
-                == Status::Ok
-        );
+        r.setup_from_host(10 + k, URL);
     }
-    let a = r.ask(&request("SETUP", URL, 20, "Transport: RTP/AVP;unicast;client_port=7004-7005\r\n"));
+    let c = r.connect(OTHER);
+    let a =
+        &r.send_on(c, request("SETUP", URL, 20, "Transport: RTP/AVP;unicast;client_port=7004-7005\r\n").as_bytes())[0];
     assert_eq!(a.status, Status::NotEnoughBandwidth, "the playing one keeps its place; the rest are new");
     assert!(r.server.session(fresh).is_some());
+}
+
+/// Issue 34, item 10: one host cannot hold every place. Four SETUPs with
+/// no PLAY from one address take [`SESSIONS_PER_ADDRESS`] places at most
+/// (the one over its cap takes the place of that address's own oldest
+/// never-played session, or gets 453), so a SETUP from another address
+/// gets 200 at once.
+#[test]
+fn one_address_holds_at_most_its_cap_of_sessions() {
+    let mut r = Rig::new();
+    let transport = "Transport: RTP/AVP;unicast;client_port=6000-6001\r\n";
+    let statuses: Vec<Status> = (0..4).map(|k| r.ask(&request("SETUP", URL, 1 + k, transport)).status).collect();
+    assert_eq!(statuses, [Status::Ok, Status::Ok, Status::Ok, Status::NotEnoughBandwidth]);
+    assert_eq!(r.server.sessions().len(), SESSIONS_PER_ADDRESS);
+    let other = r.connect(OTHER);
+    let a = r.send_on(other, request("SETUP", URL, 1, transport).as_bytes());
+    assert_eq!(a[0].status, Status::Ok, "{}", a[0].text);
+    // Over its cap once its own oldest never-played session is old enough:
+    // that one gives its place, the other address's session stays.
+    let first = r.server.sessions().iter().find(|s| s.client().addr == CLIENT).unwrap().id();
+    r.calls();
+    r.now = at(RECLAIM_AFTER.as_millis() as u64);
+    assert_eq!(r.ask(&request("SETUP", URL, 9, transport)).status, Status::Ok);
+    assert_eq!(r.calls().first(), Some(&Call::End(first, EndReason::Reclaimed)));
+    let from = |addr| r.server.sessions().iter().filter(|s| s.client().addr == addr).count();
+    assert_eq!((from(CLIENT), from(OTHER)), (SESSIONS_PER_ADDRESS, 1));
+}
+
+/// Connections too: an address with [`CONNECTIONS_PER_ADDRESS`] open gets
+/// no more, another address does.
+#[test]
+fn one_address_holds_at_most_its_cap_of_connections() {
+    let open = [CLIENT; CONNECTIONS_PER_ADDRESS];
+    assert!(admits(open[1..].iter().copied(), CLIENT));
+    assert!(!admits(open.iter().copied(), CLIENT));
+    assert!(admits(open.iter().copied(), OTHER));
+}
+
+/// Owning a session that never played keeps no connection past its idle
+/// deadline (an address could hold sockets with sessions it never plays);
+/// one whose session played is kept while the session lives.
+#[test]
+fn only_a_played_session_keeps_its_connection_past_the_idle_deadline() {
+    let mut r = Rig::new();
+    let id = r.setup(URL);
+    assert!(r.server.connection_expired(&r.conns[0], at(IDLE_DEADLINE.as_millis() as u64)));
+    r.ask(&with_session("PLAY", id, 4));
+    assert!(!r.server.connection_expired(&r.conns[0], at(50_000)));
 }
