@@ -25,11 +25,15 @@
 //! ([`StreamSpec::light_at`]). Rows go to every output as they land, in
 //! runs; an output that cannot take rows for [`OUTPUT_STALL`]
 //! ([`TCP_OUTPUT_STALL`] inside an RTSP connection) is cut from
-//! the frame and joins the next, and so is one still behind when another
-//! output has the whole frame and the next frame is due (`fps=N`), or
-//! after as long again as the frame took (`fps=max`, at least
-//! [`MIN_LAG`]): a slow client loses frames and never holds the others
-//! back (gst-rtsp-server drops a client's backlog likewise). When every output has the frame it is ended, and its
+//! the frame and joins the next. One still behind when another output has
+//! the whole frame and the next frame is due (`fps=N`), or after as long
+//! again as the frame took (`fps=max`, at least [`MIN_LAG`]), is late: the
+//! stream goes on without it while it finishes its frame from the slot,
+//! which it holds meanwhile (one slot more per late output), and it joins
+//! the first frame that begins after that. A slow client loses whole
+//! frames, never parts of one, and never holds the others back
+//! (gst-rtsp-server drops a client's backlog likewise); one that takes
+//! nothing for its stall limit is cut. When every output has the frame it is ended, and its
 //! packets stay in the stream's repair window until the frame after next
 //! begins (and at most [`MIN_REPAIR_HOLD`] after their frame's end if the
 //! stream stops): a stream holds at most two slots, the frame being sent
@@ -309,6 +313,9 @@ pub struct OutputStats {
     pub over_budget: u32,
     /// Frames cut short: the output stalled, or paused, mid-frame.
     pub cut: u32,
+    /// Frames it was still sending when they were due to end, finished
+    /// from the repair window while the stream went on.
+    pub late: u32,
     /// NACK datagrams not read at all: the budget was spent.
     pub nacks_unread: u32,
 }
@@ -439,6 +446,11 @@ enum Cursor {
     Waiting { from: u32 },
     /// In the current frame, row `next` goes next.
     Sending { next: u16 },
+    /// Behind when its frame was due to end: it finishes that frame, in
+    /// `slot` (which it holds meanwhile), from packet `next` on, while the
+    /// stream goes on without it, then waits for the next frame to begin.
+    /// A slow client loses whole frames, never parts of one.
+    Finishing { slot: u8, next: RowPacket },
 }
 
 /// One way out of a stream: a unicast client, or a multicast group.
@@ -588,11 +600,16 @@ impl<const N: usize> Camera<N> {
         self.outputs[m.output].as_ref().map_or(0, |o| self.windows[o.media].len())
     }
 
-    /// The frame slots the repair windows hold (bit `i`: slot `i`); give it
+    /// The frame slots the repair windows and late outputs hold (bit `i`:
+    /// slot `i`); give it
     /// to the source ([`SlotSource::set_held`]) after every call that
     /// sends or forgets ([`Bound`] and [`poll`](Self::poll) do).
     pub fn held(&self) -> u32 {
-        self.windows.iter().fold(0, |m, w| m | w.held())
+        let late = self.outputs.iter().flatten().fold(0, |m, o| match o.cursor {
+            Cursor::Finishing { slot, .. } => m | 1 << slot,
+            _ => m,
+        });
+        self.windows.iter().fold(late, |m, w| m | w.held())
     }
 
     /// A session the sender ended itself, and why: the RTSP server must
@@ -787,7 +804,7 @@ impl<const N: usize> Camera<N> {
         let Some(o) = self.outputs[output].as_mut() else { return };
         o.playing = o.playing.saturating_sub(1);
         if o.playing == 0 {
-            if matches!(o.cursor, Cursor::Sending { .. }) {
+            if matches!(o.cursor, Cursor::Sending { .. } | Cursor::Finishing { .. }) {
                 o.stats.cut += 1;
             }
             o.cursor = Cursor::Paused;
@@ -1024,10 +1041,39 @@ impl<const N: usize> Camera<N> {
         for media in 0..N {
             progress |= self.poll_stream(media, now, source, sink);
         }
+        progress |= self.cut_late_over_budget();
         if progress {
             source.set_held(self.held());
         }
         progress
+    }
+
+    /// Late outputs hold their frames' slots only within the camera's
+    /// [`CAMERA_SLOTS`], so that the ring's other users never wait for a
+    /// laggard: beyond it a late output is cut (its client gets that frame
+    /// in part). A late output shares its stream with another output, so a
+    /// stream with one holds three slots and one without, at most two: with
+    /// [`MAX_SESSIONS`] sessions that fits, and this guard never cuts.
+    fn cut_late_over_budget(&mut self) -> bool {
+        let mut cut = false;
+        while self.held().count_ones() as usize > CAMERA_SLOTS {
+            let windows = self.windows.iter().fold(0, |m, w| m | w.held());
+            // A late output whose slot nothing else holds.
+            let Some(o) = self
+                .outputs
+                .iter_mut()
+                .flatten()
+                .find(|o| matches!(o.cursor, Cursor::Finishing { slot, .. } if windows & (1 << slot) == 0))
+            else {
+                break;
+            };
+            if let Cursor::Finishing { next, .. } = o.cursor {
+                o.cursor = Cursor::Waiting { from: next.seq.wrapping_add(u32::from(ROWS - next.row)) };
+                o.stats.cut += 1;
+                cut = true;
+            }
+        }
+        cut
     }
 
     /// `sr`, the stream's CNAME and a BYE in `self.rtcp`; its length.
@@ -1078,6 +1124,10 @@ impl<const N: usize> Camera<N> {
             let before = o.stats.resent;
             repairs_left |= !send_repairs(o, window, &media.packetiser, source, sink);
             progress |= o.stats.resent != before;
+        }
+        // Late outputs finish their frames; nothing waits for them.
+        for o in self.outputs.iter_mut().flatten().filter(|o| o.media == mi) {
+            progress |= finish_late(o, &media.packetiser, source, sink, now);
         }
         if !media.running {
             return progress;
@@ -1235,9 +1285,10 @@ impl<const N: usize> Camera<N> {
                     o.stats.frames += 1;
                 }
                 Cursor::Sending { .. } if failed => o.cursor = Cursor::Waiting { from: next_frame },
-                Cursor::Sending { .. } if lagging => {
-                    o.cursor = Cursor::Waiting { from: next_frame };
-                    o.stats.cut += 1;
+                Cursor::Sending { next } if lagging => {
+                    // Slots number fewer than 32 (the held masks' bits).
+                    o.cursor = Cursor::Finishing { slot: frame.slot as u8, next: frame.packet(next) };
+                    o.stats.late += 1;
                 }
                 Cursor::Sending { .. }
                     if o.stalled_since.is_some_and(|t| now.saturating_duration_since(t) >= o.stall_limit()) =>
@@ -1300,12 +1351,16 @@ impl<const N: usize> Camera<N> {
         self.frame_edges
     }
 
-    /// Whether any stream is sending a frame, or has repairs or goodbyes
-    /// waiting: the caller should poll again soon.
+    /// Whether any stream is sending a frame, or has repairs, a late
+    /// frame or goodbyes waiting: the caller should poll again soon.
     pub fn busy(&self) -> bool {
         !self.byes.is_empty()
             || self.media.iter().flatten().any(|m| m.current.is_some())
-            || self.outputs.iter().flatten().any(|o| !o.repairs.is_empty())
+            || self
+                .outputs
+                .iter()
+                .flatten()
+                .any(|o| !o.repairs.is_empty() || matches!(o.cursor, Cursor::Finishing { .. }))
     }
 }
 
@@ -1316,6 +1371,40 @@ fn record_landed(window: &mut FrameRepairWindow, frame: &mut Frame, now: Instant
         let _ = window.record_run(now, frame.slot, frame.packet(frame.recorded), frame.landed - frame.recorded);
         frame.recorded = frame.landed;
     }
+}
+
+/// Send a [`Cursor::Finishing`] output's rows left of its frame while the
+/// sink takes them; whether any went. One that takes none for its stall
+/// limit is cut.
+fn finish_late<S: FrameSource<Frame = usize>, K: RtpSink>(
+    o: &mut Output,
+    packetiser: &Packetiser,
+    source: &mut S,
+    sink: &mut K,
+    now: Instant,
+) -> bool {
+    let Cursor::Finishing { slot, next } = o.cursor else { return false };
+    let want = ROWS - next.row;
+    let end = next.seq.wrapping_add(u32::from(want));
+    let sent = sink.send_rows(&o.dest, packetiser, &next, want, usize::from(slot), source).min(want);
+    o.stats.packets += u32::from(sent);
+    if sent == 0 {
+        let since = *o.stalled_since.get_or_insert(now);
+        if now.saturating_duration_since(since) >= o.stall_limit() {
+            o.cursor = Cursor::Waiting { from: end };
+            o.stats.cut += 1;
+            return true;
+        }
+        return false;
+    }
+    o.stalled_since = None;
+    o.cursor = if sent == want {
+        o.stats.frames += 1;
+        Cursor::Waiting { from: end }
+    } else {
+        Cursor::Finishing { slot, next: next.nth(sent) }
+    };
+    true
 }
 
 /// Resend output `o`'s NACKed packets still waiting, oldest request first,

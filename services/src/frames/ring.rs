@@ -335,6 +335,10 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameSource for Fram
                 y < *rows
             }
             Some(SlotState::Ready) => y < ROWS,
+            // Ended whole (Ready, then Free) and still held by a repair
+            // window: its bytes stay until the window lets it go (a late
+            // output finishes its frame from there).
+            Some(SlotState::Free) => self.held & (1 << frame) != 0,
             _ => false,
         };
         if !landed || offset >= ROW_BYTES {
@@ -573,6 +577,23 @@ pub(crate) mod tests {
         ring.unpin(a);
         assert_eq!(ring.free_slots(), 2, "a and b");
         assert_eq!(ring.slot_address(2), 0x1000 + 2 * FRAME_BYTES as u32);
+    }
+
+    /// A frame's rows stay readable after its end while a repair window
+    /// holds its slot (a late viewer finishes it from there), not after.
+    #[test]
+    fn an_ended_frame_is_readable_while_held() {
+        let mut mem = vec![0u8; FRAME_BYTES];
+        let mut ring = FrameRing::<_, _, 1>::new(SliceMemory::new(0, &mut mem), RowEngine::new(SoftwareRenderer));
+        let f = ring.begin(&light(1.0)).unwrap().unwrap();
+        while ring.rows_ready(f).unwrap() < ROWS {}
+        let mut row = [0u8; ROW_BYTES];
+        ring.set_held(1 << f);
+        ring.end(f);
+        assert_eq!(ring.copy_row(f, ROWS - 1, 0, &mut row), ROW_BYTES);
+        assert!(row[..] == model::render_frame(&light(1.0))[FRAME_BYTES - ROW_BYTES..]);
+        ring.set_held(0);
+        assert_eq!(ring.copy_row(f, 0, 0, &mut row), 0, "let go: the slot may be rendered into again");
     }
 
     #[test]

@@ -97,11 +97,14 @@ impl Received {
 
 /// A sink reading rows out of the ring's memory (as hps-sim does; for an
 /// interleaved output through the source, as the board does), taking at
-/// most `room` row packets before it refuses, and none for `blocked`.
+/// most `room` row packets before it refuses, none for `blocked`, and for
+/// `slow` only as many as its count says (a client reading slowly: the
+/// test refills it).
 struct Sink {
     mem: Shared,
     room: usize,
     blocked: Option<Dest>,
+    slow: Option<(Dest, usize)>,
     rows: Vec<Received>,
     rtcp: Vec<(Dest, Vec<u8>)>,
     /// `should_yield` says yes once this many rows went (`None`: never).
@@ -122,6 +125,12 @@ impl RtpSink for Sink {
         for k in 0..count {
             if self.room == 0 || self.blocked == Some(*to) {
                 return k;
+            }
+            if let Some((_, left)) = self.slow.as_mut().filter(|(d, _)| d == to) {
+                if *left == 0 {
+                    return k;
+                }
+                *left -= 1;
             }
             self.room -= 1;
             let packet = first.nth(k);
@@ -192,8 +201,16 @@ fn rig(step: u16) -> Rig {
     let (cap, started) = (Rc::new(Cell::new(ROWS)), Rc::new(Cell::new(0)));
     let engine = Pattern { step, rows: 0, cap: cap.clone(), started: started.clone(), fail: None, current: None };
     let ring = FrameRing::new(mem.clone(), engine);
-    let sink =
-        Sink { mem, room: usize::MAX, blocked: None, rows: vec![], rtcp: vec![], yield_at: None, yield_asked: 0 };
+    let sink = Sink {
+        mem,
+        room: usize::MAX,
+        blocked: None,
+        slow: None,
+        rows: vec![],
+        rtcp: vec![],
+        yield_at: None,
+        yield_asked: 0,
+    };
     let mut camera = Box::new(Camera::new());
     let multicast = Some(Multicast { group: GROUP, base_port: 5006, ttl: 1 });
     camera.configure(Config {
@@ -495,15 +512,28 @@ fn a_stalled_output_is_cut_from_the_frame_and_the_others_go_on() {
     assert_eq!(r.started.get(), 1, "fps=max: the next frame waits for the slow output");
     r.settle(t(0) + (MIN_LAG - Duration::from_millis(1)));
     assert_eq!(r.started.get(), 1, "for as long again as the frame took, at least MIN_LAG");
-    r.settle(t(0) + MIN_LAG);
-    assert_eq!(r.camera.stats(SessionId(2)).unwrap().cut, 1);
-    assert!(r.started.get() > 1, "then it is cut and the stream goes on");
+    for _ in 0..4 {
+        r.poll(t(0) + MIN_LAG); // fps=max: frames for ever
+    }
+    assert_eq!(r.camera.stats(SessionId(2)).unwrap().late, 1);
+    assert!(r.started.get() > 1, "then it is late and the stream goes on without it");
     r.sink.blocked = None;
     for _ in 0..4 {
-        r.poll(t(600)); // fps=max: frames for ever
+        r.poll(t(100));
     }
     let late = r.sink.rows_to(udp_dest(CLIENT, 7000));
-    assert_eq!(late[0].line(), 0, "back at a frame's start");
+    assert!(late.len() > usize::from(ROWS), "it finished its frame and goes on");
+    assert!(late[..usize::from(ROWS)].iter().map(|x| x.line()).eq(0..ROWS), "its whole frame, late");
+    assert!(late[..usize::from(ROWS)].iter().all(|x| x.timestamp() == late[0].timestamp()));
+    assert_eq!(late[usize::from(ROWS)].line(), 0, "then a frame from its start");
+    // One that takes nothing for its stall limit is cut from the frame.
+    r.sink.blocked = Some(udp_dest(CLIENT, 7000));
+    for ms in [200, 300, 300 + OUTPUT_STALL.as_millis() as u64 + 100] {
+        for _ in 0..4 {
+            r.poll(t(ms));
+        }
+    }
+    assert_eq!(r.camera.stats(SessionId(2)).unwrap().cut, 1);
 }
 
 // ---- Repair ----
@@ -837,7 +867,9 @@ fn a_viewer_that_reads_nothing_slows_only_itself() {
     let frames = r.sink.rows_to(udp_dest(CLIENT, 6000)).iter().filter(|x| x.line() == ROWS - 1).count();
     assert!(frames >= 25, "the UDP viewer got {frames} frames in a second");
     let s = r.camera.stats(SessionId(2)).unwrap();
-    assert!(s.cut >= 25, "the laggard was cut from each frame: {s:?}");
+    // Late on the frame it was on, which it holds (one slot) until it
+    // reads again or is cut at its stall limit.
+    assert_eq!((s.frames, s.late, s.cut), (0, 1, 0), "{s:?}");
     // The laggard's place in the stream: when it reads again it starts at
     // a frame's first row.
     r.sink.blocked = None;
@@ -846,4 +878,42 @@ fn a_viewer_that_reads_nothing_slows_only_itself() {
     }
     let late = r.sink.rows_to(Dest::Interleaved { conn: ConnId(2), rtp_channel: 0, rtcp_channel: 1 });
     assert_eq!(late.first().map(|x| x.line()), Some(0), "back at a frame's start");
+}
+
+/// A viewer that reads, but slower than the stream (here 60% of an
+/// fps=30 stream's rows), loses whole frames and never parts of them: each
+/// frame it gets is every row of one picture, in order (a player shows a
+/// frame with rows missing as a damaged picture); the UDP viewer beside it
+/// keeps its rate.
+#[test]
+fn a_slow_reader_loses_whole_frames_never_parts_of_them() {
+    let mut r = rig(ROWS);
+    let fixed = spec(Kind::Light(light(1.0)), Fps::Rate(30));
+    r.join(1, fixed, udp(6000), CLIENT, t(0));
+    let slow = Dest::Interleaved { conn: ConnId(2), rtp_channel: 0, rtcp_channel: 1 };
+    r.join(2, fixed, Transport::Interleaved { rtp_channel: 0, rtcp_channel: 1 }, CLIENT2, t(0));
+    for ms in 0..=1_000 {
+        // 6,400 rows a second: 60% of 30 frames. 10,800.
+        r.sink.slow = Some((slow, if ms % 5 == 0 { 16 } else { 4 }));
+        r.settle(t(ms));
+    }
+    let frames = r.sink.rows_to(udp_dest(CLIENT, 6000)).iter().filter(|x| x.line() == ROWS - 1).count();
+    assert!(frames >= 29, "the UDP viewer got {frames} frames in a second");
+    let got = r.sink.rows_to(slow);
+    let mut whole = 0;
+    for frame in got.chunk_by(|a, b| a.timestamp() == b.timestamp()) {
+        let lines: Vec<u16> = frame.iter().map(|x| x.line()).collect();
+        let last = core::ptr::eq(*frame.last().unwrap(), *got.last().unwrap());
+        if last && lines.len() < usize::from(ROWS) {
+            // The frame it is still reading.
+            assert_eq!(lines, (0..lines.len() as u16).collect::<Vec<_>>());
+            continue;
+        }
+        let ts = frame[0].timestamp();
+        assert_eq!(lines.len(), usize::from(ROWS), "frame {ts:08x} to the slow reader: rows {:?}..", lines.first());
+        assert!(lines.iter().copied().eq(0..ROWS), "frame {ts:08x}'s rows in order");
+        assert!(frame.last().unwrap().marker());
+        whole += 1;
+    }
+    assert!((10..=20).contains(&whole), "the slow reader had {whole} whole frames (60% of 30 is 18)");
 }
