@@ -102,6 +102,10 @@ enum Command {
     /// random bytes, a NACK flood, a killed player, multicast counted on
     /// the board's link.
     Hostile,
+    /// What one host may do to the others, on a virtual LAN where every
+    /// client has an address of its own: per-host caps of the camera,
+    /// SYNs nobody completes, a viewer that never reads.
+    PerHost,
     /// The client `lossy-bench` runs inside its network namespace.
     #[command(hide = true)]
     LossyClient(emulated::lossy::ClientArgs),
@@ -130,6 +134,7 @@ fn main() -> ExitCode {
         Command::HostileWeb(args) => emulated::web::client(&args),
         Command::WebTest => suite::web(),
         Command::Hostile => suite::hostile(),
+        Command::PerHost => suite::per_host(),
         Command::LossyTest => support::tools::ensure_qemu().and_then(|()| emulated::lossy::suite_test()),
         Command::EntropyTest => support::tools::ensure_qemu()
             .and_then(|()| images::firmware::build("qemu-npcm750", &["sim-accelerator"]))

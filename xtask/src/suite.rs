@@ -165,6 +165,19 @@ pub fn hostile() -> Result<()> {
     crate::emulated::hostile::run(&elf)
 }
 
+/// `cargo xtask per-host`: what one host may do to the others.
+pub fn per_host() -> Result<()> {
+    ensure_qemu()?;
+    let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
+    per_host_on(&elf)
+}
+
+fn per_host_on(elf: &std::path::Path) -> Result<()> {
+    ensure_apt_packages(&crate::emulated::per_host::PACKAGES, None)?;
+    println!("==> what one host may do to the others, on a virtual LAN ({})", elf.display());
+    crate::emulated::per_host::run(elf)
+}
+
 /// `cargo xtask players`' GStreamer checks against the emulated board.
 pub fn players_on_the_emulated_board(elf: &std::path::Path) -> Result<()> {
     let mut g = crate::images::firmware::Guest::boot(elf, &[])?;
@@ -216,6 +229,7 @@ pub fn qemu_tests() -> Result<()> {
     many_viewers(&elf)?;
     println!("==> the network camera on a hostile network ({})", elf.display());
     crate::emulated::hostile::run(&elf)?;
+    per_host_on(&elf)?;
     // The web page in Chromium: served by hps-sim, then by the emulated
     // board while a hostile client attacks its port.
     crate::host::web_page::run()?;

@@ -4,12 +4,14 @@
 //! connection, FFmpeg inside the RTSP connection, rt-client over UDP with
 //! NACK repair), every frame byte-exact and their summed rate at least 90%
 //! of one player's alone; a fifth is answered 453 and gets no RTP; once
-//! the four have torn down, a new player is served at once.
+//! the four have torn down, a new player is served at once. Each player is
+//! a host of its own on a virtual LAN (lan.rs).
 
 use std::net::{SocketAddr, UdpSocket};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
+use super::lan::{Lan, BOARD};
 use super::qemu_e2e::expected_frame;
 use crate::images::firmware::Guest;
 use crate::support::player::{Kind, Played, Player};
@@ -21,62 +23,72 @@ use model::ROW_BYTES;
 /// The stream every viewer plays.
 const PATH: &str = "/light/3,4,-2?fps=max";
 
-/// Frames each player takes (the emulated board renders some four a
-/// second on its CPU).
-const FRAMES: usize = 12;
+/// Frames each player takes (the emulated board renders some five a
+/// second on its CPU): enough that the four players' sessions overlap
+/// though FFmpeg takes some seconds longer than rt-client to start.
+const FRAMES: usize = 20;
 
 /// The players, one of each kind the issue names and GStreamer over TCP.
 const PLAYERS: [Kind; 4] = [Kind::GstUdp, Kind::FfmpegTcp, Kind::RtClient, Kind::GstTcp];
 
-/// Run the test against the firmware `elf` (a frame-mode build).
+/// Run the test against the firmware `elf` (a frame-mode build), on a
+/// virtual LAN (lan.rs): each player is a host of its own, as in a lab
+/// (one address holds at most `SESSIONS_PER_ADDRESS` sessions).
 pub fn run(elf: &Path) -> Result<()> {
-    let mut g = Guest::boot(elf, &[])?;
-    let f = g.forwards.ok_or("the guest has no forwarded ports")?;
-    let rtsp = SocketAddr::from(([127, 0, 0, 1], f.rtsp));
-    let rtcp = SocketAddr::from(([127, 0, 0, 1], f.rtcp));
+    let mut lan = Lan::boot(elf, PLAYERS.len() + 2)?;
+    let (alone_host, next_host) = (PLAYERS.len(), PLAYERS.len() + 1);
+    let rtsp = SocketAddr::from((BOARD, 8554));
     let want = expected_frame([3 << 10, 4 << 10, -(2 << 10)])?;
     let url = format!("rtsp://{rtsp}{PATH}");
     let dir = root().join("target/viewers/emulated");
     let _ = std::fs::remove_dir_all(&dir);
 
     // One player alone: the rate the others' sum is held against.
-    let mut alone = Stream::open(rtsp, PATH, Some(rtcp)).map_err(|e| with_uart(&g, e))?;
-    let mut times = Vec::new();
-    for i in 0..FRAMES {
-        let frame = alone.next_frame(Duration::from_secs(60)).map_err(|e| with_uart(&g, e))?;
-        if frame.bytes != want {
-            return Err(format!("the lone viewer's frame {i} is not the model's"));
-        }
-        times.push(Instant::now());
-    }
-    alone.teardown()?;
-    let alone_fps = (FRAMES - 1) as f64 / times[FRAMES - 1].duration_since(times[0]).as_secs_f64().max(1e-6);
+    let alone_want = want.clone();
+    let alone_fps = lan
+        .on_host(alone_host, move || {
+            let mut alone = Stream::open(rtsp, PATH, None)?;
+            let mut times = Vec::new();
+            for i in 0..FRAMES {
+                let frame = alone.next_frame(Duration::from_secs(60))?;
+                if frame.bytes != alone_want {
+                    return Err(format!("the lone viewer's frame {i} is not the model's"));
+                }
+                times.push(Instant::now());
+            }
+            alone.teardown()?;
+            Ok((FRAMES - 1) as f64 / times[FRAMES - 1].duration_since(times[0]).as_secs_f64().max(1e-6))
+        })
+        .map_err(|e| lan.with_uart(e))?;
     println!("viewers: one viewer alone: {alone_fps:.2} frames/s, {FRAMES} frames byte-exact");
 
-    // Four at once.
+    // Four at once, each from a host of its own.
     let players: Vec<Player> = PLAYERS
         .iter()
         .enumerate()
-        .map(|(i, &kind)| Player::start(kind, &url, FRAMES, &dir.join(format!("{i}"))))
+        .map(|(i, &kind)| Player::start_in(Some(lan.host(i)), kind, &url, FRAMES, &dir.join(format!("{i}"))))
         .collect::<Result<_>>()?;
     // While they play (the board logs four sessions), a fifth is refused:
     // 453, and no RTP.
-    let from = g.uart().len();
-    g.wait_for_line(from.saturating_sub(4096), &format!("({} sessions)", PLAYERS.len()), Duration::from_secs(60))
-        .map_err(|e| format!("the four players' sessions: {e}"))?;
-    let fifth = fifth_is_refused(rtsp).map_err(|e| with_uart(&g, e))?;
+    let from = lan.guest.uart().len();
+    let sessions = format!("({} sessions)", PLAYERS.len());
+    if let Err(e) = lan.guest.wait_for_line(from.saturating_sub(4096), &sessions, Duration::from_secs(60)) {
+        return Err(lan.with_uart(format!("the four players' sessions: {e}")));
+    }
+    let fifth = lan.on_host(alone_host, move || fifth_is_refused(rtsp)).map_err(|e| lan.with_uart(e))?;
     let mut played = Vec::new();
     for p in players {
-        let p: Played = p.wait(Duration::from_secs(120)).map_err(|e| with_uart(&g, e))?;
+        let p: Played = p.wait(Duration::from_secs(120)).map_err(|e| lan.with_uart(e))?;
         if p.frames.len() != FRAMES {
             return Err(format!("{} got {} frames, not {FRAMES}: {}", p.kind.name(), p.frames.len(), p.log));
         }
         if let Some(k) = p.frames.iter().position(|(_, f)| *f != want) {
             let wrong = p.frames[k].1.chunks(ROW_BYTES).zip(want.chunks(ROW_BYTES)).filter(|(a, b)| a != b).count();
-            return Err(with_uart(
-                &g,
-                format!("{}: frame {k} is not the model's ({wrong} rows differ): {}", p.kind.name(), p.log),
-            ));
+            return Err(lan.with_uart(format!(
+                "{}: frame {k} is not the model's ({wrong} rows differ): {}",
+                p.kind.name(),
+                p.log
+            )));
         }
         played.push(p);
     }
@@ -106,17 +118,19 @@ pub fn run(elf: &Path) -> Result<()> {
         return Err(format!("four viewers summed {summed:.2} frames/s, under 90% of one alone ({alone_fps:.2})"));
     }
     // They tore down: a new viewer is served at once.
-    let started = Instant::now();
-    let mut next = Stream::open(rtsp, PATH, Some(rtcp)).map_err(|e| with_uart(&g, format!("after the four: {e}")))?;
-    let frame = next.next_frame(Duration::from_secs(10)).map_err(|e| with_uart(&g, e))?;
-    if frame.bytes != want {
-        return Err("the viewer after the four got a frame that is not the model's".into());
-    }
-    next.teardown()?;
-    println!(
-        "viewers: after the four tore down, a new viewer had its first frame in {:.1} s",
-        started.elapsed().as_secs_f64()
-    );
+    let took = lan
+        .on_host(next_host, move || {
+            let started = Instant::now();
+            let mut next = Stream::open(rtsp, PATH, None).map_err(|e| format!("after the four: {e}"))?;
+            let frame = next.next_frame(Duration::from_secs(10))?;
+            if frame.bytes != want {
+                return Err("the viewer after the four got a frame that is not the model's".into());
+            }
+            next.teardown()?;
+            Ok(started.elapsed())
+        })
+        .map_err(|e| lan.with_uart(e))?;
+    println!("viewers: after the four tore down, a new viewer had its first frame in {:.1} s", took.as_secs_f64());
     Ok(())
 }
 
@@ -124,7 +138,7 @@ pub fn run(elf: &Path) -> Result<()> {
 /// ports it offered.
 fn fifth_is_refused(rtsp: SocketAddr) -> Result<String> {
     use std::io::{BufRead, BufReader, Write};
-    let rtp = UdpSocket::bind("127.0.0.1:0").map_err(|e| e.to_string())?;
+    let rtp = UdpSocket::bind("0.0.0.0:0").map_err(|e| e.to_string())?;
     let port = rtp.local_addr().map_err(|e| e.to_string())?.port();
     let mut ctrl = std::net::TcpStream::connect_timeout(&rtsp, Duration::from_secs(10)).map_err(|e| e.to_string())?;
     ctrl.set_read_timeout(Some(Duration::from_secs(10))).map_err(|e| e.to_string())?;

@@ -1,0 +1,139 @@
+//! A virtual LAN for the emulated board, where each client is a host of
+//! its own: QEMU's user networking (slirp) makes every client reach the
+//! guest from 10.0.2.2, so a per-address limit could never be told apart
+//! from a global one there.
+//!
+//! The board's MAC sends each Ethernet frame as a UDP datagram to the
+//! relay (lossy.rs, here without faults), which puts it on a tap device.
+//! The tap is a port of a bridge inside a network namespace made for the
+//! run (the "switch", 10.0.2.2, the board's gateway); each host is a
+//! namespace of its own with a veth port on that bridge and the address
+//! 10.0.2.(20 + k). Nothing leaves the namespaces (DEVELOPERS.md's network
+//! rule), and all of them go when the [`Lan`] is dropped.
+
+use std::fs::File;
+use std::net::{Ipv4Addr, SocketAddr, UdpSocket};
+use std::os::fd::AsRawFd;
+use std::path::Path;
+use std::process::Command;
+use std::thread;
+use std::time::Duration;
+
+use super::lossy::{self, ip, open_tap, Faults, Namespace, Relay};
+use crate::images::firmware::{free_udp_port, Guest};
+use crate::support::Result;
+
+/// The board's address (firmware/src/platform/qemu_npcm750.rs).
+pub const BOARD: Ipv4Addr = Ipv4Addr::new(10, 0, 2, 15);
+
+/// The board's MAC (QEMU's default for the npcm750-evb's first GMAC).
+const BOARD_MAC: &str = "52:54:00:12:34:56";
+
+/// The emulated board on a LAN of `hosts` hosts.
+pub struct Lan {
+    /// The board (dropped first: QEMU stops before its network goes).
+    pub guest: Guest,
+    _relay: Relay,
+    hosts: Vec<Namespace>,
+    _switch: Namespace,
+}
+
+impl Lan {
+    /// Boot `elf` on a LAN with `hosts` hosts and wait for its link.
+    pub fn boot(elf: &Path, hosts: usize) -> Result<Lan> {
+        lossy::available().map_err(|why| format!("the virtual LAN needs network namespaces: {why}"))?;
+        let id = std::process::id() % 100_000;
+        let tap = format!("rtlan{id}");
+        let tap_file = open_tap(&tap)?;
+        let switch = Namespace::new(&format!("rtlan{id}"), &tap)?;
+        let sw = switch.0.clone();
+        // The tap becomes a bridge port; the switch keeps 10.0.2.2 on the
+        // bridge.
+        ip(&["-n", &sw, "addr", "flush", "dev", &tap])?;
+        ip(&["-n", &sw, "link", "add", "br0", "type", "bridge"])?;
+        ip(&["-n", &sw, "link", "set", &tap, "master", "br0"])?;
+        ip(&["-n", &sw, "addr", "add", "10.0.2.2/24", "dev", "br0"])?;
+        ip(&["-n", &sw, "link", "set", "br0", "up"])?;
+        let mut named = Vec::new();
+        for k in 0..hosts {
+            let name = format!("rtlan{id}h{k}");
+            let _ = ip(&["netns", "del", &name]);
+            ip(&["netns", "add", &name])?;
+            let host = Namespace(name.clone());
+            let port = format!("p{k}");
+            ip(&["-n", &sw, "link", "add", &port, "type", "veth", "peer", "name", "eth0", "netns", &name])?;
+            ip(&["-n", &sw, "link", "set", &port, "master", "br0", "up"])?;
+            let addr = format!("{}/24", Lan::host_addr(k));
+            ip(&["-n", &name, "addr", "add", &addr, "dev", "eth0"])?;
+            ip(&["-n", &name, "link", "set", "eth0", "up"])?;
+            ip(&["-n", &name, "link", "set", "lo", "up"])?;
+            // As in lossy.rs: the board as a fixed neighbour, so a lost
+            // ARP answer never fails a connect.
+            ip(&["-n", &name, "neigh", "replace", &BOARD.to_string(), "lladdr", BOARD_MAC, "dev", "eth0"])?;
+            ip(&["-n", &name, "route", "add", "224.0.0.0/4", "dev", "eth0"])?;
+            named.push(host);
+        }
+        let (qemu_port, relay_port) = (free_udp_port()?, free_udp_port()?);
+        let udp = UdpSocket::bind(("127.0.0.1", relay_port)).map_err(|e| e.to_string())?;
+        let relay = Relay::start(udp, SocketAddr::from(([127, 0, 0, 1], qemu_port)), tap_file, Faults::default(), 1)?;
+        let netdev = format!(
+            "dgram,id=n0,local.type=inet,local.host=127.0.0.1,local.port={qemu_port},\
+             remote.type=inet,remote.host=127.0.0.1,remote.port={relay_port}"
+        );
+        let mut guest = Guest::boot_netdev(elf, &netdev, &[])?;
+        guest.wait_for_log("link up", Duration::from_secs(30))?;
+        Ok(Lan { guest, _relay: relay, hosts: named, _switch: switch })
+    }
+
+    /// Host `k`'s address: 10.0.2.(20 + k).
+    pub fn host_addr(k: usize) -> Ipv4Addr {
+        Ipv4Addr::new(10, 0, 2, 20 + k as u8)
+    }
+
+    /// Host `k`'s namespace (for `ip netns exec`).
+    pub fn host(&self, k: usize) -> &str {
+        &self.hosts[k].0
+    }
+
+    /// `program` run on host `k`.
+    pub fn command(&self, k: usize, program: impl AsRef<std::ffi::OsStr>) -> Command {
+        let mut c = Command::new("ip");
+        c.args(["netns", "exec", self.host(k)]).arg(program);
+        c
+    }
+
+    /// Run `f` on a thread of its own on host `k` (its sockets are that
+    /// host's) and wait for its result.
+    pub fn on_host<T: Send + 'static>(&self, k: usize, f: impl FnOnce() -> Result<T> + Send + 'static) -> Result<T> {
+        self.spawn_on_host(k, f)?.join().map_err(|_| "a host's thread panicked".to_string())?
+    }
+
+    /// Start `f` on a thread of its own on host `k`.
+    pub fn spawn_on_host<T: Send + 'static>(
+        &self,
+        k: usize,
+        f: impl FnOnce() -> Result<T> + Send + 'static,
+    ) -> Result<thread::JoinHandle<Result<T>>> {
+        let path = format!("/var/run/netns/{}", self.host(k));
+        let ns = File::open(&path).map_err(|e| format!("{path}: {e}"))?;
+        Ok(thread::spawn(move || {
+            // SAFETY: setns on a descriptor of a network namespace this
+            // process holds open; CLONE_NEWNET moves only the calling
+            // thread, which is this new one (nothing else runs on it).
+            if unsafe { libc::setns(ns.as_raw_fd(), libc::CLONE_NEWNET) } != 0 {
+                return Err(format!("setns: {}", std::io::Error::last_os_error()));
+            }
+            f()
+        }))
+    }
+
+    /// The board's UART's last lines, after `e`.
+    pub fn with_uart(&self, e: impl std::fmt::Display) -> String {
+        let uart = self.guest.uart();
+        let tail: Vec<&str> = uart.lines().filter(|l| !l.starts_with("display:")).rev().take(40).collect();
+        format!(
+            "{e}\nthe emulated board's UART, last lines:\n{}",
+            tail.into_iter().rev().collect::<Vec<_>>().join("\n")
+        )
+    }
+}

@@ -1,0 +1,285 @@
+//! What one host may do to the others, on the virtual LAN (lan.rs) where
+//! every client has an address of its own (issue 34, items 3, 9 and 10).
+//! One boot, three checks:
+//!
+//! 1. **Caps.** One host opens six RTSP connections: four are served, the
+//!    rest are closed at once ([`CONNECTIONS_PER_ADDRESS`]); four `SETUP`s
+//!    with no `PLAY` on them get three sessions ([`SESSIONS_PER_ADDRESS`]);
+//!    a `SETUP` from another host then gets 200.
+//! 2. **SYNs nobody completes.** hping3 sends SYNs from random source
+//!    addresses (no host answers the board's SYN-ACKs: they go to the
+//!    switch, which forwards nothing) to the page's port and the seed port,
+//!    more than each has sockets; a new visitor is served within 30 s on
+//!    each.
+//! 3. **A laggard.** A viewer that plays a stream inside its RTSP
+//!    connection and never reads leaves a UDP viewer of the same stream at
+//!    90% or more of its rate alone.
+
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use rt_services::camera::rtsp::{CONNECTIONS_PER_ADDRESS, RECLAIM_AFTER, SESSIONS_PER_ADDRESS};
+
+use super::lan::{Lan, BOARD};
+use super::qemu_e2e::expected_frame;
+use crate::support::rtsp_client::Stream;
+use crate::support::Result;
+
+/// Debian's package of the SYN sender.
+pub const PACKAGES: [&str; 1] = ["hping3"];
+
+/// The stream of the laggard check (the issue's `fps=30`; the emulated
+/// board renders fewer, on its CPU).
+const PATH: &str = "/light/3,4,-2?fps=30";
+
+/// Run the three checks against the firmware `elf` (a frame-mode build).
+pub fn run(elf: &Path) -> Result<()> {
+    let lan = Lan::boot(elf, 4)?;
+    let rtsp = SocketAddr::from((BOARD, 8554));
+    lan.on_host(0, move || wait_for_port(rtsp)).map_err(|e| lan.with_uart(e))?;
+    caps(&lan, rtsp).map_err(|e| lan.with_uart(e))?;
+    syns(&lan).map_err(|e| lan.with_uart(e))?;
+    laggard(&lan, rtsp).map_err(|e| lan.with_uart(e))?;
+    Ok(())
+}
+
+/// Connect to `to` until it answers (the board is booting), at most 60 s.
+fn wait_for_port(to: SocketAddr) -> Result<()> {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        match TcpStream::connect_timeout(&to, Duration::from_secs(2)) {
+            Ok(_) => return Ok(()),
+            Err(e) if Instant::now() > deadline => return Err(format!("{to} never answered: {e}")),
+            Err(_) => thread::sleep(Duration::from_millis(500)),
+        }
+    }
+}
+
+/// Send `request` on `c` and read one RTSP answer's status code (`None`:
+/// the connection was closed or reset instead).
+fn ask(c: &mut TcpStream, request: &str) -> Option<u16> {
+    c.write_all(request.as_bytes()).ok()?;
+    let mut got = Vec::new();
+    let mut buf = [0u8; 1024];
+    while !got.windows(4).any(|w| w == b"\r\n\r\n") {
+        match c.read(&mut buf) {
+            Ok(0) | Err(_) => return None,
+            Ok(n) => got.extend_from_slice(&buf[..n]),
+        }
+    }
+    String::from_utf8_lossy(&got).split(' ').nth(1)?.parse().ok()
+}
+
+fn setup(c: &mut TcpStream, cseq: u32) -> Option<u16> {
+    let url = format!("rtsp://{BOARD}:8554{PATH}/trackID=0");
+    ask(c, &format!("SETUP {url} RTSP/1.0\r\nCSeq: {cseq}\r\nTransport: RTP/AVP;unicast;client_port=6000-6001\r\n\r\n"))
+}
+
+/// Check 1.
+fn caps(lan: &Lan, rtsp: SocketAddr) -> Result<()> {
+    let (held, statuses, took) = lan.on_host(0, move || {
+        let mut open = Vec::new();
+        let mut refused = 0;
+        for k in 0..CONNECTIONS_PER_ADDRESS + 2 {
+            let mut c = TcpStream::connect_timeout(&rtsp, Duration::from_secs(5)).map_err(|e| e.to_string())?;
+            c.set_read_timeout(Some(Duration::from_secs(5))).map_err(|e| e.to_string())?;
+            match ask(&mut c, &format!("OPTIONS * RTSP/1.0\r\nCSeq: {k}\r\n\r\n")) {
+                Some(200) => open.push(c),
+                Some(other) => return Err(format!("OPTIONS answered {other}")),
+                None => refused += 1,
+            }
+        }
+        if open.len() != CONNECTIONS_PER_ADDRESS || refused != 2 {
+            return Err(format!(
+                "one host's six connections: {} served, {refused} closed (the cap is {CONNECTIONS_PER_ADDRESS})",
+                open.len()
+            ));
+        }
+        let start = Instant::now();
+        let statuses: Vec<Option<u16>> = open.iter_mut().zip(1..).map(|(c, k)| setup(c, k)).collect();
+        Ok((open, statuses, start.elapsed()))
+    })?;
+    // The fourth SETUP takes the host's own oldest place once that is
+    // RECLAIM_AFTER old (a slow emulation); before, it is refused.
+    let fourth_ok = if took < RECLAIM_AFTER { [Some(453)] } else { [Some(200)] };
+    if statuses[..SESSIONS_PER_ADDRESS].iter().any(|s| *s != Some(200)) || statuses[SESSIONS_PER_ADDRESS..] != fourth_ok
+    {
+        return Err(format!("four SETUPs from one host were answered {statuses:?}"));
+    }
+    let other = lan.on_host(1, move || {
+        let mut c = TcpStream::connect_timeout(&rtsp, Duration::from_secs(5)).map_err(|e| e.to_string())?;
+        c.set_read_timeout(Some(Duration::from_secs(5))).map_err(|e| e.to_string())?;
+        Ok(setup(&mut c, 1))
+    })?;
+    if other != Some(200) {
+        return Err(format!("a SETUP from another host, after one host's four, was answered {other:?}"));
+    }
+    drop(held);
+    println!(
+        "per-host: one host: {CONNECTIONS_PER_ADDRESS} of 6 connections served, its 4 SETUPs answered {statuses:?}; \
+         another host's SETUP then 200"
+    );
+    Ok(())
+}
+
+/// Check 2.
+fn syns(lan: &Lan) -> Result<()> {
+    let want = expected_frame([3 << 10, 4 << 10, -(2 << 10)])?;
+    for (port, count) in [(80u16, 16u32), (7878, 32)] {
+        let from = lan.guest.uart().len();
+        // One SYN every 20 ms from a random address each.
+        let out = lan
+            .command(2, "hping3")
+            .args(["-q", "-S", "--rand-source", "-p", &port.to_string(), "-c", &count.to_string()])
+            .args(["-i", "u20000", &BOARD.to_string()])
+            .output()
+            .map_err(|e| format!("hping3: {e}"))?;
+        if !out.status.success() && out.status.code() != Some(1) {
+            return Err(format!("hping3: {}", String::from_utf8_lossy(&out.stderr)));
+        }
+        let sent = Instant::now();
+        let want = want.clone();
+        let (served, turned_away) = lan.on_host(3, move || {
+            let to = SocketAddr::from((BOARD, port));
+            let mut turned_away = 0;
+            loop {
+                let tried = visit(to, &want);
+                match tried {
+                    Ok(()) => return Ok((sent.elapsed(), turned_away)),
+                    Err(e) if sent.elapsed() > Duration::from_secs(40) => {
+                        return Err(format!("port {port}: no visitor served 40 s after the SYNs: {e}"))
+                    }
+                    Err(_) => {
+                        turned_away += 1;
+                        thread::sleep(Duration::from_millis(250))
+                    }
+                }
+            }
+        })?;
+        let uart = lan.guest.uart();
+        let dropped = uart[from.min(uart.len())..].matches("a handshake never finished").count();
+        println!(
+            "per-host: {count} SYNs nobody completes to port {port}: a new visitor turned away {turned_away} times, \
+             then served {:.1} s after the SYNs ({dropped} handshakes dropped by then)",
+            served.as_secs_f64()
+        );
+        if dropped == 0 {
+            return Err(format!(
+                "port {port}: the SYNs held no socket (no handshake dropped): the check checked nothing"
+            ));
+        }
+        if served > Duration::from_secs(30) {
+            return Err(format!("port {port}: SYNs kept a new visitor out for {served:?}"));
+        }
+    }
+    Ok(())
+}
+
+/// One visit: the page's `/status` (port 80) or a frame of the seed
+/// protocol, byte-exact.
+fn visit(to: SocketAddr, frame: &[u8]) -> Result<()> {
+    let mut c = TcpStream::connect_timeout(&to, Duration::from_secs(2)).map_err(|e| e.to_string())?;
+    c.set_read_timeout(Some(Duration::from_secs(10))).map_err(|e| e.to_string())?;
+    let mut got = Vec::new();
+    if to.port() == 80 {
+        c.write_all(format!("GET /status HTTP/1.1\r\nHost: {BOARD}\r\nConnection: close\r\n\r\n").as_bytes())
+            .map_err(|e| e.to_string())?;
+        c.read_to_end(&mut got).map_err(|e| e.to_string())?;
+        if !got.starts_with(b"HTTP/1.1 200") {
+            return Err(format!("/status: {:?}", String::from_utf8_lossy(&got[..got.len().min(60)])));
+        }
+    } else {
+        let light: Vec<u8> = [3i32 << 10, 4 << 10, -(2 << 10)].iter().flat_map(|v| v.to_be_bytes()).collect();
+        c.write_all(&light).map_err(|e| e.to_string())?;
+        c.read_to_end(&mut got).map_err(|e| e.to_string())?;
+        if got != frame {
+            return Err(format!("a seed frame of {} bytes, not the model's", got.len()));
+        }
+    }
+    Ok(())
+}
+
+/// Check 3.
+fn laggard(lan: &Lan, rtsp: SocketAddr) -> Result<()> {
+    let want = expected_frame([3 << 10, 4 << 10, -(2 << 10)])?;
+    let frames: Arc<Mutex<Vec<Instant>>> = Arc::default();
+    let stop = Arc::new(AtomicBool::new(false));
+    let viewer = {
+        let (frames, stop) = (frames.clone(), stop.clone());
+        lan.spawn_on_host(0, move || {
+            let mut s = Stream::open(rtsp, PATH, None)?;
+            while !stop.load(Ordering::Relaxed) {
+                let f = s.next_frame(Duration::from_secs(20))?;
+                if f.bytes != want {
+                    return Err(format!("the UDP viewer's frame (timestamp {}) is not the model's", f.timestamp));
+                }
+                frames.lock().map_err(|_| "lock")?.push(Instant::now());
+            }
+            s.teardown()
+        })?
+    };
+    let phase = Duration::from_secs(10);
+    let rate = |during: Duration| -> Result<f64> {
+        let count = || frames.lock().map(|f| f.len()).unwrap_or(0);
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while count() == 0 && Instant::now() < deadline {
+            thread::sleep(Duration::from_millis(50));
+        }
+        let (start, before) = (Instant::now(), count());
+        thread::sleep(during);
+        Ok((count() - before) as f64 / start.elapsed().as_secs_f64())
+    };
+    let alone_before = rate(phase)?;
+    // The laggard: plays inside its connection, with a small receive
+    // buffer, and never reads.
+    let laggard = lan.on_host(1, move || {
+        let c = socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).map_err(|e| e.to_string())?;
+        c.set_recv_buffer_size(4096).map_err(|e| e.to_string())?;
+        c.connect_timeout(&rtsp.into(), Duration::from_secs(5)).map_err(|e| e.to_string())?;
+        let mut c: TcpStream = c.into();
+        c.set_read_timeout(Some(Duration::from_secs(5))).map_err(|e| e.to_string())?;
+        let url = format!("rtsp://{BOARD}:8554{PATH}");
+        let setup = format!(
+            "SETUP {url}/trackID=0 RTSP/1.0\r\nCSeq: 1\r\nTransport: RTP/AVP/TCP;unicast;interleaved=0-1\r\n\r\n"
+        );
+        c.write_all(setup.as_bytes()).map_err(|e| e.to_string())?;
+        let mut head = Vec::new();
+        let mut b = [0u8; 1];
+        while !head.ends_with(b"\r\n\r\n") {
+            c.read_exact(&mut b).map_err(|e| format!("the laggard's SETUP: {e}"))?;
+            head.push(b[0]);
+        }
+        let text = String::from_utf8_lossy(&head).into_owned();
+        let session = text
+            .lines()
+            .find_map(|l| l.strip_prefix("Session: "))
+            .and_then(|s| s.split(';').next())
+            .ok_or(format!("the laggard's SETUP: {text:?}"))?
+            .to_string();
+        c.write_all(format!("PLAY {url} RTSP/1.0\r\nCSeq: 2\r\nSession: {session}\r\n\r\n").as_bytes())
+            .map_err(|e| e.to_string())?;
+        Ok(c)
+    })?;
+    let with_laggard = rate(phase)?;
+    drop(laggard);
+    let alone_after = rate(phase)?;
+    stop.store(true, Ordering::Relaxed);
+    viewer.join().map_err(|_| "the viewer's thread panicked".to_string())??;
+    let alone = (alone_before + alone_after) / 2.0;
+    println!(
+        "per-host: a UDP viewer: {alone_before:.2} frames/s alone, {with_laggard:.2} beside a never-reading interleaved viewer \
+         of its stream ({:.0}%), {alone_after:.2} alone again",
+        100.0 * with_laggard / alone
+    );
+    if with_laggard < 0.9 * alone {
+        return Err(format!(
+            "a never-reading viewer held a UDP viewer of its stream to {with_laggard:.2} frames/s (alone {alone:.2})"
+        ));
+    }
+    Ok(())
+}
