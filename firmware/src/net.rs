@@ -17,7 +17,7 @@ use rt_services::camera::random::TimingPool;
 use rt_services::camera::rtsp::{self, MAX_SESSIONS, RTSP_PORT, SERVER_RTP_PORT};
 use rt_services::camera::sender::Camera;
 use rt_services::camera::sender::{self, Multicast};
-use rt_services::camera::service::{CameraBuffers, CameraService, Snoop, Snooped, RTSP_SOCKETS};
+use rt_services::camera::service::{CameraBuffers, CameraService, GroupMembership, Snoop, Snooped, RTSP_SOCKETS};
 use rt_services::frames::Quota;
 use rt_services::seed::service::{FrameService, SocketBuffers};
 use rt_services::web::service::{SocketBuffers as WebBuffers, WebService};
@@ -37,8 +37,9 @@ use crate::log::{self, Log};
 use crate::platform::Board;
 use crate::render::Frames;
 
-/// Sockets of the network camera: RTSP listeners and the RTCP socket.
-const CAMERA_SOCKETS: usize = RTSP_SOCKETS + 1;
+/// Sockets of the network camera: RTSP listeners, the RTCP socket and the
+/// multicast groups' RTCP socket (`CameraService::new` adds them all).
+const CAMERA_SOCKETS: usize = RTSP_SOCKETS + 2;
 
 /// Why the network did not start.
 #[derive(Clone, Copy, Debug)]
@@ -70,7 +71,13 @@ fn multicast_config() -> Option<Multicast> {
 
 fn parse_multicast(text: &str) -> Option<Multicast> {
     let mut parts = text.split(':');
-    let group: Ipv4Addr = parts.next()?.parse().ok().filter(Ipv4Addr::is_multicast)?;
+    // The pool: MAX_SESSIONS addresses from GROUP on, all multicast.
+    let last = |g: &Ipv4Addr| u32::from(*g).checked_add(MAX_SESSIONS as u32 - 1).map(Ipv4Addr::from);
+    let group: Ipv4Addr = parts
+        .next()?
+        .parse()
+        .ok()
+        .filter(|g: &Ipv4Addr| g.is_multicast() && last(g).is_some_and(|l| l.is_multicast()))?;
     let base_port = parts.next().map_or(Some(5006), |p| p.parse().ok())?;
     let ttl = parts.next().map_or(Some(1), |t| t.parse().ok())?;
     Some(Multicast { group, base_port, ttl })
@@ -250,7 +257,7 @@ pub fn run<B: Board, P: RegisterPort>(
                         Some(m) => {
                             let _ = writeln!(
                                 log,
-                                "camera: multicast to {} from port {}, TTL {}",
+                                "camera: multicast to {} (a group for each of up to {MAX_SESSIONS} streams), port {}, TTL {}",
                                 m.group, m.base_port, m.ttl
                             );
                         }
@@ -272,6 +279,8 @@ pub fn run<B: Board, P: RegisterPort>(
         }
     };
     let mut peers = Snooped::new(SERVER_RTP_PORT);
+    // The multicast groups the camera sends to, joined (IGMP).
+    let mut groups = GroupMembership::new();
     // The arrival times of received frames, for the camera's generator
     // (docs/streaming.md, "Session ids"): the timer's count at each main
     // loop turn in which frames arrived.
@@ -345,6 +354,7 @@ pub fn run<B: Board, P: RegisterPort>(
             let mut counted = Counting { frames: &mut *frames, begun: &mut requests, ended: &mut ended };
             let entropy = arrivals.value() ^ timer.ticks();
             crate::bench::camera(|| c.poll(now, &mut sockets, &mut peers, &mut counted, &mut tx, entropy, &mut log));
+            groups.sync(c.camera(), &mut iface, &mut log);
         }
         // The web page: its viewers' frames count for the display too, and
         // stay within their quota of slots.

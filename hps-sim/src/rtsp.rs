@@ -88,7 +88,15 @@ impl RtspServer {
         let flag = stop.clone();
         let thread = thread::Builder::new().name("rtsp".into()).spawn(move || {
             let mut log = Log::new(0, options.verbose);
-            let sockets = Sockets { listener, rtp, rtcp };
+            let group_rtcp = match options.multicast.map(|m| group_rtcp_socket(m.base_port.wrapping_add(1))) {
+                Some(Ok(g)) => Some(g),
+                Some(Err(e)) => {
+                    eprintln!("hps-sim: the multicast groups' RTCP port: {e}");
+                    None
+                }
+                None => None,
+            };
+            let sockets = Sockets { listener, rtp, rtcp, group_rtcp };
             let result = match options.device {
                 Device::Sim => {
                     let mem = SharedMemory::new(CAMERA_SLOTS);
@@ -161,6 +169,20 @@ struct Sockets {
     listener: TcpListener,
     rtp: UdpSocket,
     rtcp: UdpSocket,
+    /// The multicast groups' RTCP port (receivers' reports and NACKs to a
+    /// group it joined, or to it), with multicast on.
+    group_rtcp: Option<UdpSocket>,
+}
+
+/// A socket on every address's `port`, shared with the receivers of the
+/// same host that bind the group's ports too.
+fn group_rtcp_socket(port: u16) -> io::Result<UdpSocket> {
+    use socket2::{Domain, Protocol, Socket, Type};
+    let socket = Socket::new(Domain::IPV4, Type::DGRAM, Some(Protocol::UDP))?;
+    socket.set_reuse_address(true)?;
+    socket.bind(&SocketAddr::from(([0, 0, 0, 0], port)).into())?;
+    socket.set_nonblocking(true)?;
+    Ok(socket.into())
 }
 
 /// One RTSP connection.
@@ -366,6 +388,7 @@ fn run<E: FrameEngine<SharedMemory>>(
     let mut datagram = [0u8; 2048];
     let mut input = [0u8; 4096];
     let mut tokens = (BURST, StdInstant::now());
+    let mut groups = Joined::default();
     while !stop.load(Ordering::SeqCst) {
         let mut busy = false;
         // New connections, up to the board's number; more are closed at once.
@@ -456,17 +479,19 @@ fn run<E: FrameEngine<SharedMemory>>(
             refilled: tokens.1,
         };
         // RTCP: keep-alive, round trips and NACKs, from session clients only.
-        loop {
-            match sockets.rtcp.recv_from(&mut datagram) {
-                Ok((n, from)) => {
-                    if server.rtcp_received(now(), from.ip(), from.port(), &datagram[..n]).is_some() {
-                        camera.rtcp_received(from, &datagram[..n], now(), wall(), &mut ring, &mut sink);
+        for socket in std::iter::once(&sockets.rtcp).chain(sockets.group_rtcp.as_ref()) {
+            loop {
+                match socket.recv_from(&mut datagram) {
+                    Ok((n, from)) => {
+                        if server.rtcp_received(now(), from.ip(), from.port(), &datagram[..n]).is_some() {
+                            camera.rtcp_received(from, &datagram[..n], now(), wall(), &mut ring, &mut sink);
+                        }
+                        busy = true;
                     }
-                    busy = true;
+                    Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
+                    // ICMP errors of earlier sends surface here on some hosts.
+                    Err(_) => break,
                 }
-                Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
-                // ICMP errors of earlier sends surface here on some hosts.
-                Err(_) => break,
             }
         }
         // Frames.
@@ -481,6 +506,9 @@ fn run<E: FrameEngine<SharedMemory>>(
             server.remove(session);
             let _ = writeln!(log, "rtsp: session {session} ends: {why}");
         }
+        if let Some(g) = sockets.group_rtcp.as_ref() {
+            groups.sync(&camera, g, server_ip, log);
+        }
         for c in clients.iter_mut() {
             if !c.flush() {
                 c.open = false;
@@ -493,4 +521,42 @@ fn run<E: FrameEngine<SharedMemory>>(
         }
     }
     Ok(())
+}
+
+/// The multicast groups the group RTCP socket has joined: each group a
+/// multicast stream goes to, as the board joins them (its
+/// `GroupMembership`).
+#[derive(Default)]
+struct Joined {
+    groups: Vec<Ipv4Addr>,
+    seen: Option<u32>,
+}
+
+impl Joined {
+    fn sync<const N: usize>(&mut self, camera: &Camera<N>, socket: &UdpSocket, iface: Ipv4Addr, log: &mut Log) {
+        if self.seen == Some(camera.output_changes()) {
+            return;
+        }
+        self.seen = Some(camera.output_changes());
+        let wanted: Vec<Ipv4Addr> = camera.multicast_groups().map(|g| g.addr).collect();
+        for g in self.groups.iter().filter(|g| !wanted.contains(g)) {
+            let _ = socket.leave_multicast_v4(g, &iface);
+            let _ = writeln!(log, "rtsp: left multicast group {g}");
+        }
+        self.groups.retain(|g| wanted.contains(g));
+        for g in wanted {
+            if self.groups.contains(&g) {
+                continue;
+            }
+            match socket.join_multicast_v4(&g, &iface) {
+                Ok(()) => {
+                    let _ = writeln!(log, "rtsp: joined multicast group {g}");
+                    self.groups.push(g);
+                }
+                Err(e) => {
+                    let _ = writeln!(log, "rtsp: joining multicast group {g}: {e}");
+                }
+            }
+        }
+    }
 }

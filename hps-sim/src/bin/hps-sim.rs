@@ -35,12 +35,14 @@ struct Args {
     /// with port 8554.
     #[arg(long)]
     rtsp: Option<SocketAddr>,
-    /// The multicast group streams set up with `Transport: RTP/AVP;multicast`
-    /// go to (without one, such a SETUP is answered 461). Stream `i` of
-    /// the camera uses port `--multicast-port + 2i`.
+    /// The first multicast group streams set up with
+    /// `Transport: RTP/AVP;multicast` go to (without one, such a SETUP is
+    /// answered 461): stream `i` of the camera goes to this address plus
+    /// `i`, on `--multicast-port`; the server joins each group it sends to
+    /// and hears RTCP on the next port.
     #[arg(long)]
     multicast_group: Option<Ipv4Addr>,
-    /// The RTP port of the first multicast stream.
+    /// The multicast groups' RTP port (RTCP: the next one).
     #[arg(long, default_value_t = 5006)]
     multicast_port: u16,
     /// The multicast packets' time to live (1: they stay on the link).

@@ -281,14 +281,17 @@ pub struct Config {
     pub cname: Cname,
 }
 
-/// The multicast groups streams are sent to.
+/// The multicast groups streams are sent to: a pool of [`MAX_SESSIONS`]
+/// consecutive addresses, one a stream (as gst-rtsp-server's address
+/// pool), so that a switch's IGMP snooping gives each receiver the stream
+/// it joined and no other; every group uses the same ports.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Multicast {
-    /// The group address (an administratively scoped one, RFC 2365, for
-    /// a lab network: 239.255.0.0/16).
+    /// The first group address (an administratively scoped one, RFC 2365,
+    /// for a lab network: 239.255.0.0/16); stream `i` goes to this plus `i`.
     pub group: Ipv4Addr,
-    /// The RTP port of the first stream; stream `i` uses `base_port + 2i`
-    /// (RTCP one above).
+    /// The groups' RTP port (RTCP one above: where receivers send their
+    /// reports and NACKs, to the group or to the board).
     pub base_port: u16,
     /// Time to live: 1 keeps the packets on the board's link.
     pub ttl: u8,
@@ -314,10 +317,13 @@ pub struct OutputStats {
     /// Frames cut short: the output stalled, or paused, mid-frame.
     pub cut: u32,
     /// Frames it was still sending when they were due to end, finished
-    /// from the repair window while the stream went on.
+    /// from their slot while the stream went on.
     pub late: u32,
     /// NACK datagrams not read at all: the budget was spent.
     pub nacks_unread: u32,
+    /// RTCP packets from its receivers (reports, NACKs), wherever they
+    /// were sent: the RTCP port, or a multicast group's.
+    pub reports: u32,
 }
 
 /// What a stream has done.
@@ -516,6 +522,8 @@ pub struct Camera<const N: usize = MAX_SESSIONS> {
     /// Frames begun or ended over all streams (wrapping), for callers
     /// that give the rest of their loop a turn between frames.
     frame_edges: u32,
+    /// Outputs made plus outputs ended ([`output_changes`](Self::output_changes)).
+    output_changes: u32,
 }
 
 impl<const N: usize> Default for Camera<N> {
@@ -541,6 +549,7 @@ impl<const N: usize> Camera<N> {
             byes: heapless::Deque::new(),
             rtcp: [0; RTCP_BYTES],
             frame_edges: 0,
+            output_changes: 0,
         }
     }
 
@@ -549,6 +558,11 @@ impl<const N: usize> Camera<N> {
     /// multicast).
     pub fn configure(&mut self, config: Config) {
         self.config = Some(config);
+    }
+
+    /// Where its multicast streams go, if anywhere.
+    pub fn multicast(&self) -> Option<Multicast> {
+        self.config?.multicast
     }
 
     /// The CNAME its reports carry.
@@ -627,11 +641,28 @@ impl<const N: usize> Camera<N> {
         self.members.iter().position(|m| m.as_ref().is_some_and(|m| m.session == session))
     }
 
-    /// The multicast group of stream slot `i`.
+    /// The multicast group of stream slot `i` ([`Multicast`]).
     fn group_of(&self, i: usize) -> Option<Group> {
         let m = self.config?.multicast?;
-        let port = m.base_port.checked_add(u16::try_from(2 * i).ok()?)?;
-        Some(Group { addr: m.group, port, ttl: m.ttl })
+        let addr = Ipv4Addr::from(u32::from(m.group).checked_add(u32::try_from(i).ok()?)?);
+        addr.is_multicast().then_some(Group { addr, port: m.base_port, ttl: m.ttl })
+    }
+
+    /// The groups multicast outputs send to now: the board joins them
+    /// (IGMP), so that receivers' RTCP to a group reaches it through a
+    /// snooping switch.
+    pub fn multicast_groups(&self) -> impl Iterator<Item = Group> + '_ {
+        self.outputs.iter().flatten().filter_map(|o| match o.dest {
+            Dest::Multicast(g) => Some(g),
+            _ => None,
+        })
+    }
+
+    /// Counts outputs made and ended (wrapping): a caller that keeps
+    /// something per output (the groups it joined) looks again when it
+    /// changes.
+    pub fn output_changes(&self) -> u32 {
+        self.output_changes
     }
 
     /// The stream `spec` is (or would be) sent as: its slot.
@@ -740,6 +771,7 @@ impl<const N: usize> Camera<N> {
                         return Err(Status::UnsupportedTransport);
                     }
                 };
+                self.output_changes = self.output_changes.wrapping_add(1);
                 self.outputs[o] = Some(Output {
                     media,
                     dest,
@@ -851,6 +883,7 @@ impl<const N: usize> Camera<N> {
         let Some(media) = self.outputs[m.output].as_ref().map(|o| o.media) else { return };
         if !used {
             if let Some(o) = self.outputs[m.output].take() {
+                self.output_changes = self.output_changes.wrapping_add(1);
                 if let (true, Some(m)) = (bye, self.media[media].as_ref()) {
                     let last = SenderReport::now(&m.packetiser, 0, m.media_ticks(now));
                     let _ = self.byes.push_back((o.dest, last));
@@ -930,6 +963,7 @@ impl<const N: usize> Camera<N> {
         let media = self.media[o.media].as_ref()?;
         let window = &self.windows[o.media];
         o.last_rtcp = Some(now);
+        o.stats.reports = o.stats.reports.wrapping_add(1);
         o.unreachable = 0;
         if let Some(rtt) = round_trip(datagram, media.packetiser.ssrc(), wall) {
             o.round_trip = rtt.clamp(MIN_ROUND_TRIP, MAX_ROUND_TRIP);
@@ -1237,7 +1271,14 @@ impl<const N: usize> Camera<N> {
                         let sent = sink.send_rows(&o.dest, &media.packetiser, &first, want, frame.slot, source);
                         let sent = sent.min(want);
                         o.stats.packets += u32::from(sent);
-                        o.budget = (o.budget + u32::from(sent)).min(REPAIR_SHARE * REPAIR_BURST);
+                        // A group's budget grows with its receivers: each
+                        // loses packets of its own.
+                        let receivers = match o.dest {
+                            Dest::Multicast(_) => u32::from(o.playing.max(1)),
+                            _ => 1,
+                        };
+                        o.budget =
+                            (o.budget + u32::from(sent) * receivers).min(REPAIR_SHARE * REPAIR_BURST * receivers);
                         let next = next + sent;
                         o.cursor = Cursor::Sending { next };
                         if sent > 0 {

@@ -285,6 +285,10 @@ pub struct CameraBuffers {
     rtcp_rx: [u8; 4096],
     rtcp_tx_meta: [udp::PacketMetadata; 8],
     rtcp_tx: [u8; 1024],
+    group_rtcp_meta: [udp::PacketMetadata; 8],
+    group_rtcp_rx: [u8; 4096],
+    group_rtcp_tx_meta: [udp::PacketMetadata; 1],
+    group_rtcp_tx: [u8; 1],
 }
 
 impl CameraBuffers {
@@ -296,6 +300,10 @@ impl CameraBuffers {
             rtcp_rx: [0; 4096],
             rtcp_tx_meta: [udp::PacketMetadata::EMPTY; 8],
             rtcp_tx: [0; 1024],
+            group_rtcp_meta: [udp::PacketMetadata::EMPTY; 8],
+            group_rtcp_rx: [0; 4096],
+            group_rtcp_tx_meta: [udp::PacketMetadata::EMPTY; 1],
+            group_rtcp_tx: [0; 1],
         }
     }
 }
@@ -344,6 +352,9 @@ pub struct CameraService<'c> {
     camera: &'c mut Camera<MAX_SESSIONS>,
     sockets: [RtspSocket; RTSP_SOCKETS],
     rtcp: SocketHandle,
+    /// RTCP to the multicast groups' port (receivers' reports and NACKs,
+    /// to a group the board joined or to the board itself).
+    group_rtcp: Option<SocketHandle>,
     routes: [Option<Route>; MAX_SESSIONS],
     local_mac: EthernetAddress,
     rng: SessionRng,
@@ -371,7 +382,17 @@ impl<'c> CameraService<'c> {
         local_mac: EthernetAddress,
         entropy: &[u8],
     ) -> Result<CameraService<'c>, udp::BindError> {
-        let CameraBuffers { rtsp, rtcp_meta, rtcp_rx, rtcp_tx_meta, rtcp_tx } = buffers;
+        let CameraBuffers {
+            rtsp,
+            rtcp_meta,
+            rtcp_rx,
+            rtcp_tx_meta,
+            rtcp_tx,
+            group_rtcp_meta,
+            group_rtcp_rx,
+            group_rtcp_tx_meta,
+            group_rtcp_tx,
+        } = buffers;
         let tcp_sockets = rtsp.each_mut().map(|b| RtspSocket {
             handle: sockets.add(b.socket()),
             conn: None,
@@ -382,11 +403,23 @@ impl<'c> CameraService<'c> {
             udp::PacketBuffer::new(&mut rtcp_tx_meta[..], &mut rtcp_tx[..]),
         );
         rtcp.bind(config.rtp_port.wrapping_add(1))?;
+        let group_rtcp = match camera.multicast() {
+            Some(m) => {
+                let mut g = udp::Socket::new(
+                    udp::PacketBuffer::new(&mut group_rtcp_meta[..], &mut group_rtcp_rx[..]),
+                    udp::PacketBuffer::new(&mut group_rtcp_tx_meta[..], &mut group_rtcp_tx[..]),
+                );
+                g.bind(m.base_port.wrapping_add(1))?;
+                Some(sockets.add(g))
+            }
+            None => None,
+        };
         Ok(CameraService {
             server: Server::new(config),
             camera,
             sockets: tcp_sockets,
             rtcp: sockets.add(rtcp),
+            group_rtcp,
             routes: [const { None }; MAX_SESSIONS],
             local_mac,
             rng: SessionRng::new(entropy),
@@ -414,8 +447,8 @@ impl<'c> CameraService<'c> {
         for (session, s) in self.camera.sessions() {
             let _ = writeln!(
                 log,
-                "camera: session {session}: {} frames, {} packets, {} resent ({} over budget, {} too soon, {} unrepairable, {} NACKs unread), {} cut",
-                s.frames, s.packets, s.resent, s.over_budget, s.too_soon, s.unrepairable, s.nacks_unread, s.cut
+                "camera: session {session}: {} frames, {} packets, {} resent ({} over budget, {} too soon, {} unrepairable, {} NACKs unread), {} cut, {} late, {} RTCP in",
+                s.frames, s.packets, s.resent, s.over_budget, s.too_soon, s.unrepairable, s.nacks_unread, s.cut, s.late, s.reports
             );
         }
     }
@@ -471,18 +504,9 @@ impl<'c> CameraService<'c> {
             rtsp: &self.sockets,
             stats: &mut self.stats,
         };
-        loop {
-            let socket = sink.sockets.get_mut::<udp::Socket>(sink.rtcp);
-            let Ok((n, meta)) = socket.recv_slice(&mut self.datagram) else { break };
-            let IpAddr::V4(from) = IpAddr::from(meta.endpoint.addr) else { continue };
-            let from = IpAddr::V4(from);
-            let port = meta.endpoint.port;
-            if self.server.rtcp_received(now_ms, from, port, &self.datagram[..n]).is_some() {
-                let from = core::net::SocketAddr::new(from, port);
-                self.camera.rtcp_received(from, &self.datagram[..n], now_ms, wall, source, &mut sink);
-            } else {
-                sink.stats.stray_rtcp = sink.stats.stray_rtcp.wrapping_add(1);
-            }
+        for handle in core::iter::once(self.rtcp).chain(self.group_rtcp) {
+            let (server, camera, datagram) = (&mut self.server, &mut *self.camera, &mut self.datagram);
+            read_rtcp(handle, server, camera, datagram, now_ms, wall, source, &mut sink);
         }
         // Rounds until nothing moves, a frame was received (NACKs arrive
         // only through the next `Interface::poll`) or a stream began or
@@ -632,6 +656,102 @@ impl<'c> CameraService<'c> {
         if ended > 0 {
             let _ = writeln!(log, "rtsp: connection {id} gone: {ended} interleaved session(s) end");
         }
+    }
+}
+
+/// Read the RTCP datagrams waiting on socket `handle`: each from a
+/// session's client keeps the session alive and goes to the sender (round
+/// trips, NACKs); the rest are counted and dropped.
+#[allow(clippy::too_many_arguments)]
+fn read_rtcp<S: SlotSource, T: RowTransmitter>(
+    handle: SocketHandle,
+    server: &mut Server<MAX_SESSIONS>,
+    camera: &mut Camera<MAX_SESSIONS>,
+    datagram: &mut [u8; RTCP_DATAGRAM_BYTES],
+    now: time::Instant,
+    wall: u64,
+    source: &mut S,
+    sink: &mut Sink<'_, '_, T>,
+) {
+    loop {
+        let socket = sink.sockets.get_mut::<udp::Socket>(handle);
+        let Ok((n, meta)) = socket.recv_slice(datagram) else { break };
+        let IpAddr::V4(from) = IpAddr::from(meta.endpoint.addr) else { continue };
+        let from = IpAddr::V4(from);
+        let port = meta.endpoint.port;
+        if server.rtcp_received(now, from, port, &datagram[..n]).is_some() {
+            let from = core::net::SocketAddr::new(from, port);
+            camera.rtcp_received(from, &datagram[..n], now, wall, source, sink);
+        } else {
+            sink.stats.stray_rtcp = sink.stats.stray_rtcp.wrapping_add(1);
+        }
+    }
+}
+
+/// The multicast groups the interface has joined for the camera: each
+/// group a multicast stream goes to, so that receivers' RTCP sent to the
+/// group reaches the board through a switch that snoops IGMP (smoltcp
+/// sends the reports and answers queries). Call [`sync`](Self::sync) after
+/// each camera poll; it works only when the camera's outputs changed.
+pub struct GroupMembership {
+    joined: heapless::Vec<Ipv4Addr, MAX_SESSIONS>,
+    seen: Option<u32>,
+}
+
+impl GroupMembership {
+    /// No group joined.
+    pub const fn new() -> GroupMembership {
+        GroupMembership { joined: heapless::Vec::new(), seen: None }
+    }
+
+    /// The groups joined.
+    pub fn joined(&self) -> &[Ipv4Addr] {
+        &self.joined
+    }
+
+    /// Join the groups `camera` sends to and leave the others.
+    pub fn sync<const N: usize>(
+        &mut self,
+        camera: &Camera<N>,
+        iface: &mut smoltcp::iface::Interface,
+        log: &mut impl Write,
+    ) {
+        if self.seen == Some(camera.output_changes()) {
+            return;
+        }
+        self.seen = Some(camera.output_changes());
+        let wanted = |a: &Ipv4Addr| camera.multicast_groups().any(|g| g.addr == *a);
+        while let Some(i) = self.joined.iter().position(|a| !wanted(a)) {
+            let a = self.joined.swap_remove(i);
+            match iface.leave_multicast_group(a) {
+                Ok(()) => {
+                    let _ = writeln!(log, "camera: left multicast group {a}");
+                }
+                Err(e) => {
+                    let _ = writeln!(log, "camera: leaving multicast group {a}: {e:?}");
+                }
+            }
+        }
+        for g in camera.multicast_groups() {
+            if self.joined.contains(&g.addr) {
+                continue;
+            }
+            match iface.join_multicast_group(g.addr) {
+                Ok(()) if self.joined.push(g.addr).is_ok() => {
+                    let _ = writeln!(log, "camera: joined multicast group {}", g.addr);
+                }
+                Ok(()) => {}
+                Err(e) => {
+                    let _ = writeln!(log, "camera: joining multicast group {}: {e:?}", g.addr);
+                }
+            }
+        }
+    }
+}
+
+impl Default for GroupMembership {
+    fn default() -> Self {
+        GroupMembership::new()
     }
 }
 

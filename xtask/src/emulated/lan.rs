@@ -33,7 +33,8 @@ const BOARD_MAC: &str = "52:54:00:12:34:56";
 pub struct Lan {
     /// The board (dropped first: QEMU stops before its network goes).
     pub guest: Guest,
-    _relay: Relay,
+    /// The link between the board and the switch (faults can be set).
+    pub relay: Relay,
     hosts: Vec<Namespace>,
     _switch: Namespace,
 }
@@ -82,7 +83,7 @@ impl Lan {
         );
         let mut guest = Guest::boot_netdev(elf, &netdev, &[])?;
         guest.wait_for_log("link up", Duration::from_secs(30))?;
-        Ok(Lan { guest, _relay: relay, hosts: named, _switch: switch })
+        Ok(Lan { guest, relay, hosts: named, _switch: switch })
     }
 
     /// Host `k`'s address: 10.0.2.(20 + k).

@@ -14,6 +14,17 @@
 //! 3. **A laggard.** A viewer that plays a stream inside its RTSP
 //!    connection and never reads leaves a UDP viewer of the same stream at
 //!    90% or more of its rate alone.
+//! 4. **Multicast.** GStreamer's rtspsrc on two hosts plays two lights
+//!    over multicast, and a receiver of the first light on a third host
+//!    sends its reports and NACKs to the group's RTCP port, as GStreamer
+//!    sends its reports, through a link that drops 2% of its frames: the
+//!    board joins one group per stream (the two differ), the bridge's IGMP
+//!    snooping brings the receivers' RTCP to it (GStreamer's reports count
+//!    on each of its sessions), and the NACKs sent to the group are
+//!    repaired: every frame of that receiver byte-exact. GStreamer 1.22's
+//!    rtspsrc sends no NACKs over multicast at all (its jitter buffer arms
+//!    "lost" timers there, not retransmission ones: `GST_DEBUG=
+//!    rtpjitterbuffer:5`), so its frames are not required to be whole.
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
@@ -26,8 +37,11 @@ use std::time::{Duration, Instant};
 use rt_services::camera::rtsp::{CONNECTIONS_PER_ADDRESS, RECLAIM_AFTER, SESSIONS_PER_ADDRESS};
 
 use super::lan::{Lan, BOARD};
+use super::lossy::Faults;
 use super::qemu_e2e::expected_frame;
+use crate::support::player::{Kind, Player};
 use crate::support::rtsp_client::Stream;
+use crate::support::tools::root;
 use crate::support::Result;
 
 /// Debian's package of the SYN sender.
@@ -45,6 +59,7 @@ pub fn run(elf: &Path) -> Result<()> {
     caps(&lan, rtsp).map_err(|e| lan.with_uart(e))?;
     syns(&lan).map_err(|e| lan.with_uart(e))?;
     laggard(&lan, rtsp).map_err(|e| lan.with_uart(e))?;
+    multicast(&lan).map_err(|e| lan.with_uart(e))?;
     Ok(())
 }
 
@@ -280,6 +295,82 @@ fn laggard(lan: &Lan, rtsp: SocketAddr) -> Result<()> {
         return Err(format!(
             "a never-reading viewer held a UDP viewer of its stream to {with_laggard:.2} frames/s (alone {alone:.2})"
         ));
+    }
+    Ok(())
+}
+
+/// Check 4.
+fn multicast(lan: &Lan) -> Result<()> {
+    const FRAMES: usize = 12;
+    let paths = ["/light/3,4,-2?fps=2&multicast", "/light/-5,6,1?fps=2&multicast"];
+    let from = lan.guest.uart().len();
+    lan.relay.set_faults(Faults { drop: 0.02, ..Faults::default() });
+    let dir = root().join("target/per-host/multicast");
+    let _ = std::fs::remove_dir_all(&dir);
+    let players: Vec<Player> = paths
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let url = format!("rtsp://{BOARD}:8554{p}");
+            Player::start_in(Some(lan.host(k)), Kind::GstMulticast, &url, FRAMES, &dir.join(k.to_string()))
+        })
+        .collect::<Result<_>>()?;
+    let xtask = std::env::current_exe().map_err(|e| e.to_string())?;
+    let receiver = lan
+        .command(2, &xtask)
+        .args(["receive", "--rtsp", &format!("{BOARD}:8554"), "--path", paths[0], "--frames", &FRAMES.to_string()])
+        .args(["--light", "3,4,-2", "--multicast", &Lan::host_addr(2).to_string(), "--rtcp-to-group"])
+        .output()
+        .map_err(|e| format!("receive: {e}"))?;
+    let said = String::from_utf8_lossy(&receiver.stdout).into_owned() + &String::from_utf8_lossy(&receiver.stderr);
+    let mut got = Vec::new();
+    for (k, p) in players.into_iter().enumerate() {
+        let played = p.wait(Duration::from_secs(120))?;
+        if played.frames.len() != FRAMES {
+            return Err(format!(
+                "GStreamer over multicast ({}): {} frames, not {FRAMES}: {}",
+                paths[k],
+                played.frames.len(),
+                played.log
+            ));
+        }
+        got.push(played.frames.len());
+    }
+    lan.relay.set_faults(Faults::default());
+    if !receiver.status.success() {
+        return Err(format!("the receiver that sends its NACKs to the group: {said}"));
+    }
+    let uart = lan.guest.uart();
+    let seen = &uart[from.min(uart.len())..];
+    let joined: Vec<&str> = seen.lines().filter_map(|l| l.strip_prefix("camera: joined multicast group ")).collect();
+    // Each session's last report line: its RTCP packets received.
+    let mut rtcp_in = std::collections::BTreeMap::new();
+    for l in seen.lines().filter_map(|l| l.strip_prefix("camera: session ")) {
+        let n: u32 =
+            l.split(" RTCP in").next().and_then(|x| x.rsplit(' ').next()).and_then(|n| n.parse().ok()).unwrap_or(0);
+        rtcp_in.insert(l.split(':').next().unwrap_or_default().to_string(), n);
+    }
+    println!(
+        "per-host: multicast through a link dropping 2% of its frames: the board joined {joined:?}; GStreamer on two hosts {got:?} frames, \
+         RTCP received per session {:?}; {}",
+        rtcp_in.values().collect::<Vec<_>>(),
+        said.trim()
+    );
+    let distinct: std::collections::HashSet<&&str> = joined.iter().collect();
+    if distinct.len() < 2 {
+        return Err(format!("two lights' streams joined {joined:?}: not two groups"));
+    }
+    let repaired: u32 = said
+        .split(" rows repaired")
+        .next()
+        .and_then(|x| x.rsplit(' ').next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(0);
+    if repaired == 0 {
+        return Err(format!("the receiver's NACKs to the group repaired nothing: {said}"));
+    }
+    if rtcp_in.values().filter(|&&n| n > 0).count() < 3 {
+        return Err(format!("RTCP sent to the groups reached the board for {rtcp_in:?} of three sessions"));
     }
     Ok(())
 }

@@ -262,6 +262,10 @@ pub struct ReceiveArgs {
     /// on loopback, where the server caps sessions per address).
     #[arg(long)]
     pub from: Option<Ipv4Addr>,
+    /// With --multicast: send RTCP and NACKs to the group's RTCP port (as
+    /// GStreamer's rtspsrc sends its reports), not to the server's.
+    #[arg(long)]
+    pub rtcp_to_group: bool,
 }
 
 /// Receive and check; print one line.
@@ -274,6 +278,9 @@ pub fn receive(args: &ReceiveArgs) -> Result<()> {
         (None, false) => Transport::Udp,
     };
     let mut s = Stream::open_from(args.rtsp, &args.path, None, transport, args.from)?;
+    if args.rtcp_to_group {
+        s.send_rtcp_to_group();
+    }
     let start = Instant::now();
     for k in 0..args.frames {
         let f = s.next_frame(Duration::from_secs(30))?;

@@ -260,6 +260,14 @@ impl Stream {
         Ok(s)
     }
 
+    /// Send RTCP (reports, NACKs) to the multicast group's RTCP port, as
+    /// standard players do (GStreamer's rtspsrc), not to the server's.
+    pub fn send_rtcp_to_group(&mut self) {
+        if let Some(g) = self.group {
+            self.server_rtcp = SocketAddr::new(g.ip(), g.port().wrapping_add(1));
+        }
+    }
+
     /// A second handle on this session's RTCP socket, and where its
     /// reports go: for a test that sends RTCP as this player would (or as
     /// someone spoofing it would).

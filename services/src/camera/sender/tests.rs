@@ -917,3 +917,61 @@ fn a_slow_reader_loses_whole_frames_never_parts_of_them() {
     }
     assert!((10..=20).contains(&whole), "the slow reader had {whole} whole frames (60% of 30 is 18)");
 }
+
+/// Issue 34, item 11: each stream has a group address of its own (one
+/// address for all, told apart by port, gave every receiver behind an
+/// IGMP-snooping switch every stream); the board is told which to join.
+#[test]
+fn two_lights_multicast_groups_differ() {
+    let mut r = rig(ROWS);
+    let mut groups = vec![];
+    for (s, x) in [(1u64, 1.0), (2, 2.0), (3, 1.0)] {
+        let client = Client { addr: CLIENT, conn: ConnId(s as u32) };
+        let fixed = spec(Kind::Light(light(x)), Fps::Rate(10));
+        let mut b = r.streams(t(0));
+        groups.push(b.setup(SessionId(s), &fixed, Transport::Multicast, Profile::Avp, client, FRESH).unwrap().group);
+    }
+    let first = Group { addr: GROUP, port: 5006, ttl: 1 };
+    let second = Group { addr: core::net::Ipv4Addr::new(239, 255, 42, 2), ..first };
+    assert_eq!(groups, [Some(first), Some(second), Some(first)], "the same light shares its group");
+    let mut joined: Vec<Group> = r.camera.multicast_groups().collect();
+    joined.sort_by_key(|g| g.addr);
+    assert_eq!(joined, [first, second]);
+    let before = r.camera.output_changes();
+    r.streams(t(1)).end(SessionId(2), EndReason::Teardown);
+    assert_ne!(r.camera.output_changes(), before, "the board looks again and leaves the group");
+    assert_eq!(r.camera.multicast_groups().collect::<Vec<_>>(), [first]);
+}
+
+/// A group's repair budget grows with its receivers: three receivers, each
+/// losing packets of its own, may have three times one's resends.
+#[test]
+fn a_groups_repair_budget_grows_with_its_receivers() {
+    let resent_with = |receivers: u64| {
+        let mut r = rig(ROWS);
+        let fixed = spec(Kind::Light(light(1.0)), Fps::Rate(10));
+        for s in 1..=receivers {
+            let client = Client { addr: CLIENT, conn: ConnId(s as u32) };
+            let mut b = r.streams(t(0));
+            b.setup(SessionId(s), &fixed, Transport::Multicast, Profile::Avp, client, FRESH).unwrap();
+            b.play(SessionId(s)).unwrap();
+        }
+        // Two frames sent (720 packets), then NACKs for every one of them,
+        // 255 a datagram (the most one is read for).
+        for k in 0..2 {
+            r.settle(t(100 * k));
+        }
+        let first = r.sink.rows[0].seq16();
+        let entries: Vec<(u16, u16)> =
+            (0..2 * ROWS.div_ceil(17)).map(|k| (first.wrapping_add(17 * k), 0xffff)).collect();
+        for chunk in entries.chunks(15) {
+            r.nack_from(CLIENT, 6001, &nack(SSRC, chunk), t(150));
+            r.settle(t(150));
+        }
+        r.camera.stats(SessionId(1)).unwrap().resent
+    };
+    let (one, three) = (resent_with(1), resent_with(3));
+    // One receiver: half a budget to start with and one resend per four
+    // packets, 540; three: the earnings three times over, all 720.
+    assert_eq!((one, three), (540, 720), "resends for one receiver's group and for three receivers'");
+}
