@@ -223,3 +223,59 @@ fn connections_beyond_the_boards_sockets_are_refused_at_once() {
     let (head, _) = split(&http(addr, b"GET /status HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
     assert!(head.starts_with("HTTP/1.1 200 "), "{head}");
 }
+
+/// Issue 34, item 4: four viewers over the web's two frame slots, which
+/// hps-sim shares among its connections as the board does, two of them
+/// greedy (a request always queued: they ask again before reading their
+/// frame): each viewer gets at least a fifth of the frames within a few
+/// seconds (about a quarter each here). It failed first on the shared
+/// ring: a viewer waiting its turn slept on its socket until a message
+/// came, and three of the four never had a frame.
+#[test]
+fn four_viewers_over_two_slots_two_of_them_greedy_each_get_a_fair_share() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let (_sim, addr) = board();
+    let stop = Arc::new(AtomicBool::new(false));
+    let raw = [3 << 10, 4 << 10, -(2 << 10)];
+    let want = render_frame(&Light::from_raw(raw[0], raw[1], raw[2]).expect("light"));
+    let viewers: Vec<_> = (0..4)
+        .map(|k| {
+            let stop = stop.clone();
+            let want = want.clone();
+            std::thread::spawn(move || {
+                let mut ws = viewer(addr);
+                let greedy = k < 2;
+                let request = Message::Binary(Bytes::copy_from_slice(&encode_raw_request(raw)));
+                if greedy {
+                    ws.send(request.clone()).expect("request");
+                }
+                let mut got = 0usize;
+                while !stop.load(Ordering::Relaxed) {
+                    ws.send(request.clone()).expect("request");
+                    loop {
+                        match ws.read().expect("a frame") {
+                            Message::Binary(b) => {
+                                assert!(b[..] == want[..], "viewer {k}: a frame that is not the model's");
+                                break;
+                            }
+                            Message::Ping(_) | Message::Pong(_) => {}
+                            other => panic!("unexpected {other:?}"),
+                        }
+                    }
+                    got += 1;
+                }
+                got
+            })
+        })
+        .collect();
+    std::thread::sleep(Duration::from_secs(4));
+    stop.store(true, Ordering::Relaxed);
+    let got: Vec<usize> = viewers.into_iter().map(|v| v.join().expect("a viewer")).collect();
+    let total: usize = got.iter().sum();
+    assert!(total >= 8, "frames per viewer {got:?}");
+    assert!(
+        got.iter().all(|&n| n * 5 >= total),
+        "frames per viewer (the first two greedy) {got:?}: a fifth each at least"
+    );
+}

@@ -29,14 +29,12 @@
 pub mod rtsp;
 pub mod web;
 
-use std::cell::RefCell;
 use std::fmt;
 use std::io::{self, Read, Write};
 use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
-use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::thread;
 use std::time::{Duration, Instant};
 
@@ -93,14 +91,21 @@ pub const FRAME_SLOTS: usize = 2;
 const RING_BASE: u32 = 0x0410_0000;
 
 /// Host memory shared by the simulated frame DMA (which writes it) and the
-/// frame ring (which reads it): one connection's thread only.
+/// frame ring (which reads it); `Send`, so that one ring can serve every
+/// web connection's thread, as on the board (the lock is never contended:
+/// the ring that owns it is behind a lock of its own).
 #[derive(Clone)]
-pub struct SharedMemory(Rc<RefCell<Vec<u8>>>);
+pub struct SharedMemory(Arc<Mutex<Vec<u8>>>);
 
 impl SharedMemory {
     /// Zeroed memory for `slots` frame slots.
     pub fn new(slots: usize) -> SharedMemory {
-        SharedMemory(Rc::new(RefCell::new(vec![0; slots * FRAME_BYTES])))
+        SharedMemory(Arc::new(Mutex::new(vec![0; slots * FRAME_BYTES])))
+    }
+
+    fn bytes(&self) -> std::sync::MutexGuard<'_, Vec<u8>> {
+        // Nothing panics while holding it; a poisoned lock's bytes are whole.
+        self.0.lock().unwrap_or_else(|e| e.into_inner())
     }
 
     fn offset(addr: u32) -> Option<usize> {
@@ -110,7 +115,7 @@ impl SharedMemory {
 
 impl DmaTarget for SharedMemory {
     fn write(&mut self, addr: u32, bytes: &[u8]) -> bool {
-        let mut mem = self.0.borrow_mut();
+        let mut mem = self.bytes();
         match Self::offset(addr).and_then(|o| mem.get_mut(o..o + bytes.len())) {
             Some(dst) => {
                 dst.copy_from_slice(bytes);
@@ -127,11 +132,11 @@ impl FrameMemory for SharedMemory {
     }
 
     fn read_row(&mut self, slot: usize, y: u16, offset: usize, out: &mut [u8]) {
-        SliceMemory::new(RING_BASE, &mut self.0.borrow_mut()).read_row(slot, y, offset, out)
+        SliceMemory::new(RING_BASE, &mut self.bytes()).read_row(slot, y, offset, out)
     }
 
     fn write_row(&mut self, slot: usize, y: u16, row: &[u8; ROW_BYTES]) {
-        SliceMemory::new(RING_BASE, &mut self.0.borrow_mut()).write_row(slot, y, row)
+        SliceMemory::new(RING_BASE, &mut self.bytes()).write_row(slot, y, row)
     }
 }
 
@@ -148,9 +153,12 @@ pub fn row_frames() -> RowFrames<SimDriver<hal_avalon::sim::NoMemory>, 1> {
     RowFrames::new(accel)
 }
 
+/// The simulated accelerator's frame ring ([`frame_ring`]).
+pub type SimFrameRing = FrameRing<SharedMemory, SimDriver<SharedMemory>, FRAME_SLOTS>;
+
 /// Frame mode: a ring of [`FRAME_SLOTS`] in host memory, filled by the
 /// simulated accelerator's frame DMA through the driver.
-pub fn frame_ring() -> FrameRing<SharedMemory, SimDriver<SharedMemory>, FRAME_SLOTS> {
+pub fn frame_ring() -> SimFrameRing {
     let mem = SharedMemory::new(FRAME_SLOTS);
     let sim = SimAccelerator::with_memory(mem.clone(), SIM_BUSY_POLLS);
     FrameRing::new(mem, Accelerator::new(sim, CountingDelay::default(), PollTimeout::DEFAULT))

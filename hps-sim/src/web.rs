@@ -1,8 +1,10 @@
 //! The board's web page on the host (`hps-sim --http ADDR:PORT`): the
 //! firmware's web connections (`rt_services::web::server`) on std TCP, a
-//! thread and a simulated accelerator per connection as for the seed
-//! protocol, at most [`WEB_VIEWERS`] WebSocket viewers at once as on the
-//! board.
+//! thread per connection (at most [`WEB_SOCKETS`]), at most
+//! [`WEB_VIEWERS`] WebSocket viewers at once, and, as on the board, one
+//! ring of [`FRAME_SLOTS`](crate::FRAME_SLOTS) frames that every viewer shares, taken in turn
+//! ([`Turns`]): two viewers that keep a request queued cannot hold both
+//! slots while the others wait, here as there.
 
 use std::fmt;
 use std::io::{self, Write};
@@ -13,17 +15,17 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use model::ROW_BYTES;
-use rt_services::web::server::{drive, Action, Connection, Context, SEND_TIMEOUT};
+use rt_services::web::server::{drive, Action, Connection, Context, Turns, SEND_TIMEOUT};
 use rt_services::web::status::{BoardStatus, Viewers};
 use rt_services::web::{WEB_SOCKETS, WEB_VIEWERS};
 use rt_services::{FrameSource, Instant as ProtocolInstant};
 
-use crate::{close_gracefully, frame_ring, spawn_reader, ConnectionCap, Input, Log};
+use crate::{close_gracefully, frame_ring, spawn_reader, ConnectionCap, Input, Log, SimFrameRing};
 
-/// What the connections share: the board's figures.
-#[derive(Debug)]
+/// What the connections share: the board's figures, and the frames.
 pub struct Shared {
     started: Instant,
+    frames: Mutex<WebFrames>,
     /// Viewers now (the lock also orders handshakes against the cap).
     viewers: Mutex<usize>,
     /// Seed-protocol clients now (the seed listeners count them).
@@ -38,6 +40,7 @@ impl Shared {
     pub fn new(rtsp_port: u16) -> Shared {
         Shared {
             started: Instant::now(),
+            frames: Mutex::new(WebFrames { ring: None, turns: Turns::new(), taken: [false; WEB_SOCKETS] }),
             viewers: Mutex::new(0),
             seed_clients: AtomicUsize::new(0),
             frames_rendered: AtomicU64::new(0),
@@ -109,34 +112,71 @@ impl Drop for WebServer {
     }
 }
 
-/// A frame source made when its first frame is begun: a connection that
-/// asks for a page file or `/status` never allocates a frame ring.
-struct OnDemand<S> {
-    source: Option<S>,
-    make: fn() -> S,
+/// The web connections' frames: one ring, made when the first frame is
+/// begun (a connection that asks for a page file or `/status` never makes
+/// one), whose turn it is to begin a frame, and which turn places
+/// (connection indices) are taken.
+struct WebFrames {
+    ring: Option<SimFrameRing>,
+    turns: Turns<WEB_SOCKETS>,
+    taken: [bool; WEB_SOCKETS],
 }
 
-impl<S: FrameSource> FrameSource for OnDemand<S> {
-    type Frame = S::Frame;
-    type Error = S::Error;
+impl WebFrames {
+    fn ring(&mut self) -> &mut SimFrameRing {
+        self.ring.get_or_insert_with(frame_ring)
+    }
+}
 
-    fn begin(&mut self, light: &model::Light) -> Result<Option<S::Frame>, S::Error> {
-        self.source.get_or_insert_with(self.make).begin(light)
+fn lock(frames: &Mutex<WebFrames>) -> std::sync::MutexGuard<'_, WebFrames> {
+    // A connection thread that panicked left the ring as it was: go on.
+    frames.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// One connection's view of the shared frames (each call under the lock).
+struct SharedFrames<'a>(&'a Mutex<WebFrames>);
+
+impl FrameSource for SharedFrames<'_> {
+    type Frame = <SimFrameRing as FrameSource>::Frame;
+    type Error = <SimFrameRing as FrameSource>::Error;
+
+    fn begin(&mut self, light: &model::Light) -> Result<Option<Self::Frame>, Self::Error> {
+        lock(self.0).ring().begin(light)
     }
 
-    // A frame exists only once the source does: these see it made.
-    fn rows_ready(&mut self, frame: S::Frame) -> Result<u16, S::Error> {
-        self.source.get_or_insert_with(self.make).rows_ready(frame)
+    fn rows_ready(&mut self, frame: Self::Frame) -> Result<u16, Self::Error> {
+        lock(self.0).ring().rows_ready(frame)
     }
 
-    fn copy_row(&mut self, frame: S::Frame, y: u16, offset: usize, out: &mut [u8]) -> usize {
-        self.source.as_mut().map_or(0, |s| s.copy_row(frame, y, offset, out))
+    fn copy_row(&mut self, frame: Self::Frame, y: u16, offset: usize, out: &mut [u8]) -> usize {
+        lock(self.0).ring().copy_row(frame, y, offset, out)
     }
 
-    fn end(&mut self, frame: S::Frame) {
-        if let Some(s) = self.source.as_mut() {
-            s.end(frame);
-        }
+    fn end(&mut self, frame: Self::Frame) {
+        lock(self.0).ring().end(frame)
+    }
+}
+
+/// A connection's place among the turns, given back on drop.
+struct TurnPlace<'a> {
+    frames: &'a Mutex<WebFrames>,
+    index: usize,
+}
+
+impl<'a> TurnPlace<'a> {
+    fn take(frames: &'a Mutex<WebFrames>) -> Option<TurnPlace<'a>> {
+        let mut f = lock(frames);
+        let index = f.taken.iter().position(|t| !t)?;
+        f.taken[index] = true;
+        Some(TurnPlace { frames, index })
+    }
+}
+
+impl Drop for TurnPlace<'_> {
+    fn drop(&mut self) {
+        let mut f = lock(self.frames);
+        f.turns.served(self.index, false);
+        f.taken[self.index] = false;
     }
 }
 
@@ -172,7 +212,9 @@ impl<S: FrameSource> FrameSource for Counted<'_, S> {
 }
 
 fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
-    let mut ring = OnDemand { source: None, make: frame_ring };
+    // The cap on sockets keeps connections to WEB_SOCKETS: a place is free.
+    let Some(place) = TurnPlace::take(&shared.frames) else { return };
+    let mut ring = SharedFrames(&shared.frames);
     let mut frames = Counted { frames: &mut ring, rendered: &shared.frames_rendered };
     let _ = stream.set_nodelay(true);
     let _ = stream.set_write_timeout(Some(SEND_TIMEOUT));
@@ -226,14 +268,17 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
             }
         };
         let action = if viewer {
+            let may_begin = lock(&shared.frames).turns.may_begin(place.index);
             let cx = Context {
                 now: now(),
                 room: false,
                 status: &status_now,
                 name: rt_services::DEFAULT_HOST_NAME,
-                may_begin: true,
+                may_begin,
             };
-            drive(&mut connection, &cx, &mut frames, &mut send, &mut log)
+            let action = drive(&mut connection, &cx, &mut frames, &mut send, &mut log);
+            lock(&shared.frames).turns.served(place.index, connection.wants_frame());
+            action
         } else {
             // The cap holds across threads: a handshake is answered under
             // the lock.
@@ -268,9 +313,14 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
                 true
             }
             Action::Wait { deadline } if !input_ended => {
-                let wait = deadline.map_or(Duration::from_secs(3600), |d| {
+                let mut wait = deadline.map_or(Duration::from_secs(3600), |d| {
                     d.saturating_duration_since(now()).max(Duration::from_millis(1))
                 });
+                if connection.wants_frame() {
+                    // Waiting its turn: another thread's frame ending is
+                    // no message to this one, so look again soon.
+                    wait = wait.min(Duration::from_millis(2));
+                }
                 match input.recv_timeout(wait) {
                     Ok(Input::Bytes(b)) => pending.extend_from_slice(&b),
                     Ok(Input::End) | Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => input_ended = true,
@@ -292,6 +342,8 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
             }
         }
     }
+    // Whatever ended it, a frame it held goes back to the shared ring.
+    connection.abandon(&mut frames);
     if viewer {
         let mut count = shared.viewers.lock().unwrap_or_else(|e| e.into_inner());
         *count = count.saturating_sub(1);

@@ -28,7 +28,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 
 use crate::images::firmware::Guest;
-use crate::support::browser::{check_page, ensure_browser, PageCheck};
+use crate::support::browser::{check_page, ensure_browser, pages_share, PageCheck};
 use crate::support::tools::root;
 use crate::support::Result;
 
@@ -51,9 +51,14 @@ pub fn run(elf: &Path) -> Result<()> {
         during: Some(&during),
         play_s: 600,
     };
-    let from = guest.uart().len();
     let summary = check_page(&check).map_err(|e| format!("{e}\nthe board's UART:\n{}", tail(&guest)))?;
     println!("web (emulated board): {summary}");
+    // Four pages at once, each a viewer of its own over the board's two
+    // web frame slots (issue 34, item 4).
+    let from = guest.uart().len();
+    let share = pages_share(&format!("http://127.0.0.1:{}", f.web), 40)
+        .map_err(|e| format!("{e}\nthe board's UART:\n{}", tail(&guest)))?;
+    println!("web (emulated board): {share}");
     let idle = guest.wait_for_line(from, "net: idle:", Duration::from_secs(60))?;
     if !idle.contains("8 of 8 web sockets listening") || !idle.contains("24 of 24 sockets listening") {
         return Err(format!("after the attack and the browser the idle report is {idle:?}"));

@@ -10,7 +10,7 @@ use std::process::{Command, Stdio};
 use std::time::Instant;
 
 use super::players::{free_ports, wait_for_port, Guard};
-use crate::support::browser::{check_page, ensure_browser, PageCheck};
+use crate::support::browser::{check_page, ensure_browser, pages_share, PageCheck};
 use crate::support::tools::{cargo, root, step};
 use crate::support::Result;
 
@@ -42,6 +42,8 @@ pub fn run() -> Result<()> {
         return Err(format!("hps-sim exited during the test ({status}); see {}", log.display()));
     }
     println!("web (hps-sim): {summary}; screenshot {}", dir.join("page.png").display());
+    // Four pages at once over the web's two shared frame slots.
+    println!("web (hps-sim): {}", pages_share(&format!("http://{http}"), 15)?);
     println!("web (hps-sim): done in {:.1} s", started.elapsed().as_secs_f64());
     Ok(())
 }

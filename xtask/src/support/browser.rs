@@ -41,6 +41,24 @@ pub struct PageCheck<'a> {
 /// while it ran and one after.
 const PICTURES: [&str; 4] = ["held", "drag", "during", "after"];
 
+/// Four pages at once in four Chromium browsers at `url`
+/// (`tests/browser/pages_share.py`): each must draw at least a fifth of
+/// the frames the four draw over `seconds`. Returns its summary line.
+pub fn pages_share(url: &str, seconds: u32) -> Result<String> {
+    let script = root().join("tests/browser/pages_share.py");
+    let out = Command::new("/usr/bin/python3")
+        .arg(&script)
+        .args(["--url", url, "--seconds", &seconds.to_string()])
+        .output()
+        .map_err(|e| format!("cannot run {}: {e}", script.display()))?;
+    let said = String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    print!("{said}");
+    if !out.status.success() {
+        return Err(format!("four pages at once did not each get a fair share ({})", out.status));
+    }
+    Ok(said.lines().rfind(|l| l.contains("passed")).unwrap_or_default().to_string())
+}
+
 /// Run the page check, then hold every picture it read back to the model.
 /// Returns a one-line summary.
 pub fn check_page(check: &PageCheck<'_>) -> Result<String> {
