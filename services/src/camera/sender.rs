@@ -524,6 +524,9 @@ pub struct Camera<const N: usize = MAX_SESSIONS> {
     frame_edges: u32,
     /// Outputs made plus outputs ended ([`output_changes`](Self::output_changes)).
     output_changes: u32,
+    /// Outputs finishing a late frame ([`Cursor::Finishing`]): the rest
+    /// of the main loop skips them, at no cost, while there are none.
+    late_outputs: u32,
 }
 
 impl<const N: usize> Default for Camera<N> {
@@ -550,6 +553,7 @@ impl<const N: usize> Camera<N> {
             rtcp: [0; RTCP_BYTES],
             frame_edges: 0,
             output_changes: 0,
+            late_outputs: 0,
         }
     }
 
@@ -619,10 +623,13 @@ impl<const N: usize> Camera<N> {
     /// to the source ([`SlotSource::set_held`]) after every call that
     /// sends or forgets ([`Bound`] and [`poll`](Self::poll) do).
     pub fn held(&self) -> u32 {
-        let late = self.outputs.iter().flatten().fold(0, |m, o| match o.cursor {
-            Cursor::Finishing { slot, .. } => m | 1 << slot,
-            _ => m,
-        });
+        let late = match self.late_outputs {
+            0 => 0,
+            _ => self.outputs.iter().flatten().fold(0, |m, o| match o.cursor {
+                Cursor::Finishing { slot, .. } => m | 1 << slot,
+                _ => m,
+            }),
+        };
         self.windows.iter().fold(late, |m, w| m | w.held())
     }
 
@@ -1075,7 +1082,11 @@ impl<const N: usize> Camera<N> {
         for media in 0..N {
             progress |= self.poll_stream(media, now, source, sink);
         }
-        progress |= self.cut_late_over_budget();
+        if self.late_outputs > 0 {
+            progress |= self.cut_late_over_budget();
+            self.late_outputs =
+                self.outputs.iter().flatten().filter(|o| matches!(o.cursor, Cursor::Finishing { .. })).count() as u32;
+        }
         if progress {
             source.set_held(self.held());
         }
@@ -1160,8 +1171,10 @@ impl<const N: usize> Camera<N> {
             progress |= o.stats.resent != before;
         }
         // Late outputs finish their frames; nothing waits for them.
-        for o in self.outputs.iter_mut().flatten().filter(|o| o.media == mi) {
-            progress |= finish_late(o, &media.packetiser, source, sink, now);
+        if self.late_outputs > 0 {
+            for o in self.outputs.iter_mut().flatten().filter(|o| o.media == mi) {
+                progress |= finish_late(o, &media.packetiser, source, sink, now);
+            }
         }
         if !media.running {
             return progress;
@@ -1330,6 +1343,7 @@ impl<const N: usize> Camera<N> {
                     // Slots number fewer than 32 (the held masks' bits).
                     o.cursor = Cursor::Finishing { slot: frame.slot as u8, next: frame.packet(next) };
                     o.stats.late += 1;
+                    self.late_outputs += 1;
                 }
                 Cursor::Sending { .. }
                     if o.stalled_since.is_some_and(|t| now.saturating_duration_since(t) >= o.stall_limit()) =>

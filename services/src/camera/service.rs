@@ -355,6 +355,14 @@ pub struct CameraService<'c> {
     /// RTCP to the multicast groups' port (receivers' reports and NACKs,
     /// to a group the board joined or to the board itself).
     group_rtcp: Option<SocketHandle>,
+    /// Whether a multicast stream runs (the group socket is read only
+    /// then), as of the camera's output count `outputs_seen`.
+    multicast_live: bool,
+    outputs_seen: u32,
+    /// [`Snooped::frames_seen`] when the RTCP sockets were last read: a
+    /// datagram arrives only with a frame, so a poll with none reads
+    /// nothing (the sockets are drained at each read).
+    frames_read: Option<u32>,
     routes: [Option<Route>; MAX_SESSIONS],
     local_mac: EthernetAddress,
     rng: SessionRng,
@@ -420,6 +428,9 @@ impl<'c> CameraService<'c> {
             sockets: tcp_sockets,
             rtcp: sockets.add(rtcp),
             group_rtcp,
+            multicast_live: false,
+            outputs_seen: 0,
+            frames_read: None,
             routes: [const { None }; MAX_SESSIONS],
             local_mac,
             rng: SessionRng::new(entropy),
@@ -504,9 +515,17 @@ impl<'c> CameraService<'c> {
             rtsp: &self.sockets,
             stats: &mut self.stats,
         };
-        for handle in core::iter::once(self.rtcp).chain(self.group_rtcp) {
-            let (server, camera, datagram) = (&mut self.server, &mut *self.camera, &mut self.datagram);
-            read_rtcp(handle, server, camera, datagram, now_ms, wall, source, &mut sink);
+        if self.camera.output_changes() != self.outputs_seen {
+            self.outputs_seen = self.camera.output_changes();
+            self.multicast_live = self.camera.multicast_groups().next().is_some();
+        }
+        let group_rtcp = self.group_rtcp.filter(|_| self.multicast_live);
+        if self.frames_read != Some(sink.peers.frames_seen()) {
+            self.frames_read = Some(sink.peers.frames_seen());
+            for handle in core::iter::once(self.rtcp).chain(group_rtcp) {
+                let (server, camera, datagram) = (&mut self.server, &mut *self.camera, &mut self.datagram);
+                read_rtcp(handle, server, camera, datagram, now_ms, wall, source, &mut sink);
+            }
         }
         // Rounds until nothing moves, a frame was received (NACKs arrive
         // only through the next `Interface::poll`) or a stream began or

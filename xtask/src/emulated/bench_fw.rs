@@ -288,8 +288,10 @@ impl Viewers {
 /// and the last frame the firmware rendered meanwhile, per frame rendered.
 fn measure_rtp(frames: usize, viewers: Viewers) -> Result<Measured> {
     use crate::support::rtsp_client::{Stream, Transport};
-    if let Viewers::Multicast(n) = viewers {
-        return measure_multicast(frames, n);
+    match viewers {
+        Viewers::Multicast(n) => return measure_multicast(frames, n),
+        Viewers::Unicast(n) if n > 1 => return measure_unicast_hosts(frames, n),
+        _ => {}
     }
     let elf = build("qemu-npcm750", &["bench", "sim-accelerator"])?;
     let mut g = Guest::boot(&elf, &["-icount", "shift=0"])?;
@@ -323,6 +325,36 @@ fn measure_rtp(frames: usize, viewers: Viewers) -> Result<Measured> {
         println!("bench-fw: RTP: {repaired} rows came by repair (the counts include the resends)");
     }
     counted(&mut g, from, frames, viewers)
+}
+
+/// Several unicast viewers, each a host of its own on the virtual LAN
+/// (lan.rs): from one address (slirp's) the board gives
+/// `SESSIONS_PER_ADDRESS` sessions. The first viewer checks `frames`
+/// frames; the others hold their sessions.
+fn measure_unicast_hosts(frames: usize, n: usize) -> Result<Measured> {
+    use super::lan::{Lan, BOARD};
+    use crate::support::rtsp_client::Stream;
+    let elf = build("qemu-npcm750", &["bench", "sim-accelerator"])?;
+    let mut lan = Lan::boot_with(&elf, n, &["-icount", "shift=0"])?;
+    let rtsp = std::net::SocketAddr::from((BOARD, 8554));
+    let want = super::qemu_e2e::expected_frame([3072, 4096, -2048])?;
+    let from = lan.guest.uart().len();
+    let sessions: Vec<Stream> = (0..n)
+        .map(|k| lan.on_host(k, move || Stream::open(rtsp, "/light/3,4,-2?fps=max", None)))
+        .collect::<Result<_>>()?;
+    let mut sessions = sessions.into_iter();
+    let mut first = sessions.next().ok_or("no viewer")?;
+    for i in 0..frames {
+        let frame = first.next_frame(Duration::from_secs(600))?;
+        if frame.bytes != want {
+            return Err(format!("RTP: frame {i} differs from model::render_frame"));
+        }
+    }
+    first.teardown()?;
+    for s in sessions {
+        s.teardown()?;
+    }
+    counted(&mut lan.guest, from, frames, Viewers::Unicast(n))
 }
 
 /// Multicast: slirp would hand the group's packets to the host's own

@@ -42,6 +42,11 @@ pub struct Lan {
 impl Lan {
     /// Boot `elf` on a LAN with `hosts` hosts and wait for its link.
     pub fn boot(elf: &Path, hosts: usize) -> Result<Lan> {
+        Lan::boot_with(elf, hosts, &[])
+    }
+
+    /// [`boot`](Self::boot) with extra QEMU arguments (`-icount`).
+    pub fn boot_with(elf: &Path, hosts: usize, extra: &[&str]) -> Result<Lan> {
         lossy::available().map_err(|why| format!("the virtual LAN needs network namespaces: {why}"))?;
         let id = std::process::id() % 100_000;
         let tap = format!("rtlan{id}");
@@ -81,8 +86,8 @@ impl Lan {
             "dgram,id=n0,local.type=inet,local.host=127.0.0.1,local.port={qemu_port},\
              remote.type=inet,remote.host=127.0.0.1,remote.port={relay_port}"
         );
-        let mut guest = Guest::boot_netdev(elf, &netdev, &[])?;
-        guest.wait_for_log("link up", Duration::from_secs(30))?;
+        let mut guest = Guest::boot_netdev(elf, &netdev, extra)?;
+        guest.wait_for_log("link up", Duration::from_secs(120))?;
         Ok(Lan { guest, relay, hosts: named, _switch: switch })
     }
 
