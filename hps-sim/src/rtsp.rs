@@ -288,9 +288,7 @@ impl RtpSink for Sink<'_> {
                     if self.clients[c].room() < self.packet.len() {
                         return k;
                     }
-                    self.packet[0] = b'$';
-                    self.packet[1] = rtp_channel;
-                    self.packet[2..4].copy_from_slice(&(rtp::PACKET_BYTES as u16).to_be_bytes());
+                    self.packet[..4].copy_from_slice(&rtp::interleaved_head(rtp_channel, rtp::PACKET_BYTES as u16));
                     let (header, row) = self.packet[4..].split_at_mut(rtp::HEADER_BYTES);
                     if p.emit(&packet, header).is_err() || source.copy_row(slot, packet.row, 0, row) < ROW_BYTES {
                         continue;
@@ -337,8 +335,7 @@ impl RtpSink for Sink<'_> {
                 if c.room() < 4 + datagram.len() {
                     return false;
                 }
-                let len = datagram.len() as u16;
-                c.out.extend_from_slice(&[b'$', rtcp_channel, (len >> 8) as u8, len as u8]);
+                c.out.extend_from_slice(&rtp::interleaved_head(rtcp_channel, datagram.len() as u16));
                 c.out.extend_from_slice(datagram);
                 true
             }

@@ -31,8 +31,10 @@ pub const TIMEOUT: Duration = Duration::from_secs(30);
 
 /// A handshake (SYN received, SYN-ACK sent) not finished within this is
 /// dropped: a client on any network answers a SYN-ACK within a few round
-/// trips, and smoltcp retransmits it three times in this span.
-pub const HANDSHAKE_LIMIT: core::time::Duration = core::time::Duration::from_secs(5);
+/// trips, and smoltcp retransmits it three times in this span
+/// ([`crate::time::REQUEST_LIMIT`], the services' one limit on unfinished
+/// work).
+pub const HANDSHAKE_LIMIT: core::time::Duration = crate::time::REQUEST_LIMIT;
 
 /// Set the services' policy on `socket` (module docs).
 pub fn configure(socket: &mut tcp::Socket<'_>) {

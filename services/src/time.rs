@@ -3,6 +3,14 @@
 use core::ops::Add;
 use core::time::Duration;
 
+/// The one limit for every service on work a peer left unfinished: a
+/// request not whole (the seed protocol's 12 bytes, the page's HTTP head,
+/// an RTSP request) this long after its first byte closes its connection,
+/// and a TCP handshake not finished this long is dropped (`tcp`). A client
+/// on any network finishes both within a few round trips; one that sends
+/// half and waits holds a socket no longer.
+pub const REQUEST_LIMIT: Duration = Duration::from_secs(5);
+
 /// A point in time, in whole milliseconds since the adapter's origin (the
 /// firmware's boot, a host session's start).
 #[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Debug, Default)]

@@ -15,7 +15,9 @@
 //! * [`sender`]: the RTP sender behind it: frames paced from the frame
 //!   ring, rows handed to the caller's sink, NACKs answered.
 //! * `service` (feature `smoltcp`): all of it on smoltcp sockets, rows out
-//!   through a zero-copy transmitter, as the firmware runs it.
+//!   through a zero-copy transmitter, as the firmware runs it; `snoop`
+//!   (feature `smoltcp`): what the received frames tell it (next hops,
+//!   ICMP port unreachable).
 //! * [`receiver`]: the client's end: datagrams to whole frames, NACKs out.
 
 pub mod random;
@@ -28,4 +30,6 @@ pub mod sdp;
 pub mod sender;
 #[cfg(feature = "smoltcp")]
 pub mod service;
+#[cfg(feature = "smoltcp")]
+pub mod snoop;
 pub mod url;

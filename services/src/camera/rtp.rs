@@ -92,6 +92,14 @@ pub const UDP_LENGTH: u16 = (UDP_HEADER_BYTES + PACKET_BYTES) as u16;
 /// Bytes of every header in front of a row on the wire: 14 + 20 + 8 + 20 = 62.
 pub const FRAME_HEADER_BYTES: usize = ETHERNET_HEADER_BYTES + IPV4_HEADER_BYTES + UDP_HEADER_BYTES + HEADER_BYTES;
 
+/// The 4 bytes in front of an RTP or RTCP packet sent inside an RTSP
+/// connection (RFC 2326 section 10.12): `$`, the channel, the packet's
+/// length (big-endian). Every interleaved sender writes it with this.
+pub const fn interleaved_head(channel: u8, len: u16) -> [u8; 4] {
+    let [hi, lo] = len.to_be_bytes();
+    [b'$', channel, hi, lo]
+}
+
 /// RTP timestamp ticks in a millisecond of the crate's [`Instant`].
 const TICKS_PER_MILLI: u64 = CLOCK_RATE as u64 / 1_000;
 

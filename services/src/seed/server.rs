@@ -44,8 +44,9 @@ use crate::seed::wire::{decode_request, REQUEST_BYTES};
 use crate::seed::wire::{FRAME_PORT, PERSISTENT_PORT};
 use crate::time::Instant;
 
-/// How long a partially received request may sit idle before it is dropped.
-pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(5);
+/// How long a partially received request may sit idle before it is dropped
+/// ([`crate::time::REQUEST_LIMIT`], the same for every service).
+pub const REQUEST_TIMEOUT: Duration = crate::time::REQUEST_LIMIT;
 
 /// How long a frame may go without a byte leaving before the session gives
 /// up on the client (it stopped reading; its socket is needed by others).

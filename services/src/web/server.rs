@@ -42,8 +42,9 @@ use crate::frames::{FrameSource, ROWS};
 use crate::seed::wire::{decode_request, REQUEST_BYTES};
 use crate::time::Instant;
 
-/// How long a request head may take to arrive.
-pub const HEAD_TIMEOUT: Duration = Duration::from_secs(5);
+/// How long a request head may take to arrive ([`crate::time::REQUEST_LIMIT`],
+/// the same for every service).
+pub const HEAD_TIMEOUT: Duration = crate::time::REQUEST_LIMIT;
 
 /// How long output may wait for the client to take a byte.
 /// Also how long a frame may wait for its rows: far beyond any render time,

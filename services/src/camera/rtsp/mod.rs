@@ -142,8 +142,9 @@ pub const UNPLAYED_TIMEOUT: Duration = Duration::from_secs(15);
 pub const RECLAIM_AFTER: Duration = Duration::from_secs(2);
 
 /// A request left unfinished this long closes its connection (a client
-/// that sends half a request and waits holds a socket no longer).
-pub const REQUEST_DEADLINE: Duration = Duration::from_secs(5);
+/// that sends half a request and waits holds a socket no longer):
+/// [`crate::time::REQUEST_LIMIT`], the same for every service.
+pub const REQUEST_DEADLINE: Duration = crate::time::REQUEST_LIMIT;
 
 /// A connection that owns no session and has made no request for this
 /// long is closed (players set up within milliseconds of connecting).
