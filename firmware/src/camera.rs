@@ -14,7 +14,8 @@ use dwmac::desc::ChecksumInsertion;
 use dwmac::{DmaSync, Dwmac, SplitSeq};
 use embedded_hal::delay::DelayNs;
 use model::ROW_BYTES;
-use rt_services::camera::rtp::{HeaderTemplate, Packetiser, RowPacket, HEADER_PAD, HEADER_WORDS};
+use rt_services::camera::frame_header::{HeaderTemplate, HEADER_PAD, HEADER_WORDS};
+use rt_services::camera::rtp::{Packetiser, RowPacket};
 use rt_services::camera::service::RowTransmitter;
 
 use crate::limits::RING_SLOTS;
@@ -33,7 +34,7 @@ pub struct ZeroCopy<'m, 'a, S, D> {
     /// Rows dropped as malformed (never expected: headers are 62 bytes).
     pub refused: &'m mut u32,
     /// The checksum insertion of the first run's header, for all after it:
-    /// every header is `rtp::HeaderTemplate`'s (Ethernet II, IPv4 without
+    /// every header is `frame_header::HeaderTemplate`'s (Ethernet II, IPv4 without
     /// fragments, UDP), which takes the same insertion.
     pub cic: Option<ChecksumInsertion>,
 }

@@ -5,10 +5,9 @@
 use std::net::{Ipv4Addr, SocketAddrV4};
 
 use model::ROW_BYTES;
+use rt_services::camera::frame_header::{self, Endpoints, HeaderTemplate, UdpChecksum};
 use rt_services::camera::rtcp::{self, write_sdes_cname, NackRequests, SenderReport};
-use rt_services::camera::rtp::{
-    self, Endpoints, HeaderTemplate, Packetiser, RowPacket, UdpChecksum, FRAME_HEADER_BYTES,
-};
+use rt_services::camera::rtp::{Packetiser, RowPacket, FRAME_HEADER_BYTES};
 use rtcp_types::prelude::*;
 use smoltcp::phy::ChecksumCapabilities;
 use smoltcp::wire::{
@@ -248,8 +247,8 @@ proptest::proptest! {
 
         proptest::prop_assert_eq!(words.bytes(), want);
         let memory: Vec<u8> = words.0.iter().flat_map(|w| w.to_ne_bytes()).collect();
-        proptest::prop_assert_eq!(&memory[..rtp::HEADER_PAD], &[0u8; rtp::HEADER_PAD][..], "padding");
-        proptest::prop_assert_eq!(&memory[rtp::HEADER_PAD..], &want[..]);
+        proptest::prop_assert_eq!(&memory[..frame_header::HEADER_PAD], &[0u8; frame_header::HEADER_PAD][..], "padding");
+        proptest::prop_assert_eq!(&memory[frame_header::HEADER_PAD..], &want[..]);
         proptest::prop_assert_eq!(t.next_ident(), ident.wrapping_add(1));
     }
 }

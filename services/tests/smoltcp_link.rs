@@ -408,7 +408,7 @@ struct Recorder {
 impl RowTransmitter for Recorder {
     fn send_run(
         &mut self,
-        template: &mut rtp::HeaderTemplate,
+        template: &mut rt_services::camera::frame_header::HeaderTemplate,
         session: &rtp::Packetiser,
         first: &rtp::RowPacket,
         count: u16,

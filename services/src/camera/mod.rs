@@ -4,9 +4,10 @@
 //! Formats apart from behaviour, as smoltcp keeps `wire` apart from its
 //! sockets:
 //!
-//! * [`rtp`]: the RTP packet of one row (RFC 3550, RFC 4175), its numbering
-//!   ([`rtp::Packetiser`]) and the whole 62-byte header the board's
-//!   zero-copy path puts in front of a row.
+//! * [`rtp`]: the RTP packet of one row (RFC 3550, RFC 4175) and its
+//!   numbering ([`rtp::Packetiser`]).
+//! * [`frame_header`]: the whole 62-byte header the board's zero-copy path
+//!   puts in front of a row (Ethernet, IPv4, UDP, RTP).
 //! * [`rtcp`]: sender reports, SDES, the receivers' generic NACKs (RFC 4585).
 //! * [`repair`]: which slot and row each recent packet came from, so a
 //!   NACKed packet can be sent again unchanged.
@@ -20,6 +21,7 @@
 //!   ICMP port unreachable).
 //! * [`receiver`]: the client's end: datagrams to whole frames, NACKs out.
 
+pub mod frame_header;
 pub mod random;
 pub mod receiver;
 pub mod repair;

@@ -33,8 +33,9 @@ use smoltcp::socket::{tcp, udp};
 use smoltcp::time::Instant;
 use smoltcp::wire::{EthernetAddress, IpEndpoint};
 
+use super::frame_header::{Endpoints, HeaderTemplate, UdpChecksum, UNICAST_TTL};
 use super::random::SessionRng;
-use super::rtp::{Endpoints, HeaderTemplate, Packetiser, RowPacket, UdpChecksum, HEADER_BYTES, UNICAST_TTL};
+use super::rtp::{Packetiser, RowPacket, HEADER_BYTES};
 use super::rtsp::{
     self, ConnId, Connection, Server, CONNECTIONS, CONNECTIONS_PER_ADDRESS, MAX_RESPONSE_BYTES, MAX_SESSIONS, RTSP_PORT,
 };
