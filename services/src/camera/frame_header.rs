@@ -3,7 +3,7 @@
 //! zero-copy transmit path: the first buffer of a descriptor holds this
 //! header, the second the row in the frame ring. The RTP part is the
 //! [`Packetiser`](super::rtp::Packetiser)'s; the rest is written once per destination
-//! ([`HeaderTemplate`], feature `smoltcp`) and patched per packet.
+//! (`HeaderTemplate`, feature `smoltcp`) and patched per packet.
 
 #[cfg(feature = "smoltcp")]
 use super::rtp::ETHERNET_HEADER_BYTES;
