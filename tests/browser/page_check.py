@@ -44,14 +44,11 @@ import urllib.parse
 import json
 import math
 import os
-import shutil
 import subprocess
 import sys
-import tempfile
 import time
 
-from selenium import webdriver
-from selenium.webdriver.chrome.service import Service
+import chromium
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
 
@@ -400,21 +397,10 @@ def main():
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
 
-    profile = tempfile.mkdtemp(prefix="page-check-chromium-")
-    options = webdriver.ChromeOptions()
-    options.binary_location = "/usr/bin/chromium"
-    for a in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-              "--disable-background-networking", "--disable-component-update", "--disable-sync",
-              "--window-size=1280,900", f"--user-data-dir={profile}"):
-        options.add_argument(a)
-    options.set_capability("goog:loggingPrefs", {"browser": "ALL"})
-
     driver = None
     try:
         step("starting headless Chromium")
-        driver = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
-        driver.set_page_load_timeout(args.timeout)
-        driver.set_script_timeout(args.timeout)
+        driver, profile = chromium.start(args.timeout, log_console=True)
         frames = check(driver, args.url, args.out, args.timeout, args.during.split() if args.during else None,
                        args.play)
         print(f"page check: passed ({frames} frames drawn)", flush=True)
@@ -431,11 +417,7 @@ def main():
         return 1
     finally:
         if driver is not None:
-            try:
-                driver.quit()
-            except Exception:  # noqa: BLE001
-                pass
-        shutil.rmtree(profile, ignore_errors=True)
+            chromium.stop(driver, profile)
 
 
 if __name__ == "__main__":

@@ -14,31 +14,14 @@ that two greedy pages starve, fails here.
 """
 
 import argparse
-import shutil
 import sys
-import tempfile
 import time
 
-from selenium import webdriver
-from selenium.webdriver.chrome.service import Service
+import chromium
 
 LIGHTS = ["3,4,-2", "-3,5,1", "0,8,-7", "1.5,2.5,0.75"]
 
 STATE = "return window.rtPage ? {drawn: window.rtPage.framesDrawn, connected: window.rtPage.connected} : null;"
-
-
-def browser(timeout):
-    profile = tempfile.mkdtemp(prefix="pages-share-chromium-")
-    options = webdriver.ChromeOptions()
-    options.binary_location = "/usr/bin/chromium"
-    for a in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-              "--disable-background-networking", "--disable-component-update", "--disable-sync",
-              "--window-size=800,600", f"--user-data-dir={profile}"):
-        options.add_argument(a)
-    driver = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
-    driver.set_page_load_timeout(timeout)
-    driver.set_script_timeout(timeout)
-    return driver, profile
 
 
 def drawn(driver):
@@ -58,7 +41,7 @@ def main():
     opened = []
     try:
         for k in range(args.pages):
-            driver, profile = browser(args.timeout)
+            driver, profile = chromium.start(args.timeout, window="800,600")
             opened.append((driver, profile))
             driver.get(f"{args.url}/?light={LIGHTS[k % len(LIGHTS)]}")
         deadline = time.monotonic() + args.timeout
@@ -90,11 +73,7 @@ def main():
         return 1
     finally:
         for driver, profile in opened:
-            try:
-                driver.quit()
-            except Exception:  # noqa: BLE001
-                pass
-            shutil.rmtree(profile, ignore_errors=True)
+            chromium.stop(driver, profile)
 
 
 if __name__ == "__main__":

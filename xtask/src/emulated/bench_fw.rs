@@ -375,10 +375,7 @@ fn measure_multicast(frames: usize, n: usize) -> Result<Measured> {
     let udp = std::net::UdpSocket::bind(("127.0.0.1", relay_port)).map_err(|e| e.to_string())?;
     let remote = std::net::SocketAddr::from(([127, 0, 0, 1], qemu_port));
     let _relay = Relay::start(udp, remote, tap_file, Faults::default(), 1)?;
-    let netdev = format!(
-        "dgram,id=n0,local.type=inet,local.host=127.0.0.1,local.port={qemu_port},\
-         remote.type=inet,remote.host=127.0.0.1,remote.port={relay_port}"
-    );
+    let netdev = crate::images::firmware::dgram_netdev(qemu_port, relay_port);
     let mut g = Guest::boot_netdev(&elf, &netdev, &["-icount", "shift=0"])?;
     g.wait_for_log("link up", Duration::from_secs(120))?;
     let from = g.uart().len();

@@ -92,10 +92,7 @@ pub fn run(elf: &Path) -> Result<()> {
             sent
         })
     };
-    let netdev = format!(
-        "dgram,id=n0,local.type=inet,local.host=127.0.0.1,local.port={qemu_port},\
-         remote.type=inet,remote.host=127.0.0.1,remote.port={peer_port}"
-    );
+    let netdev = crate::images::firmware::dgram_netdev(qemu_port, peer_port);
     let booted = Guest::boot_netdev(elf, &netdev, &[]).and_then(|mut g| {
         g.wait_for_log("link up", Duration::from_secs(30))?;
         Ok(g)

@@ -82,10 +82,7 @@ impl Lan {
         let (qemu_port, relay_port) = (free_udp_port()?, free_udp_port()?);
         let udp = UdpSocket::bind(("127.0.0.1", relay_port)).map_err(|e| e.to_string())?;
         let relay = Relay::start(udp, SocketAddr::from(([127, 0, 0, 1], qemu_port)), tap_file, Faults::default(), 1)?;
-        let netdev = format!(
-            "dgram,id=n0,local.type=inet,local.host=127.0.0.1,local.port={qemu_port},\
-             remote.type=inet,remote.host=127.0.0.1,remote.port={relay_port}"
-        );
+        let netdev = crate::images::firmware::dgram_netdev(qemu_port, relay_port);
         let mut guest = Guest::boot_netdev(elf, &netdev, extra)?;
         guest.wait_for_log("link up", Duration::from_secs(120))?;
         Ok(Lan { guest, relay, hosts: named, _switch: switch })

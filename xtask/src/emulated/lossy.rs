@@ -437,10 +437,7 @@ pub fn run_with_rtsp(
     let (qemu_port, relay_port) = (free_udp_port()?, free_udp_port()?);
     let udp = UdpSocket::bind(("127.0.0.1", relay_port)).map_err(|e| e.to_string())?;
     let relay = Relay::start(udp, SocketAddr::from(([127, 0, 0, 1], qemu_port)), tap_file, faults, seed)?;
-    let netdev = format!(
-        "dgram,id=n0,local.type=inet,local.host=127.0.0.1,local.port={qemu_port},\
-         remote.type=inet,remote.host=127.0.0.1,remote.port={relay_port}"
-    );
+    let netdev = crate::images::firmware::dgram_netdev(qemu_port, relay_port);
     let guest = Guest::boot_netdev(elf, &netdev, &[])?;
     let exe = std::env::current_exe().map_err(|e| e.to_string())?;
     let out = Command::new("ip")
@@ -611,10 +608,7 @@ pub fn run_rtsp_phases(elf: &Path, phases: &[Faults], seed: u64, frames: usize) 
     let udp = UdpSocket::bind(("127.0.0.1", relay_port)).map_err(|e| e.to_string())?;
     let first = phases.first().copied().unwrap_or_default();
     let relay = Relay::start(udp, SocketAddr::from(([127, 0, 0, 1], qemu_port)), tap_file, first, seed)?;
-    let netdev = format!(
-        "dgram,id=n0,local.type=inet,local.host=127.0.0.1,local.port={qemu_port},\
-         remote.type=inet,remote.host=127.0.0.1,remote.port={relay_port}"
-    );
+    let netdev = crate::images::firmware::dgram_netdev(qemu_port, relay_port);
     let guest = Guest::boot_netdev(elf, &netdev, &[])?;
     let exe = std::env::current_exe().map_err(|e| e.to_string())?;
     let mut child = Command::new("ip")

@@ -72,6 +72,16 @@ impl Forwards {
     }
 }
 
+/// The `-netdev` value that sends the guest's Ethernet frames as UDP
+/// datagrams from loopback port `qemu_port` to `peer_port` (a relay or a
+/// test that plays the network) and takes the peer's back.
+pub fn dgram_netdev(qemu_port: u16, peer_port: u16) -> String {
+    format!(
+        "dgram,id=n0,local.type=inet,local.host=127.0.0.1,local.port={qemu_port},\
+         remote.type=inet,remote.host=127.0.0.1,remote.port={peer_port}"
+    )
+}
+
 /// A free UDP port on 127.0.0.1 (asked from the OS, then released).
 pub fn free_udp_port() -> Result<u16> {
     let s = std::net::UdpSocket::bind("127.0.0.1:0").map_err(|e| format!("no free UDP port: {e}"))?;
