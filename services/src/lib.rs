@@ -3,6 +3,8 @@
 //! smoltcp and `hps-sim` to std sockets; and the client ends of the same
 //! protocols.
 //!
+//! * [`address`]: the board's IPv4 address on any network: the settings
+//!   file on the card, DHCP, an RFC 3927 link-local address.
 //! * [`frames`]: where every service's frames come from: the ring of frame
 //!   slots the FPGA (or the software renderer) fills, row mode, the engines'
 //!   fallback and watchdog, and the rules by which services share slots.
@@ -16,6 +18,8 @@
 //! * [`orbit`]: the light orbiting the sphere, by frame or by time.
 //! * [`web`]: the board's web page (HTTP 80): the live picture in a browser,
 //!   frames over a WebSocket, the board's status as JSON.
+//! * `snoop` (feature `smoltcp`): a device wrapper that shows received
+//!   frames to the camera's peer table and the link-local claim.
 //! * `tcp` (feature `smoltcp`): what the smoltcp services share, the
 //!   buffers lent to each socket.
 //! * [`time`]: [`time::Instant`], the millisecond clock the services run on.
@@ -25,11 +29,14 @@
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 
+pub mod address;
 pub mod camera;
 pub mod frames;
 pub mod monitor;
 pub mod orbit;
 pub mod seed;
+#[cfg(feature = "smoltcp")]
+pub mod snoop;
 #[cfg(feature = "smoltcp")]
 pub mod tcp;
 pub mod time;

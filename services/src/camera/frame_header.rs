@@ -2,7 +2,7 @@
 //! and RFC 4175 headers ([`FRAME_HEADER_BYTES`]), made for the board's
 //! zero-copy transmit path: the first buffer of a descriptor holds this
 //! header, the second the row in the frame ring. The RTP part is the
-//! [`Packetiser`](super::rtp::Packetiser)'s; the rest is written once per destination
+//! [`rtp::Packetiser`](super::rtp::Packetiser)'s; the rest is written once per destination
 //! (`HeaderTemplate`, feature `smoltcp`) and patched per packet.
 
 #[cfg(feature = "smoltcp")]

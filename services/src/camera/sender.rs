@@ -564,6 +564,13 @@ impl<const N: usize> Camera<N> {
         self.config = Some(config);
     }
 
+    /// The board's address changed: reports name it from now on.
+    pub fn set_cname(&mut self, cname: Cname) {
+        if let Some(c) = &mut self.config {
+            c.cname = cname;
+        }
+    }
+
     /// Where its multicast streams go, if anywhere.
     pub fn multicast(&self) -> Option<Multicast> {
         self.config?.multicast

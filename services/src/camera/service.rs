@@ -40,8 +40,9 @@ use super::rtsp::{
     self, ConnId, Connection, Server, CONNECTIONS, CONNECTIONS_PER_ADDRESS, MAX_RESPONSE_BYTES, MAX_SESSIONS, RTSP_PORT,
 };
 use super::sender::{Bound, Camera, Dest, RtpSink, SlotSource};
-pub use super::snoop::{Snoop, SnoopRx, Snooped, Unreachable, PEERS, UNREACHABLE_NOTES};
+pub use super::snoop::{Snooped, Unreachable, PEERS, UNREACHABLE_NOTES};
 use crate::frames::FrameSource;
+pub use crate::snoop::{Snoop, SnoopRx};
 use crate::tcp::Handshake;
 use crate::time;
 
@@ -267,6 +268,14 @@ impl<'c> CameraService<'c> {
     /// The RTP sender.
     pub fn camera(&self) -> &Camera<MAX_SESSIONS> {
         self.camera
+    }
+
+    /// The board's address changed (DHCP, link-local): descriptions, RTP
+    /// packets and reports carry `ip` from now on. Sessions set up on the
+    /// old address end as their clients find it gone.
+    pub fn set_address(&mut self, ip: Ipv4Addr) {
+        self.server.set_server_ip(ip);
+        self.camera.set_cname(super::sender::Cname::for_address(ip));
     }
 
     /// One line per session the sender serves: what its output did (for a

@@ -10,12 +10,10 @@
 //! checks the quoted UDP header's length against the quote, and a host
 //! quotes at most 576 bytes of a 1,488-byte datagram (RFC 1812 section
 //! 4.3.2.3; Linux quotes 528 of its payload), so it would never match.
-//! [`Snoop`] wraps the MAC's smoltcp device to feed the table.
+//! [`Snoop`](crate::snoop::Snoop) wraps the MAC's smoltcp device to feed the table.
 
 use core::net::Ipv4Addr;
 
-use smoltcp::phy::{self, Device, DeviceCapabilities};
-use smoltcp::time::Instant;
 use smoltcp::wire::{
     EthernetAddress, EthernetFrame, EthernetProtocol, Icmpv4Message, Icmpv4Packet, IpProtocol, Ipv4Packet, UdpPacket,
 };
@@ -145,51 +143,9 @@ impl Snooped {
     }
 }
 
-/// A smoltcp device that lets [`Snooped`] see every received frame.
-pub struct Snoop<'d, D> {
-    /// The device.
-    pub inner: &'d mut D,
-    /// The table it feeds.
-    pub peers: &'d mut Snooped,
-}
-
-/// A received frame's token, learning from the frame on its way in.
-pub struct SnoopRx<'p, R> {
-    inner: R,
-    peers: &'p mut Snooped,
-}
-
-impl<R: phy::RxToken> phy::RxToken for SnoopRx<'_, R> {
-    fn consume<T, F: FnOnce(&[u8]) -> T>(self, f: F) -> T {
-        let peers = self.peers;
-        self.inner.consume(|frame| {
-            peers.learn(frame);
-            f(frame)
-        })
-    }
-}
-
-impl<D: Device> Device for Snoop<'_, D> {
-    type RxToken<'a>
-        = SnoopRx<'a, D::RxToken<'a>>
-    where
-        Self: 'a;
-    type TxToken<'a>
-        = D::TxToken<'a>
-    where
-        Self: 'a;
-
-    fn receive(&mut self, timestamp: Instant) -> Option<(Self::RxToken<'_>, Self::TxToken<'_>)> {
-        let (rx, tx) = self.inner.receive(timestamp)?;
-        Some((SnoopRx { inner: rx, peers: self.peers }, tx))
-    }
-
-    fn transmit(&mut self, timestamp: Instant) -> Option<Self::TxToken<'_>> {
-        self.inner.transmit(timestamp)
-    }
-
-    fn capabilities(&self) -> DeviceCapabilities {
-        self.inner.capabilities()
+impl crate::snoop::Learn for Snooped {
+    fn learn(&mut self, frame: &[u8]) {
+        Snooped::learn(self, frame)
     }
 }
 

@@ -626,9 +626,12 @@ pub struct Monitor {
     /// Client requests seen, and when the count last moved.
     requests: u32,
     last_request: Option<Instant>,
-    /// When the link last came up.
+    /// When the board last became reachable at a new address (the link up
+    /// and an address it had not shown): the address scrolls from then.
     link_up_at: Option<Instant>,
     link_was_up: bool,
+    /// The address last scrolled.
+    address_shown: [u8; 4],
     leds: Option<u16>,
     text: Option<Text>,
     next_report: Option<Instant>,
@@ -653,6 +656,7 @@ impl Monitor {
             last_request: None,
             link_up_at: None,
             link_was_up: false,
+            address_shown: [0; 4],
             leds: None,
             text: None,
             next_report: None,
@@ -687,10 +691,15 @@ impl Monitor {
             self.requests = requests;
             self.last_request = Some(now);
         }
-        if status.link_up && !self.link_was_up {
+        // The address scrolls once the board has one on a link: DHCP (or
+        // the link-local claim) answers after the link comes up, and a new
+        // lease scrolls again.
+        let reachable = status.link_up && status.address != [0; 4];
+        if reachable && (!self.link_was_up || status.address != self.address_shown) {
             self.link_up_at = Some(now);
+            self.address_shown = status.address;
         }
-        self.link_was_up = status.link_up;
+        self.link_was_up = reachable;
 
         let inputs = dev.inputs();
         self.orbit.keys(inputs.pressed);
@@ -1139,6 +1148,26 @@ mod tests {
         m.poll(Instant::from_millis(100 + 15 * 250), &mut d, 0, &status);
         assert_eq!(&d.panel.text[..3], b"  0", "gone: the frame rate again");
         assert_eq!(d.panel.leds & LED_LINK, LED_LINK);
+    }
+
+    #[test]
+    fn the_address_scrolls_when_it_arrives_after_the_link_and_again_when_it_changes() {
+        let mut mem = vec![0u8; 6 * FRAME_BYTES];
+        let mut d = dev(&mut mem);
+        let mut m = Monitor::new();
+        let mut status = Status { link_up: true, ..Status::default() };
+        m.poll(Instant::from_millis(0), &mut d, 0, &status);
+        assert_eq!(&d.panel.text, b"  0FPS", "a link but no address yet (DHCP asking)");
+        status.address = [169, 254, 7, 9];
+        m.poll(Instant::from_millis(5_000), &mut d, 0, &status);
+        m.poll(Instant::from_millis(5_000 + 7 * 250), &mut d, 0, &status);
+        assert_eq!(&d.panel.text, b"69.254", "the link-local address, once claimed");
+        m.poll(Instant::from_millis(30_000), &mut d, 0, &status);
+        assert_eq!(&d.panel.text[..3], b"  0");
+        status.address = [10, 0, 2, 15];
+        m.poll(Instant::from_millis(31_000), &mut d, 0, &status);
+        m.poll(Instant::from_millis(31_000 + 6 * 250), &mut d, 0, &status);
+        assert_eq!(&d.panel.text, b"10.0.2", "a lease replaced it: shown again");
     }
 
     #[test]

@@ -526,6 +526,12 @@ impl<const N: usize> Server<N> {
         &self.config
     }
 
+    /// The board's address changed (a new lease): new descriptions and
+    /// streams name this one.
+    pub fn set_server_ip(&mut self, ip: Ipv4Addr) {
+        self.config.server_ip = ip;
+    }
+
     /// The open sessions.
     pub fn sessions(&self) -> &[Session] {
         &self.sessions
