@@ -29,6 +29,7 @@ mod net;
 mod platform;
 mod render;
 mod selftest;
+mod settings;
 mod start;
 
 use core::fmt::Write;
@@ -58,9 +59,10 @@ fn main() -> ! {
     reentry_test::maybe_reenter(&mut log);
     Active::init(&mut log);
     let caches = cpu::Caches { l2 };
+    let board_settings = settings::load(&mut log);
     let mut frames = Active::renderer(&mut log, &TIMER, caches);
     log::flush();
-    match net::run::<Active, _>(&TIMER, caches, &mut frames) {
+    match net::run::<Active, _>(&TIMER, caches, &mut frames, &board_settings) {
         Ok(never) => match never {},
         Err(why) => {
             let _ = writeln!(log, "network not started: {why}");

@@ -1,5 +1,6 @@
 //! Network bring-up and the main loop: MAC and PHY, the smoltcp interface
-//! with a static IPv4 address (ARP and ICMP echo come with it), the frame
+//! with its IPv4 address from the settings, DHCP or a link-local claim
+//! (`rt_services::address`; ARP and ICMP echo come with smoltcp), the frame
 //! service on the protocol's two ports, the network camera, the web page,
 //! the link monitor and the log drain.
 
@@ -13,6 +14,8 @@ use dwmac::phy::LinkMonitor;
 use dwmac::regs::Regs;
 use dwmac::{DmaArea, Dwmac};
 use hal_avalon::RegisterPort;
+use rt_services::address::assign::{Addressing, ArpNotes};
+use rt_services::address::settings::{AddressMode, HostName, Settings};
 use rt_services::camera::random::TimingPool;
 use rt_services::camera::rtsp::{self, MAX_SESSIONS, RTSP_PORT, SERVER_RTP_PORT};
 use rt_services::camera::sender::Camera;
@@ -26,9 +29,9 @@ use rt_services::web::WEB_PORT;
 use rt_services::{FrameSource, FRAME_PORT, PERSISTENT_PORT};
 use smoltcp::iface::{Config, Interface, SocketSet, SocketStorage};
 use smoltcp::time::Instant;
-use smoltcp::wire::{EthernetAddress, HardwareAddress, IpCidr, Ipv4Cidr};
+use smoltcp::wire::{DhcpOption, EthernetAddress, HardwareAddress};
 use soc::global_timer::{GlobalTimer, TimerDelay};
-use static_cell::ConstStaticCell;
+use static_cell::{ConstStaticCell, StaticCell};
 
 use crate::cpu::Caches;
 use crate::display::Display;
@@ -40,6 +43,10 @@ use crate::render::Frames;
 /// Sockets of the network camera: RTSP listeners, the RTCP socket and the
 /// multicast groups' RTCP socket (`CameraService::new` adds them all).
 const CAMERA_SOCKETS: usize = RTSP_SOCKETS + 2;
+
+/// Every socket: the seed server's, the camera's, the page's and the DHCP
+/// client's.
+const ALL_SOCKETS: usize = SOCKETS + CAMERA_SOCKETS + WEB_SOCKETS + 1;
 
 /// Why the network did not start.
 #[derive(Clone, Copy, Debug)]
@@ -81,23 +88,6 @@ fn parse_multicast(text: &str) -> Option<Multicast> {
     let base_port = parts.next().map_or(Some(5006), |p| p.parse().ok())?;
     let ttl = parts.next().map_or(Some(1), |t| t.parse().ok())?;
     Some(Multicast { group, base_port, ttl })
-}
-
-/// The interface's address: `FW_IPV4` at build time, else the board's.
-fn ipv4<B: Board>() -> Ipv4Cidr {
-    let text = option_env!("FW_IPV4").unwrap_or(B::DEFAULT_IPV4);
-    parse_cidr(text).or_else(|| parse_cidr(B::DEFAULT_IPV4)).unwrap_or(Ipv4Cidr::new(Ipv4Addr::UNSPECIFIED, 0))
-}
-
-/// The default gateway: `FW_GATEWAY` at build time, else the board's.
-fn gateway<B: Board>() -> Option<Ipv4Addr> {
-    option_env!("FW_GATEWAY").unwrap_or(B::DEFAULT_GATEWAY).parse().ok()
-}
-
-fn parse_cidr(s: &str) -> Option<Ipv4Cidr> {
-    let (addr, len) = s.split_once('/')?;
-    let len: u8 = len.parse().ok().filter(|l| *l <= 32)?;
-    Some(Ipv4Cidr::new(addr.parse().ok()?, len))
 }
 
 fn instant(timer: &GlobalTimer) -> Instant {
@@ -144,11 +134,15 @@ pub fn run<B: Board, P: RegisterPort>(
     timer: &'static GlobalTimer,
     caches: Caches,
     frames: &mut Frames<P>,
+    settings: &Settings,
 ) -> Result<core::convert::Infallible, NetError> {
     static SOCKET_BUFFERS: ConstStaticCell<[SocketBuffers; SOCKETS]> =
         ConstStaticCell::new([const { SocketBuffers::new() }; SOCKETS]);
-    static SOCKET_STORAGE: ConstStaticCell<[SocketStorage<'static>; SOCKETS + CAMERA_SOCKETS + WEB_SOCKETS]> =
-        ConstStaticCell::new([SocketStorage::EMPTY; SOCKETS + CAMERA_SOCKETS + WEB_SOCKETS]);
+    static SOCKET_STORAGE: ConstStaticCell<[SocketStorage<'static>; ALL_SOCKETS]> =
+        ConstStaticCell::new([SocketStorage::EMPTY; ALL_SOCKETS]);
+    // The host name the DHCP requests carry (option 12, RFC 2132 section 3.14).
+    static HOST_NAME: StaticCell<HostName> = StaticCell::new();
+    static DHCP_OPTIONS: StaticCell<[DhcpOption<'static>; 1]> = StaticCell::new();
     static WEB_BUFFERS: ConstStaticCell<[WebBuffers; WEB_SOCKETS]> =
         ConstStaticCell::new([const { WebBuffers::new() }; WEB_SOCKETS]);
     static CAMERA_BUFFERS: ConstStaticCell<CameraBuffers> = ConstStaticCell::new(CameraBuffers::new());
@@ -161,6 +155,18 @@ pub fn run<B: Board, P: RegisterPort>(
     let camera_buffers = CAMERA_BUFFERS.try_take().ok_or(TAKEN_TWICE)?;
     let camera_senders = CAMERA.try_take().ok_or(TAKEN_TWICE)?;
     let web_buffers = WEB_BUFFERS.try_take().ok_or(TAKEN_TWICE)?;
+    let host_name: &'static HostName = HOST_NAME
+        .try_init(settings.hostname.clone().unwrap_or_else(|| {
+            let mut name = HostName::new();
+            let _ = name.push_str(rt_services::DEFAULT_HOST_NAME);
+            name
+        }))
+        .ok_or(TAKEN_TWICE)?;
+    let dhcp_options =
+        DHCP_OPTIONS.try_init([DhcpOption { kind: 12, data: host_name.as_bytes() }]).ok_or(TAKEN_TWICE)?;
+    // The settings' MAC (unique per card: `cargo xtask sdcard` writes one),
+    // else the board's.
+    let mac_addr = settings.mac.unwrap_or(B::MAC_ADDR);
 
     // SAFETY: the board's DesignWare MAC, mapped Device; only this driver
     // uses it.
@@ -174,7 +180,7 @@ pub fn run<B: Board, P: RegisterPort>(
         mac.format(),
         mac.checksum_insertion()
     );
-    let phy = mac.bring_up(B::MAC_ADDR, &B::PHY).map_err(NetError::Mac)?;
+    let phy = mac.bring_up(mac_addr, &B::PHY).map_err(NetError::Mac)?;
     let _ = writeln!(
         log,
         "phy: {phy}{}; PHY reset, then DMA reset: done",
@@ -194,28 +200,24 @@ pub fn run<B: Board, P: RegisterPort>(
     let mut link = LinkMonitor::new(phy);
     log::flush();
 
-    let mut config = Config::new(HardwareAddress::Ethernet(EthernetAddress(B::MAC_ADDR)));
+    let mut config = Config::new(HardwareAddress::Ethernet(EthernetAddress(mac_addr)));
     config.random_seed = timer.ticks();
     let mut iface = Interface::new(config, &mut mac, instant(timer));
-    let cidr = ipv4::<B>();
-    iface.update_ip_addrs(|addrs| {
-        let _ = addrs.push(IpCidr::Ipv4(cidr));
-    });
-    let gw = gateway::<B>();
-    if let Some(gw) = gw {
-        if iface.routes_mut().add_default_ipv4_route(gw).is_err() {
-            let _ = writeln!(log, "net: no room for the default route");
-        }
-    }
     let mut sockets = SocketSet::new(&mut socket_storage[..]);
+    let mut addressing = Addressing::new(settings.address, mac_addr, &mut sockets, dhcp_options);
+    let mut arp_notes = ArpNotes::new();
     let mut service = FrameService::<usize, SOCKETS>::new(&mut sockets, socket_buffers, FRAME_PORT_SOCKETS);
     let mut web = WebService::<usize, WEB_SOCKETS>::new(&mut sockets, web_buffers);
     let mut counts = crate::bench::Counts::default();
     let _ = writeln!(
         log,
-        "net: {cidr} via {}, MAC {}, listening on TCP {FRAME_PORT} and {PERSISTENT_PORT} ({FRAME_PORT_SOCKETS} + {} sockets)",
-        gw.unwrap_or(Ipv4Addr::UNSPECIFIED),
-        EthernetAddress(B::MAC_ADDR),
+        "net: {} MAC {}, name {host_name}, address {}; listening on TCP {FRAME_PORT} and {PERSISTENT_PORT} ({FRAME_PORT_SOCKETS} + {} sockets)",
+        if settings.mac.is_some() { "settings'" } else { "the board's" },
+        EthernetAddress(mac_addr),
+        match settings.address {
+            AddressMode::Automatic => "by DHCP, link-local while there is no lease",
+            AddressMode::Static { .. } => "static (settings)",
+        },
         SOCKETS - FRAME_PORT_SOCKETS,
     );
     let _ = writeln!(
@@ -234,20 +236,20 @@ pub fn run<B: Board, P: RegisterPort>(
             camera_senders.configure(sender::Config {
                 live_light,
                 multicast,
-                cname: sender::Cname::for_address(cidr.address()),
+                // Named again when the board has its address.
+                cname: sender::Cname::for_address(Ipv4Addr::UNSPECIFIED),
             });
-            let config = rtsp::Config { server_ip: cidr.address(), rtp_port: SERVER_RTP_PORT };
-            let mac_addr = EthernetAddress(B::MAC_ADDR);
+            let config = rtsp::Config { server_ip: Ipv4Addr::UNSPECIFIED, rtp_port: SERVER_RTP_PORT };
             // What the board has to key its random numbers with: the time
             // since reset on the 200 MHz global timer (boot loaders and DDR
-            // training vary it), its addresses (not secret, but its own);
-            // each RTSP connection's arrival time is stirred in later
+            // training vary it), its MAC address (not secret, but its own);
+            // each received frame's arrival time is stirred in later
             // (docs/streaming.md, "Random numbers").
-            let mut entropy = [0u8; 18];
+            let mut entropy = [0u8; 14];
             entropy[..8].copy_from_slice(&timer.ticks().to_le_bytes());
-            entropy[8..14].copy_from_slice(&B::MAC_ADDR);
-            entropy[14..].copy_from_slice(&cidr.address().octets());
-            match CameraService::new(&mut sockets, camera_buffers, camera_senders, config, mac_addr, &entropy) {
+            entropy[8..14].copy_from_slice(&mac_addr);
+            let eth = EthernetAddress(mac_addr);
+            match CameraService::new(&mut sockets, camera_buffers, camera_senders, config, eth, &entropy) {
                 Ok(c) => {
                     let _ = writeln!(
                         log,
@@ -302,7 +304,8 @@ pub fn run<B: Board, P: RegisterPort>(
     let mut display = Display::probe(frames, &mut log);
     let mut requests = 0u32;
     let mut link_up = false;
-    let address = cidr.address().octets();
+    // The address the displays show (0.0.0.0 until there is one).
+    let mut address = [0u8; 4];
     log::flush();
 
     let mac_moved = |m: &Dwmac<'_, _, _>| m.stats().tx_frames.wrapping_add(m.stats().rx_frames);
@@ -331,7 +334,24 @@ pub fn run<B: Board, P: RegisterPort>(
             }
         }
         let now = Instant::from_micros(i64::try_from(now_us).unwrap_or(i64::MAX));
-        iface.poll(now, &mut Snoop { inner: &mut mac, peers: &mut peers }, &mut sockets);
+        // The address first: a static one is on the interface before the
+        // first frame is taken in.
+        if let Some(change) = addressing.poll(now, link_up, &mut iface, &mut sockets, &mut arp_notes, &mut mac) {
+            let ip = change.map_or(Ipv4Addr::UNSPECIFIED, |a| a.address);
+            address = ip.octets();
+            if let Some(c) = &mut camera {
+                c.set_address(ip);
+            }
+            match change {
+                Some(a) => {
+                    let _ = writeln!(log, "net: address {a}");
+                }
+                None => {
+                    let _ = writeln!(log, "net: address lost (lease ended); asking again");
+                }
+            }
+        }
+        iface.poll(now, &mut Snoop { inner: &mut mac, peers: &mut (&mut peers, &mut arp_notes) }, &mut sockets);
         if peers.frames_seen() != frames_seen {
             frames_seen = peers.frames_seen();
             arrivals.add(timer.ticks());
@@ -379,7 +399,7 @@ pub fn run<B: Board, P: RegisterPort>(
                 &mut sockets,
                 &mut Quota::new(&mut counted, &mut web_frames, WEB_FRAMES),
                 &status,
-                rt_services::DEFAULT_HOST_NAME,
+                host_name,
                 &mut log,
             )
         });

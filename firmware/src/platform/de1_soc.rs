@@ -56,10 +56,10 @@ impl Board for De1Soc {
     const PAGED: Option<PagedSection<'static>> =
         Some(PagedSection { section: (LW_BRIDGE_BASE >> 20) as u32, default: MemType::StronglyOrdered, pages: &[] });
     /// A locally administered address (bit 1 of the first octet): the board
-    /// has no factory MAC address the firmware can read.
+    /// has no factory MAC address the firmware can read. Only used when the
+    /// card's raytracer.txt names none (`cargo xtask sdcard` writes a random
+    /// one there, so two boards' cards differ): every board would have it.
     const MAC_ADDR: [u8; 6] = [0x02, 0xde, 0x1c, 0x50, 0xc0, 0x01];
-    const DEFAULT_IPV4: &'static str = "192.168.1.200/24";
-    const DEFAULT_GATEWAY: &'static str = "192.168.1.1";
     /// KSZ9021 RGMII skews: extended register 0x104 (clock and control pad
     /// skew) 0xe3f0 and 0x105 (RX data pad skew) 0x3333, what mainline
     /// U-Boot writes for the DE1-SoC device tree today

@@ -78,12 +78,8 @@ pub trait Board {
     /// then its line-buffer page Normal non-cacheable for burst reads,
     /// `cpu::retype_page`).
     const PAGED: Option<PagedSection<'static>>;
-    /// The interface's Ethernet address.
+    /// The interface's Ethernet address when the settings name none.
     const MAC_ADDR: [u8; 6];
-    /// IPv4 address with prefix length (overridable with `FW_IPV4`).
-    const DEFAULT_IPV4: &'static str;
-    /// Default gateway (overridable with `FW_GATEWAY`).
-    const DEFAULT_GATEWAY: &'static str;
     /// PHY settings.
     const PHY: PhyConfig;
 

@@ -34,10 +34,6 @@ impl Board for QemuNpcm750 {
     const PAGED: Option<PagedSection<'static>> = None;
     /// QEMU's conventional NIC address 52:54:00:12:34:56 (slirp does not care).
     const MAC_ADDR: [u8; 6] = [0x52, 0x54, 0x00, 0x12, 0x34, 0x56];
-    /// Slirp's default guest address (QEMU documentation, "Network
-    /// emulation", user networking: guest 10.0.2.15, gateway 10.0.2.2).
-    const DEFAULT_IPV4: &'static str = "10.0.2.15/24";
-    const DEFAULT_GATEWAY: &'static str = "10.0.2.2";
     /// QEMU's PHY (address 0, ID 0x0362/0x5e6a) needs no skews.
     const PHY: PhyConfig = PhyConfig { ksz9021_skews: None, ksz9021_force_master: false };
 
