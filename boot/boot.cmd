@@ -5,15 +5,35 @@ echo raytracer: boot script on ${devtype} ${devnum}:${distro_bootpart}
 if test -e ${devtype} ${devnum}:${distro_bootpart} raytracer.rbf; then
 	echo raytracer: configuring the FPGA from raytracer.rbf
 	load ${devtype} ${devnum}:${distro_bootpart} ${kernel_addr_r} raytracer.rbf
-	fpga load 0 ${kernel_addr_r} ${filesize}
-	# fpga load left the FPGA-to-SDRAM ports in reset. The patched
-	# `bridge enable` applies the port configuration the FPGA image carries
-	# (staticcfg.applycfg, from one I-cache line) while they are, then
-	# releases the ports (fpgaportrst 0x311, from the patched handoff) and
-	# the bridges.
-	bridge enable
+	if fpga load 0 ${kernel_addr_r} ${filesize}; then
+		# fpga load left the FPGA-to-SDRAM ports in reset. The patched
+		# `bridge enable` applies the port configuration the FPGA image
+		# carries (staticcfg.applycfg, from one I-cache line) while they
+		# are, then releases the ports (fpgaportrst 0x311, from the patched
+		# handoff) and the bridges.
+		bridge enable
+	else
+		echo raytracer: fpga load FAILED: the FPGA is not configured.
+		echo raytracer: check SW10 (MSEL) on the back of the board: 00000 (all ON) for an
+		echo raytracer: uncompressed raytracer.rbf, 01010 for a compressed one; and that the
+		echo raytracer: .rbf was built for the DE1-SoC's 5CSEMA5F31C6 (docs/quick-start.md).
+		echo raytracer: booting without the FPGA: the firmware renders in software.
+	fi
 else
 	echo raytracer: no raytracer.rbf: the firmware renders in software
+fi
+# The board's settings (docs/networking.md): raytracer.txt, handed to the
+# firmware at 0x04900000 (firmware/memory.x, HANDOFF): "RTCF", the length,
+# the text. The header is cleared first and its word written last, so that
+# no earlier boot's copy is taken for this one's.
+mw.l 0x04900000 0
+if test -e ${devtype} ${devnum}:${distro_bootpart} raytracer.txt; then
+	load ${devtype} ${devnum}:${distro_bootpart} 0x04900008 raytracer.txt
+	mw.l 0x04900004 ${filesize}
+	mw.l 0x04900000 0x46435452
+	echo raytracer: settings from raytracer.txt (${filesize} bytes, hex)
+else
+	echo raytracer: no raytracer.txt: DHCP, then link-local; name raytracer
 fi
 load ${devtype} ${devnum}:${distro_bootpart} 0x00100040 firmware.bin
 # The firmware's entry cleans and turns off the caches itself; hand over

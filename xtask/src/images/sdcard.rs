@@ -72,6 +72,49 @@ pub struct SdcardArgs {
     /// The image to write.
     #[arg(long, default_value = "target/sdcard/raytracer-de1-soc.img")]
     pub out: PathBuf,
+    /// The board's settings to put on the card as raytracer.txt; without
+    /// it a new file: DHCP, the name raytracer, and a MAC address of its
+    /// own chosen at random (docs/networking.md).
+    #[arg(long)]
+    pub settings: Option<PathBuf>,
+}
+
+/// The board's settings file on the card.
+pub const SETTINGS_FILE: &str = "raytracer.txt";
+
+/// A new card's raytracer.txt: DHCP, the default name, and `mac`.
+pub fn settings_text(mac: [u8; 6]) -> String {
+    let mac = mac.map(|b| format!("{b:02x}")).join(":");
+    format!(
+        "# raytracer.txt: this board's settings, read at every boot (docs/networking.md).\n\
+         # Edit it on any computer: the card's FAT partition shows up as a drive.\n\
+         #\n\
+         # The address: dhcp (and a 169.254.x.y link-local address while no DHCP\n\
+         # server answers), or a static one with its gateway, e.g.\n\
+         #   ip=192.168.0.50/24\n\
+         #   gateway=192.168.0.1\n\
+         ip=dhcp\n\
+         # The name the board answers to: NAME.local (mDNS), the page's address.\n\
+         hostname={}\n\
+         # This card's own Ethernet address, chosen at random when the card was\n\
+         # made (locally administered): one card per board, and two boards on one\n\
+         # network never share an address.\n\
+         mac={mac}\n",
+        rt_services::DEFAULT_HOST_NAME
+    )
+}
+
+/// A random, locally administered, unicast MAC address (IEEE 802, section
+/// 8.2: bit 1 of the first octet set, bit 0 clear), from the OS's
+/// generator.
+pub fn random_mac() -> Result<[u8; 6]> {
+    use std::io::Read;
+    let mut mac = [0u8; 6];
+    fs::File::open("/dev/urandom")
+        .and_then(|mut f| f.read_exact(&mut mac))
+        .map_err(|e| format!("/dev/urandom: {e}"))?;
+    mac[0] = (mac[0] & 0xfc) | 0x02;
+    Ok(mac)
 }
 
 // ---- MBR ----------------------------------------------------------------------------
@@ -345,7 +388,14 @@ pub fn run(args: &SdcardArgs) -> Result<()> {
     super::firmware::image(&super::firmware::ImageArgs { out: out_dir.clone() })?;
     let firmware = out_dir.join(FIRMWARE_FILE);
     let script = boot_script(&out_dir)?;
-    let mut files: Vec<(&Path, &str)> = vec![(script.as_path(), SCRIPT_FILE), (firmware.as_path(), FIRMWARE_FILE)];
+    let settings = out_dir.join(SETTINGS_FILE);
+    let settings_text = match &args.settings {
+        Some(p) => fs::read_to_string(p).map_err(|e| format!("--settings {}: {e}", p.display()))?,
+        None => settings_text(random_mac()?),
+    };
+    fs::write(&settings, &settings_text).map_err(|e| format!("{}: {e}", settings.display()))?;
+    let mut files: Vec<(&Path, &str)> =
+        vec![(script.as_path(), SCRIPT_FILE), (firmware.as_path(), FIRMWARE_FILE), (settings.as_path(), SETTINGS_FILE)];
     let rbf = args.rbf.as_ref().map(|r| if r.is_absolute() { r.clone() } else { root().join(r) });
     if let Some(r) = &rbf {
         if !r.is_file() {
@@ -362,12 +412,21 @@ pub fn run(args: &SdcardArgs) -> Result<()> {
         firmware: read(&firmware)?,
         rbf: rbf.as_deref().map(read).transpose()?,
         script: fs::read_to_string(root().join("boot/boot.cmd")).map_err(|e| e.to_string())?,
+        settings: settings_text.clone().into_bytes(),
     };
     check_image(&out, &expected)?;
     println!("wrote {} ({} MiB)", out.display(), IMAGE_BYTES / MIB);
     match &rbf {
         Some(r) => println!("  FPGA: {} as {RBF_FILE}", r.display()),
         None => println!("  FPGA: none (the firmware renders in software; --rbf FILE adds one)"),
+    }
+    let parsed = rt_services::address::settings::Settings::parse(settings_text.as_bytes());
+    for p in &parsed.problems {
+        println!("  warning: {SETTINGS_FILE} {p}: the board will ignore it");
+    }
+    match parsed.mac {
+        Some(m) => println!("  {SETTINGS_FILE}: MAC {}", m.map(|b| format!("{b:02x}")).join(":")),
+        None => println!("  {SETTINGS_FILE}: no mac= line: the board's default MAC (every such board shares it)"),
     }
     println!("write it to a card (all data on it is lost), e.g. on Linux:");
     println!("  sudo dd if={} of=/dev/sdX bs=4M conv=fsync status=progress", out.display());
@@ -385,6 +444,8 @@ pub struct Expected {
     pub rbf: Option<Vec<u8>>,
     /// The boot script's source.
     pub script: String,
+    /// `raytracer.txt`.
+    pub settings: Vec<u8>,
 }
 
 /// A file of the image's FAT partition, read back with `mtools`.
@@ -431,6 +492,9 @@ pub fn check_image(img: &Path, want: &Expected) -> Result<()> {
     }
     if fat_file(img, FIRMWARE_FILE)?.as_deref() != Some(&want.firmware[..]) {
         return Err("firmware.bin on the card differs from the build".into());
+    }
+    if fat_file(img, SETTINGS_FILE)?.as_deref() != Some(&want.settings[..]) {
+        return Err(format!("{SETTINGS_FILE} on the card differs from what was written (or is missing)"));
     }
     let rbf = fat_file(img, RBF_FILE)?;
     if rbf != want.rbf {
@@ -487,10 +551,22 @@ pub fn check_boot_script(script: &str) -> Result<()> {
     }) {
         return Err(format!("boot script writes the SDRAM controller itself: {l:?}"));
     }
-    match (at("fpga load"), at("bridge enable")) {
-        (Some(load), Some(enable)) if load < enable => {}
-        (load, enable) => return Err(format!("boot script: fpga load at {load:?}, bridge enable at {enable:?}")),
+    // The bridges are enabled only when `fpga load` succeeded (U-Boot's
+    // hush runs the `then` branch on exit status 0), and a failure says what
+    // to check.
+    let load = lines.iter().position(|l| l.starts_with("if fpga load"));
+    match (load, at("bridge enable"), at("else")) {
+        (Some(load), Some(enable), Some(other)) if load < enable && enable < other => {}
+        (load, enable, other) => {
+            return Err(format!(
+                "boot script: `if fpga load` at {load:?}, bridge enable at {enable:?}, its else at {other:?}"
+            ))
+        }
     }
+    if !lines.iter().any(|l| l.contains("fpga load FAILED") && l.starts_with("echo")) || !script.contains("MSEL") {
+        return Err("boot script: a failed fpga load is not reported with what to check (MSEL)".into());
+    }
+    check_settings_handoff(&lines)?;
     // The I-cache invalidated between the firmware's load and `go`, which
     // only branches (U-Boot cmd/cache.c: `icache flush` runs
     // invalidate_icache_all).
@@ -501,6 +577,25 @@ pub fn check_boot_script(script: &str) -> Result<()> {
         (load, flush, go) => {
             Err(format!("boot script: firmware load at {load:?}, icache flush at {flush:?}, go at {go:?}"))
         }
+    }
+}
+
+/// raytracer.txt reaches the firmware as firmware/src/settings.rs reads it:
+/// the header cleared, the text loaded 8 bytes into the hand-off area
+/// (firmware/memory.x), then its length, then the word "RTCF" last.
+fn check_settings_handoff(lines: &[&str]) -> Result<()> {
+    let base = super::firmware::HANDOFF_ADDR;
+    let find = |want: &str| lines.iter().position(|l| l.contains(want));
+    let clear = find(&format!("mw.l {base:#010x} 0"));
+    let text =
+        lines.iter().position(|l| l.starts_with("load") && l.contains(&format!("{:#010x} raytracer.txt", base + 8)));
+    let len = find(&format!("mw.l {:#010x} ${{filesize}}", base + 4));
+    let magic = find(&format!("mw.l {base:#010x} {:#010x}", u32::from_le_bytes(*b"RTCF")));
+    match (clear, text, len, magic) {
+        (Some(c), Some(t), Some(l), Some(m)) if c < t && t < l && l < m => Ok(()),
+        found => Err(format!(
+            "boot script: the settings hand-off at {base:#010x} (clear, load, length, word) is at {found:?}"
+        )),
     }
 }
 
@@ -545,7 +640,7 @@ pub fn suite_test() -> Result<()> {
     let rbf: Vec<u8> = (0u32..300_000).map(|i| (i.wrapping_mul(2_654_435_761) >> 24) as u8).collect();
     fs::write(&rbf_path, &rbf).map_err(|e| e.to_string())?;
     let img = dir().join("test-card.img");
-    run(&SdcardArgs { rbf: Some(rbf_path), out: img.clone() })?;
+    run(&SdcardArgs { rbf: Some(rbf_path), out: img.clone(), settings: None })?;
     // Cross-checks with the tools.
     let bytes = fs::read(&img).map_err(|e| e.to_string())?;
     let spl = dir().join("test-spl.bin");
@@ -691,13 +786,45 @@ mod tests {
             check_boot_script(&script.replace("\tbridge enable", "\tmw.l 0xFFC25080 0x311\n\tbridge enable")).is_err()
         );
         assert!(check_boot_script(&script.replace("bridge enable", "echo no bridges")).is_err());
-        assert!(check_boot_script("bridge enable\nfpga load 0 0 0\n").is_err(), "order");
-        let tail = "load mmc 0:1 0x00100040 firmware.bin\nicache flush\ngo 0x00100040\n";
-        assert_eq!(
-            check_boot_script(&format!("# mw 0xffc2505c 0xa\nfpga load 0 0 0\nbridge enable\n{tail}")),
-            Ok(()),
-            "comments"
+        assert!(check_boot_script("bridge enable\nif fpga load 0 0 0; then\nelse\n").is_err(), "order");
+        assert!(
+            check_boot_script(&script.replace(
+                "if fpga load 0 ${kernel_addr_r} ${filesize}; then",
+                "fpga load 0 ${kernel_addr_r} ${filesize}"
+            ))
+            .is_err(),
+            "the load's result not checked"
         );
+        assert!(check_boot_script(&script.replace("fpga load FAILED", "fpga load failed")).is_err(), "silent");
+        assert_eq!(check_boot_script(&format!("# mw 0xffc2505c 0xa\n{script}")), Ok(()), "comments are not commands");
+    }
+
+    #[test]
+    fn a_new_cards_settings_read_back_as_written_with_a_mac_of_its_own() {
+        let mac = random_mac().expect("a MAC");
+        assert_eq!(mac[0] & 3, 2, "locally administered, unicast: {mac:02x?}");
+        assert_ne!(random_mac().expect("another"), mac, "two cards, two MACs");
+        let s = rt_services::address::settings::Settings::parse(settings_text(mac).as_bytes());
+        assert!(s.problems.is_empty(), "{:?}", s.problems);
+        assert_eq!(s.mac, Some(mac));
+        assert_eq!(s.hostname.as_deref(), Some(rt_services::DEFAULT_HOST_NAME));
+        assert_eq!(s.address, rt_services::address::settings::AddressMode::Automatic);
+    }
+
+    #[test]
+    fn the_boot_script_hands_the_settings_over_where_the_firmware_reads_them() {
+        let script = std::fs::read_to_string(root().join("boot/boot.cmd")).expect("boot.cmd");
+        assert_eq!(check_boot_script(&script), Ok(()));
+        let memory_x = std::fs::read_to_string(root().join("firmware/memory.x")).expect("memory.x");
+        let origin = format!("HANDOFF : ORIGIN = {:#010x}", super::super::firmware::HANDOFF_ADDR);
+        assert!(memory_x.contains(&origin), "memory.x lacks {origin:?}");
+        let moved = script.replace("0x04900008 raytracer.txt", "0x04a00008 raytracer.txt");
+        assert!(check_boot_script(&moved).is_err(), "text loaded elsewhere");
+        let swapped = script.replace("\tmw.l 0x04900000 0x46435452\n", "").replace(
+            "\tmw.l 0x04900004 ${filesize}\n",
+            "\tmw.l 0x04900000 0x46435452\n\tmw.l 0x04900004 ${filesize}\n",
+        );
+        assert!(check_boot_script(&swapped).is_err(), "the word before the length");
     }
 
     #[test]
