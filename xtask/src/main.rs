@@ -106,6 +106,10 @@ enum Command {
     /// client has an address of its own: per-host caps of the camera,
     /// SYNs nobody completes, a viewer that never reads.
     PerHost,
+    /// The board's address on networks it was not built for: slirp's DHCP
+    /// server, dnsmasq on a virtual LAN (and a lease that moves), no DHCP
+    /// server at all (link-local).
+    Addressing,
     /// The client `lossy-bench` runs inside its network namespace.
     #[command(hide = true)]
     LossyClient(emulated::lossy::ClientArgs),
@@ -135,6 +139,7 @@ fn main() -> ExitCode {
         Command::WebTest => suite::web(),
         Command::Hostile => suite::hostile(),
         Command::PerHost => suite::per_host(),
+        Command::Addressing => suite::addressing(),
         Command::LossyTest => support::tools::ensure_qemu().and_then(|()| emulated::lossy::suite_test()),
         Command::EntropyTest => support::tools::ensure_qemu()
             .and_then(|()| images::firmware::build("qemu-npcm750", &["sim-accelerator"]))

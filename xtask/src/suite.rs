@@ -172,6 +172,20 @@ pub fn per_host() -> Result<()> {
     per_host_on(&elf)
 }
 
+/// `cargo xtask addressing`: the board's address from slirp's DHCP, from
+/// dnsmasq (and moving with it), and link-local with no DHCP server.
+pub fn addressing() -> Result<()> {
+    ensure_qemu()?;
+    let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
+    addressing_on(&elf)
+}
+
+fn addressing_on(elf: &std::path::Path) -> Result<()> {
+    ensure_apt_packages(&crate::emulated::lan::PACKAGES, None)?;
+    println!("==> the board's address on networks it was not built for ({})", elf.display());
+    crate::emulated::addressing::run(elf)
+}
+
 fn per_host_on(elf: &std::path::Path) -> Result<()> {
     ensure_apt_packages(&crate::emulated::per_host::PACKAGES, None)?;
     println!("==> what one host may do to the others, on a virtual LAN ({})", elf.display());
@@ -230,6 +244,7 @@ pub fn qemu_tests() -> Result<()> {
     println!("==> the network camera on a hostile network ({})", elf.display());
     crate::emulated::hostile::run(&elf)?;
     per_host_on(&elf)?;
+    addressing_on(&elf)?;
     // The web page in Chromium: served by hps-sim, then by the emulated
     // board while a hostile client attacks its port.
     crate::host::web_page::run()?;

@@ -29,6 +29,16 @@ pub const BOARD: Ipv4Addr = Ipv4Addr::new(10, 0, 2, 15);
 /// The board's MAC (QEMU's default for the npcm750-evb's first GMAC).
 const BOARD_MAC: &str = "52:54:00:12:34:56";
 
+/// How the board on a [`Lan`] takes its address.
+#[derive(Clone, Debug)]
+pub enum Addressing {
+    /// The tests' plan: 10.0.2.15 in the settings (`TEST_LAN_SETTINGS`).
+    Plan,
+    /// These settings (raytracer.txt), and a DHCP server (dnsmasq, on the
+    /// switch) if `dhcp` names the address it gives.
+    Settings { text: String, dhcp: Option<Ipv4Addr> },
+}
+
 /// The emulated board on a LAN of `hosts` hosts.
 pub struct Lan {
     /// The board (dropped first: QEMU stops before its network goes).
@@ -36,7 +46,48 @@ pub struct Lan {
     /// The link between the board and the switch (faults can be set).
     pub relay: Relay,
     hosts: Vec<Namespace>,
-    _switch: Namespace,
+    dhcp: Option<Dnsmasq>,
+    switch: Namespace,
+}
+
+/// dnsmasq as the LAN's DHCP server, on the switch's bridge; stopped on
+/// drop.
+struct Dnsmasq {
+    child: std::process::Child,
+    leases: std::path::PathBuf,
+}
+
+impl Drop for Dnsmasq {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = std::fs::remove_file(&self.leases);
+    }
+}
+
+/// Debian's package of the LAN's DHCP server (the binary alone: no
+/// service is started on the machine).
+pub const PACKAGES: [&str; 1] = ["dnsmasq-base"];
+
+/// Start dnsmasq in namespace `switch` on br0, giving `address` to the
+/// board (`mac`) for 2 minutes, its shortest lease, and refusing (NAK) any
+/// other (authoritative), so that a changed plan moves the board at its
+/// next renewal.
+fn dnsmasq(switch: &str, mac: &str, address: Ipv4Addr) -> Result<Dnsmasq> {
+    let leases = std::env::temp_dir().join(format!("rt-dnsmasq-{switch}.leases"));
+    let _ = std::fs::remove_file(&leases);
+    let child = Command::new("ip")
+        .args(["netns", "exec", switch, "dnsmasq", "--keep-in-foreground", "--conf-file=/dev/null", "--port=0"])
+        .args(["--interface=br0", "--bind-interfaces", "--dhcp-authoritative", "--log-dhcp"])
+        .arg("--dhcp-range=10.0.2.100,10.0.2.199,255.255.255.0,2m")
+        .arg(format!("--dhcp-host={mac},{address}"))
+        .arg(format!("--dhcp-leasefile={}", leases.display()))
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .map_err(|e| format!("dnsmasq: {e} (cargo xtask test installs {})", PACKAGES[0]))?;
+    Ok(Dnsmasq { child, leases })
 }
 
 impl Lan {
@@ -47,6 +98,12 @@ impl Lan {
 
     /// [`boot`](Self::boot) with extra QEMU arguments (`-icount`).
     pub fn boot_with(elf: &Path, hosts: usize, extra: &[&str]) -> Result<Lan> {
+        Lan::boot_addressed(elf, hosts, extra, Addressing::Plan)
+    }
+
+    /// [`boot_with`](Self::boot_with), the board taking its address as
+    /// `addressing` says.
+    pub fn boot_addressed(elf: &Path, hosts: usize, extra: &[&str], addressing: Addressing) -> Result<Lan> {
         lossy::available().map_err(|why| format!("the virtual LAN needs network namespaces: {why}"))?;
         let id = std::process::id() % 100_000;
         let tap = format!("rtlan{id}");
@@ -74,8 +131,11 @@ impl Lan {
             ip(&["-n", &name, "link", "set", "eth0", "up"])?;
             ip(&["-n", &name, "link", "set", "lo", "up"])?;
             // As in lossy.rs: the board as a fixed neighbour, so a lost
-            // ARP answer never fails a connect.
-            ip(&["-n", &name, "neigh", "replace", &BOARD.to_string(), "lladdr", BOARD_MAC, "dev", "eth0"])?;
+            // ARP answer never fails a connect (on the tests' plan only:
+            // otherwise where the board is is what is tested).
+            if matches!(addressing, Addressing::Plan) {
+                ip(&["-n", &name, "neigh", "replace", &BOARD.to_string(), "lladdr", BOARD_MAC, "dev", "eth0"])?;
+            }
             ip(&["-n", &name, "route", "add", "224.0.0.0/4", "dev", "eth0"])?;
             named.push(host);
         }
@@ -83,9 +143,33 @@ impl Lan {
         let udp = UdpSocket::bind(("127.0.0.1", relay_port)).map_err(|e| e.to_string())?;
         let relay = Relay::start(udp, SocketAddr::from(([127, 0, 0, 1], qemu_port)), tap_file, Faults::default(), 1)?;
         let netdev = crate::images::firmware::dgram_netdev(qemu_port, relay_port);
-        let mut guest = Guest::boot_netdev(elf, &netdev, extra)?;
+        let (settings, dhcp) = match &addressing {
+            Addressing::Plan => (Some(crate::images::firmware::TEST_LAN_SETTINGS), None),
+            Addressing::Settings { text, dhcp } => {
+                let mac = rt_services::address::settings::Settings::parse(text.as_bytes())
+                    .mac
+                    .map_or(BOARD_MAC.to_string(), |m| m.map(|b| format!("{b:02x}")).join(":"));
+                let server = dhcp.map(|a| dnsmasq(&sw, &mac, a)).transpose()?;
+                (Some(text.as_str()), server)
+            }
+        };
+        let mut guest = Guest::boot_netdev_with(elf, &netdev, settings, extra)?;
         guest.wait_for_log("link up", Duration::from_secs(120))?;
-        Ok(Lan { guest, relay, hosts: named, _switch: switch })
+        Ok(Lan { guest, relay, hosts: named, dhcp, switch })
+    }
+
+    /// Restart the LAN's DHCP server with `address` for the board: the
+    /// board's next renewal is refused and it takes the new one.
+    pub fn move_dhcp(&mut self, mac: &str, address: Ipv4Addr) -> Result<()> {
+        self.dhcp = None;
+        self.dhcp = Some(dnsmasq(&self.switch.0, mac, address)?);
+        Ok(())
+    }
+
+    /// Give host `k` an address in 169.254/16 too, for a board with a
+    /// link-local address.
+    pub fn add_link_local(&self, k: usize) -> Result<()> {
+        ip(&["-n", self.host(k), "addr", "add", &format!("169.254.200.{}/16", 1 + k), "dev", "eth0"])
     }
 
     /// Host `k`'s address: 10.0.2.(20 + k).

@@ -6,6 +6,7 @@
 //! every test here boots the firmware that `images::firmware` builds and
 //! runs (`build`, `Guest`); nothing in `images` needs the tests.
 
+pub mod addressing;
 pub mod bench_fw;
 pub mod boot_log;
 pub mod cost_model;

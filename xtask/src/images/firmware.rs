@@ -88,6 +88,38 @@ pub fn free_udp_port() -> Result<u16> {
     Ok(s.local_addr().map_err(|e| e.to_string())?.port())
 }
 
+/// Where the firmware reads the settings boot.cmd hands over
+/// (firmware/memory.x, `HANDOFF`; boot/boot.cmd writes the same address).
+pub const HANDOFF_ADDR: u32 = 0x0490_0000;
+
+/// The settings of boards on the tests' own networks (the relays, the
+/// virtual LAN): the address plan of QEMU's user networking, fixed, so
+/// that the tests' clients know where the board is.
+pub const TEST_LAN_SETTINGS: &str = "# the tests' network plan\nip=10.0.2.15/24\ngateway=10.0.2.2\n";
+
+/// `text` as boot.cmd leaves raytracer.txt in memory ("RTCF", the length,
+/// the text), written to a file for QEMU's `-device loader`.
+pub fn settings_file(text: &str) -> Result<PathBuf> {
+    static SEQ: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let path = std::env::temp_dir().join(format!(
+        "rt-settings-{}-{}.bin",
+        std::process::id(),
+        SEQ.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+    ));
+    let len = u32::try_from(text.len()).map_err(|_| "settings too long")?;
+    let mut bytes = b"RTCF".to_vec();
+    bytes.extend_from_slice(&len.to_le_bytes());
+    bytes.extend_from_slice(text.as_bytes());
+    std::fs::write(&path, bytes).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(path)
+}
+
+/// QEMU arguments that put `file` (from [`settings_file`]) where boot.cmd
+/// would.
+pub fn settings_loader(file: &Path) -> String {
+    format!("loader,file={},addr={HANDOFF_ADDR:#x},force-raw=on", file.display())
+}
+
 /// The QEMU command line for `elf` with host ports forwarded to the
 /// firmware's frame, persistent, RTSP, RTCP and web ports. The board's RTP
 /// leaves for the client's ports on 10.0.2.2, which slirp delivers to the
@@ -134,6 +166,9 @@ pub struct Guest {
     pub port_persistent: u16,
     /// Host ports forwarded to the RTSP and RTCP ports (0 without slirp).
     pub forwards: Option<Forwards>,
+    /// From the firmware's "listening" line to its address (as this
+    /// process saw the UART: a little late, never early).
+    pub address_wait: Duration,
 }
 
 impl Guest {
@@ -147,9 +182,20 @@ impl Guest {
     }
 
     /// Boot `elf` with the MAC on `netdev` (a `-netdev` value, `id=n0`)
-    /// instead of slirp.
+    /// instead of slirp, with the tests' network plan as its settings
+    /// ([`TEST_LAN_SETTINGS`]).
     pub fn boot_netdev(elf: &Path, netdev: &str, extra: &[&str]) -> Result<Guest> {
-        Guest::start(qemu_command_netdev(elf, netdev), 0, 0, extra)
+        Guest::boot_netdev_with(elf, netdev, Some(TEST_LAN_SETTINGS), extra)
+    }
+
+    /// Boot `elf` on `netdev` with `settings` as raytracer.txt (`None`: no
+    /// file, as on a card without one).
+    pub fn boot_netdev_with(elf: &Path, netdev: &str, settings: Option<&str>, extra: &[&str]) -> Result<Guest> {
+        let mut c = qemu_command_netdev(elf, netdev);
+        if let Some(text) = settings {
+            c.args(["-device", &settings_loader(&settings_file(text)?)]);
+        }
+        Guest::start(c, 0, 0, extra)
     }
 
     fn start(mut c: Command, port_single: u16, port_persistent: u16, extra: &[&str]) -> Result<Guest> {
@@ -165,8 +211,13 @@ impl Guest {
             .stderr(Stdio::from(File::create(log.with_extension("stderr")).map_err(|e| e.to_string())?));
         let child =
             c.spawn().map_err(|e| format!("cannot start qemu-system-arm: {e} (cargo xtask test installs it)"))?;
-        let mut g = Guest { child, log, port_single, port_persistent, forwards: None };
+        let mut g = Guest { child, log, port_single, port_persistent, forwards: None, address_wait: Duration::ZERO };
         g.wait_for_log("listening on TCP", Duration::from_secs(60))?;
+        // Then its address: at once when static, from slirp's DHCP server
+        // within a second, link-local within 10 s.
+        let listening = Instant::now();
+        g.wait_for_log("net: address ", Duration::from_secs(60))?;
+        g.address_wait = listening.elapsed();
         Ok(g)
     }
 
