@@ -13,6 +13,8 @@
 //! * [`camera`]: the network camera: RTSP sessions (TCP 8554), their RTP
 //!   streams (RFC 4175, one row a packet) with NACK repair, and the
 //!   receiver clients use.
+//! * [`mdns`]: the board found by name: `NAME.local` and its services
+//!   (RFC 6762 mDNS, RFC 6763 DNS-SD).
 //! * [`monitor`]: the board on its own: the VGA display following the
 //!   newest frame, attract mode, keys, switches, LEDs and 7-segment text.
 //! * [`orbit`]: the light orbiting the sphere, by frame or by time.
@@ -32,6 +34,7 @@
 pub mod address;
 pub mod camera;
 pub mod frames;
+pub mod mdns;
 pub mod monitor;
 pub mod orbit;
 pub mod seed;
