@@ -22,6 +22,8 @@ use rt_services::camera::sender::Camera;
 use rt_services::camera::sender::{self, Multicast};
 use rt_services::camera::service::{CameraBuffers, CameraService, GroupMembership, Snoop, Snooped, RTSP_SOCKETS};
 use rt_services::frames::Quota;
+use rt_services::mdns::responder::{Services, MDNS_GROUP};
+use rt_services::mdns::service::{MdnsBuffers, MdnsService};
 use rt_services::seed::service::{FrameService, SocketBuffers};
 use rt_services::web::service::{SocketBuffers as WebBuffers, WebService};
 use rt_services::web::status::{BoardStatus, Viewers};
@@ -44,9 +46,9 @@ use crate::render::Frames;
 /// multicast groups' RTCP socket (`CameraService::new` adds them all).
 const CAMERA_SOCKETS: usize = RTSP_SOCKETS + 2;
 
-/// Every socket: the seed server's, the camera's, the page's and the DHCP
-/// client's.
-const ALL_SOCKETS: usize = SOCKETS + CAMERA_SOCKETS + WEB_SOCKETS + 1;
+/// Every socket: the seed server's, the camera's, the page's, the DHCP
+/// client's and mDNS's.
+const ALL_SOCKETS: usize = SOCKETS + CAMERA_SOCKETS + WEB_SOCKETS + 2;
 
 /// Why the network did not start.
 #[derive(Clone, Copy, Debug)]
@@ -143,6 +145,7 @@ pub fn run<B: Board, P: RegisterPort>(
     // The host name the DHCP requests carry (option 12, RFC 2132 section 3.14).
     static HOST_NAME: StaticCell<HostName> = StaticCell::new();
     static DHCP_OPTIONS: StaticCell<[DhcpOption<'static>; 1]> = StaticCell::new();
+    static MDNS_BUFFERS: ConstStaticCell<MdnsBuffers> = ConstStaticCell::new(MdnsBuffers::new());
     static WEB_BUFFERS: ConstStaticCell<[WebBuffers; WEB_SOCKETS]> =
         ConstStaticCell::new([const { WebBuffers::new() }; WEB_SOCKETS]);
     static CAMERA_BUFFERS: ConstStaticCell<CameraBuffers> = ConstStaticCell::new(CameraBuffers::new());
@@ -206,6 +209,21 @@ pub fn run<B: Board, P: RegisterPort>(
     let mut sockets = SocketSet::new(&mut socket_storage[..]);
     let mut addressing = Addressing::new(settings.address, mac_addr, &mut sockets, dhcp_options);
     let mut arp_notes = ArpNotes::new();
+    // NAME.local and the services, by mDNS / DNS-SD on 224.0.0.251:5353.
+    let services = Services { http: WEB_PORT, rtsp: RTSP_PORT, rtsp_path: "/orbit", seed: FRAME_PORT };
+    let mdns_buffers = MDNS_BUFFERS.try_take().ok_or(TAKEN_TWICE)?;
+    let mut mdns = match MdnsService::new(&mut sockets, mdns_buffers, host_name, services, timer.ticks()) {
+        Ok(m) => {
+            if let Err(e) = iface.join_multicast_group(MDNS_GROUP) {
+                let _ = writeln!(log, "mdns: cannot join {MDNS_GROUP}: {e:?}");
+            }
+            Some(m)
+        }
+        Err(e) => {
+            let _ = writeln!(log, "mdns: cannot bind UDP 5353: {e:?}");
+            None
+        }
+    };
     let mut service = FrameService::<usize, SOCKETS>::new(&mut sockets, socket_buffers, FRAME_PORT_SOCKETS);
     let mut web = WebService::<usize, WEB_SOCKETS>::new(&mut sockets, web_buffers);
     let mut counts = crate::bench::Counts::default();
@@ -342,6 +360,9 @@ pub fn run<B: Board, P: RegisterPort>(
             if let Some(c) = &mut camera {
                 c.set_address(ip);
             }
+            if let Some(m) = &mut mdns {
+                m.set_address(now, change.map(|a| a.address));
+            }
             match change {
                 Some(a) => {
                     let _ = writeln!(log, "net: address {a}");
@@ -352,6 +373,9 @@ pub fn run<B: Board, P: RegisterPort>(
             }
         }
         iface.poll(now, &mut Snoop { inner: &mut mac, peers: &mut (&mut peers, &mut arp_notes) }, &mut sockets);
+        if let Some(m) = &mut mdns {
+            m.poll(now, &mut sockets, &mut log);
+        }
         if peers.frames_seen() != frames_seen {
             frames_seen = peers.frames_seen();
             arrivals.add(timer.ticks());
@@ -399,7 +423,7 @@ pub fn run<B: Board, P: RegisterPort>(
                 &mut sockets,
                 &mut Quota::new(&mut counted, &mut web_frames, WEB_FRAMES),
                 &status,
-                host_name,
+                mdns.as_ref().map_or(host_name.as_str(), |m| m.responder().name()),
                 &mut log,
             )
         });
