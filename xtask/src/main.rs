@@ -110,6 +110,9 @@ enum Command {
     /// server, dnsmasq on a virtual LAN (and a lease that moves), no DHCP
     /// server at all (link-local).
     Addressing,
+    /// Two boards on one virtual LAN, found by name: mDNS probing and
+    /// renaming, DNS-SD browsed with python-zeroconf, frames by name.
+    Names,
     /// The client `lossy-bench` runs inside its network namespace.
     #[command(hide = true)]
     LossyClient(emulated::lossy::ClientArgs),
@@ -140,6 +143,7 @@ fn main() -> ExitCode {
         Command::Hostile => suite::hostile(),
         Command::PerHost => suite::per_host(),
         Command::Addressing => suite::addressing(),
+        Command::Names => suite::names(),
         Command::LossyTest => support::tools::ensure_qemu().and_then(|()| emulated::lossy::suite_test()),
         Command::EntropyTest => support::tools::ensure_qemu()
             .and_then(|()| images::firmware::build("qemu-npcm750", &["sim-accelerator"]))

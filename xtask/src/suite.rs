@@ -183,7 +183,22 @@ pub fn addressing() -> Result<()> {
 fn addressing_on(elf: &std::path::Path) -> Result<()> {
     ensure_apt_packages(&crate::emulated::lan::PACKAGES, None)?;
     println!("==> the board's address on networks it was not built for ({})", elf.display());
-    crate::emulated::addressing::run(elf)
+    crate::emulated::addressing::run(elf)?;
+    names_on(elf)
+}
+
+/// `cargo xtask names`: two boards on one LAN, found by name.
+pub fn names() -> Result<()> {
+    ensure_qemu()?;
+    let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
+    ensure_apt_packages(&crate::emulated::lan::PACKAGES, None)?;
+    names_on(&elf)
+}
+
+fn names_on(elf: &std::path::Path) -> Result<()> {
+    ensure_apt_packages(&crate::emulated::names::PACKAGES, None)?;
+    println!("==> two boards on one LAN, found by name (mDNS, DNS-SD) ({})", elf.display());
+    crate::emulated::names::run(elf)
 }
 
 fn per_host_on(elf: &std::path::Path) -> Result<()> {

@@ -45,6 +45,8 @@ pub struct Lan {
     pub guest: Guest,
     /// The link between the board and the switch (faults can be set).
     pub relay: Relay,
+    /// More boards on the same switch ([`add_board`](Self::add_board)).
+    pub others: Vec<(Guest, Relay)>,
     hosts: Vec<Namespace>,
     dhcp: Option<Dnsmasq>,
     switch: Namespace,
@@ -155,7 +157,26 @@ impl Lan {
         };
         let mut guest = Guest::boot_netdev_with(elf, &netdev, settings, extra)?;
         guest.wait_for_log("link up", Duration::from_secs(120))?;
-        Ok(Lan { guest, relay, hosts: named, dhcp, switch })
+        Ok(Lan { guest, relay, others: Vec::new(), hosts: named, dhcp, switch })
+    }
+
+    /// Boot another board on the switch with `settings`, and wait for its
+    /// link and address.
+    pub fn add_board(&mut self, elf: &Path, settings: &str) -> Result<&mut Guest> {
+        let tap = format!("rtlan{}b{}", std::process::id() % 100_000, self.others.len() + 1);
+        let tap_file = open_tap(&tap)?;
+        let sw = self.switch.0.clone();
+        ip(&["link", "set", &tap, "netns", &sw])?;
+        ip(&["-n", &sw, "link", "set", &tap, "master", "br0", "up"])?;
+        let (qemu_port, relay_port) = (free_udp_port()?, free_udp_port()?);
+        let udp = UdpSocket::bind(("127.0.0.1", relay_port)).map_err(|e| e.to_string())?;
+        let relay = Relay::start(udp, SocketAddr::from(([127, 0, 0, 1], qemu_port)), tap_file, Faults::default(), 2)?;
+        let netdev = crate::images::firmware::dgram_netdev(qemu_port, relay_port);
+        let mut guest = Guest::boot_netdev_with(elf, &netdev, Some(settings), &[])?;
+        guest.wait_for_log("link up", Duration::from_secs(120))?;
+        self.others.push((guest, relay));
+        let last = self.others.len() - 1;
+        Ok(&mut self.others[last].0)
     }
 
     /// Restart the LAN's DHCP server with `address` for the board: the

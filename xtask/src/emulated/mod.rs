@@ -15,6 +15,7 @@ pub mod entropy;
 pub mod hostile;
 pub mod lan;
 pub mod lossy;
+pub mod names;
 pub mod per_host;
 pub mod qemu_e2e;
 pub mod soak;

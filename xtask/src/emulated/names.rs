@@ -1,0 +1,145 @@
+//! Two boards found by name on one virtual LAN (issue 35, "found by
+//! name"): both cards say `hostname=raytracer`, each has a MAC of its own,
+//! dnsmasq gives both an address. The first claims `raytracer.local`; the
+//! second's probe meets the first's answer and it takes `raytracer-2` and
+//! says so. python-zeroconf (Debian's, an mDNS stack independent of the
+//! firmware's) on a host of the LAN browses the three service types and
+//! resolves every instance: both boards, each by its name with its own
+//! address, port and TXT. Then each board, at the address its name
+//! resolved to: a seed frame and FFmpeg's RTSP frame byte-exact, the page
+//! answering to `Host: NAME.local`. Multicast stays inside the test's
+//! namespaces (DEVELOPERS.md's network rule).
+
+use std::io::{Read, Write};
+use std::net::{Ipv4Addr, SocketAddr, TcpStream};
+use std::path::Path;
+use std::time::Duration;
+
+use super::lan::{Addressing, Lan};
+use super::qemu_e2e::expected_frame;
+use crate::support::tools::root;
+use crate::support::Result;
+
+/// Debian packages the check runs: the independent mDNS browser and
+/// FFmpeg.
+pub const PACKAGES: [&str; 2] = ["python3-zeroconf", "ffmpeg"];
+
+/// The light of every frame asked for.
+const LIGHT: [i32; 3] = [3 << 10, 4 << 10, -(2 << 10)];
+
+fn settings(mac: &str) -> String {
+    format!("# cargo xtask names\nip=dhcp\nhostname=raytracer\nmac={mac}\n")
+}
+
+/// The address a board's UART last reported.
+fn address_of(uart: &str) -> Option<Ipv4Addr> {
+    let line = uart.lines().rev().find(|l| l.starts_with("net: address "))?;
+    line.strip_prefix("net: address ")?.split('/').next()?.parse().ok()
+}
+
+/// Run the check against the firmware `elf` (a frame-mode build).
+pub fn run(elf: &Path) -> Result<()> {
+    let first = Addressing::Settings { text: settings("02:de:1c:00:35:0a"), dhcp: Some(Ipv4Addr::new(10, 0, 2, 77)) };
+    let mut lan = Lan::boot_addressed(elf, 1, &[], first)?;
+    lan.guest
+        .wait_for_line(0, "mdns: raytracer.local is this board's", Duration::from_secs(30))
+        .map_err(|e| lan.with_uart(e))?;
+    let second = lan.add_board(elf, &settings("02:de:1c:00:35:0b"))?;
+    let renamed = second.wait_for_line(0, "mdns: another host has the name", Duration::from_secs(30));
+    let second_uart = second.uart();
+    renamed.map_err(|e| format!("the second board: {e}\n{second_uart}"))?;
+    if !second_uart.contains("this board is now raytracer-2.local") {
+        return Err(format!("the second board did not take raytracer-2:\n{second_uart}"));
+    }
+    second
+        .wait_for_line(0, "mdns: raytracer-2.local is this board's", Duration::from_secs(30))
+        .map_err(|e| format!("the second board: {e}"))?;
+    let a = address_of(&lan.guest.uart()).ok_or_else(|| lan.with_uart("no address"))?;
+    let b = address_of(&second_uart).ok_or("the second board has no address")?;
+    if a == b {
+        return Err(format!("both boards at {a}"));
+    }
+    println!("names: two boards with hostname=raytracer: raytracer.local at {a}, raytracer-2.local at {b} (renamed on the conflict)");
+
+    let script = root().join("tests/mdns/browse.py");
+    let out = lan
+        .command(0, "/usr/bin/python3")
+        .arg(&script)
+        .args(["--seconds", "4"])
+        .output()
+        .map_err(|e| format!("{}: {e}", script.display()))?;
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    if !out.status.success() {
+        return Err(lan.with_uart(format!("browse.py failed: {text}{}", String::from_utf8_lossy(&out.stderr))));
+    }
+    let found: serde_json::Value = serde_json::from_str(&text).map_err(|e| format!("browse.py's JSON: {e}: {text}"))?;
+    for (ty, port) in [("_http._tcp.local.", 80), ("_rtsp._tcp.local.", 8554), ("_raytracer._tcp.local.", 7878)] {
+        for (name, address) in [("raytracer", a), ("raytracer-2", b)] {
+            let instance = format!("{name}.{ty}");
+            let entry = found[ty]
+                .as_array()
+                .and_then(|list| list.iter().find(|e| e["name"] == instance.as_str()))
+                .ok_or_else(|| format!("python-zeroconf did not find {instance}: {text}"))?;
+            let server_ok = entry["server"] == format!("{name}.local.").as_str();
+            let address_ok =
+                entry["addresses"].as_array().is_some_and(|l| l.iter().any(|x| x == address.to_string().as_str()));
+            if !server_ok || !address_ok || entry["port"] != port {
+                return Err(format!("{instance} resolved to {entry}, not {name}.local. {address}:{port}"));
+            }
+            if ty.starts_with("_rtsp") && entry["txt"]["path"] != "/orbit" {
+                return Err(format!("{instance}'s TXT: {}", entry["txt"]));
+            }
+        }
+    }
+    println!(
+        "names: python-zeroconf lists both boards' _http, _rtsp and _raytracer services, each resolved to its board"
+    );
+
+    let want = expected_frame(LIGHT)?;
+    for (name, address) in [("raytracer", a), ("raytracer-2", b)] {
+        let frame = want.clone();
+        lan.on_host(0, move || by_name(name, address, &frame)).map_err(|e| lan.with_uart(e))?;
+        let ffmpeg = lan
+            .command(0, "ffmpeg")
+            .args(["-nostdin", "-loglevel", "error", "-analyzeduration", "0", "-probesize", "32"])
+            .args(["-rtsp_transport", "tcp", "-i", &format!("rtsp://{address}:8554/light/3,4,-2")])
+            .args(["-fps_mode", "passthrough", "-frames:v", "1", "-f", "rawvideo", "pipe:1"])
+            .output()
+            .map_err(|e| format!("ffmpeg: {e}"))?;
+        if ffmpeg.stdout != want {
+            return Err(lan.with_uart(format!(
+                "FFmpeg's frame from {name}.local ({address}): {} bytes, not the model's: {}",
+                ffmpeg.stdout.len(),
+                String::from_utf8_lossy(&ffmpeg.stderr)
+            )));
+        }
+    }
+    println!("names: from each, by the address its name resolved to: a seed frame and FFmpeg's RTSP frame byte-exact, the page for Host: NAME.local");
+    Ok(())
+}
+
+/// A seed frame from `address`, and the page asked for by `name.local`.
+fn by_name(name: &str, address: Ipv4Addr, want: &[u8]) -> Result<()> {
+    let to = SocketAddr::from((address, 7878));
+    let mut c = TcpStream::connect_timeout(&to, Duration::from_secs(5)).map_err(|e| format!("{to}: {e}"))?;
+    c.set_read_timeout(Some(Duration::from_secs(30))).map_err(|e| e.to_string())?;
+    let light: Vec<u8> = LIGHT.iter().flat_map(|v| v.to_be_bytes()).collect();
+    c.write_all(&light).map_err(|e| e.to_string())?;
+    let mut got = Vec::new();
+    c.read_to_end(&mut got).map_err(|e| format!("{to}: {e}"))?;
+    if got != want {
+        return Err(format!("{name}.local's seed frame: {} bytes, not the model's", got.len()));
+    }
+    let to = SocketAddr::from((address, 80));
+    let mut c = TcpStream::connect_timeout(&to, Duration::from_secs(5)).map_err(|e| format!("{to}: {e}"))?;
+    c.set_read_timeout(Some(Duration::from_secs(10))).map_err(|e| e.to_string())?;
+    c.write_all(format!("GET / HTTP/1.1\r\nHost: {name}.local\r\nConnection: close\r\n\r\n").as_bytes())
+        .map_err(|e| e.to_string())?;
+    let mut page = Vec::new();
+    let _ = c.read_to_end(&mut page);
+    let page = String::from_utf8_lossy(&page);
+    if !page.starts_with("HTTP/1.1 200") || !page.contains("<html") {
+        return Err(format!("{name}.local's page: {:?}", &page[..page.len().min(120)]));
+    }
+    Ok(())
+}
