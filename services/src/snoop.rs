@@ -1,7 +1,7 @@
 //! A smoltcp device that shows every received frame to the board's own
 //! listeners before smoltcp takes it (feature `smoltcp`): the camera's
 //! table of peers and ICMP notes ([`Snooped`](crate::camera::service::Snooped)),
-//! the link-local claim's ARP notes ([`ArpNotes`](crate::address::assign::ArpNotes)).
+//! the link-local claim's and the housekeeping's notes ([`LinkNotes`](crate::address::assign::LinkNotes)).
 //! smoltcp 0.14 keeps its neighbour cache and ARP handling to itself, and
 //! answers no ARP from 0.0.0.0, so these learn from the frames instead.
 
@@ -72,5 +72,91 @@ impl<D: Device, L: Learn> Device for Snoop<'_, D, L> {
 
     fn capabilities(&self) -> DeviceCapabilities {
         self.inner.capabilities()
+    }
+}
+
+/// TCP connection attempts (a SYN without ACK) to some ports, noted as
+/// they arrive: a service whose sockets all listen ([`FrameService::quiet`],
+/// [`WebService::quiet`]) has nothing to do until one comes for its port
+/// (smoltcp moves a listening socket only on a SYN), so the main loop
+/// skips it meanwhile.
+///
+/// [`FrameService::quiet`]: crate::seed::service::FrameService::quiet
+/// [`WebService::quiet`]: crate::web::service::WebService::quiet
+#[derive(Clone, Debug)]
+pub struct SynWatch<const N: usize> {
+    ports: [u16; N],
+    seen: u32,
+}
+
+impl<const N: usize> SynWatch<N> {
+    /// Watch `ports` (at most 32).
+    pub const fn new(ports: [u16; N]) -> SynWatch<N> {
+        assert!(N <= 32);
+        SynWatch { ports, seen: 0 }
+    }
+
+    /// Whether a SYN to `ports[i]` arrived since the last call for it.
+    pub fn take(&mut self, i: usize) -> bool {
+        let bit = 1u32 << i;
+        let seen = self.seen & bit != 0;
+        self.seen &= !bit;
+        seen
+    }
+}
+
+impl<const N: usize> Learn for SynWatch<N> {
+    /// Read straight from the bytes (Ethernet II, IPv4, TCP; RFC 791 and
+    /// RFC 9293 layouts): this runs on every received frame.
+    fn learn(&mut self, frame: &[u8]) {
+        // Ethertype IPv4, protocol TCP.
+        if frame.len() < 14 + 20 + 20 || frame[12..14] != [0x08, 0x00] || frame[14 + 9] != 6 {
+            return;
+        }
+        let tcp = 14 + usize::from(frame[14] & 0x0f) * 4;
+        let Some(header) = frame.get(tcp..tcp + 14) else { return };
+        // Flags: SYN set, ACK clear.
+        if header[13] & 0x12 != 0x02 {
+            return;
+        }
+        let port = u16::from_be_bytes([header[2], header[3]]);
+        if let Some(i) = self.ports.iter().position(|p| *p == port) {
+            self.seen |= 1 << i;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An Ethernet/IPv4/TCP frame to `port` with `flags`.
+    fn segment(port: u16, flags: u8) -> std::vec::Vec<u8> {
+        let mut f = std::vec![0u8; 14 + 20 + 20];
+        f[12] = 0x08;
+        f[14] = 0x45;
+        f[14 + 9] = 6;
+        f[34 + 2..34 + 4].copy_from_slice(&port.to_be_bytes());
+        f[34 + 12] = 0x50;
+        f[34 + 13] = flags;
+        f
+    }
+
+    #[test]
+    fn only_a_syn_to_a_watched_port_is_noted_once() {
+        let mut w = SynWatch::new([7878, 80]);
+        w.learn(&segment(80, 0x12));
+        w.learn(&segment(80, 0x10));
+        w.learn(&segment(8554, 0x02));
+        assert!(!w.take(0) && !w.take(1), "a SYN-ACK, an ACK, another port");
+        w.learn(&segment(80, 0x02));
+        assert!(!w.take(0));
+        assert!(w.take(1));
+        assert!(!w.take(1), "taken");
+        let mut udp = segment(7878, 0x02);
+        udp[14 + 9] = 17;
+        w.learn(&udp);
+        w.learn(&segment(7878, 0x02)[..40]);
+        assert!(!w.take(0), "UDP, a cut frame");
     }
 }

@@ -52,6 +52,8 @@ impl<F> Slot<F> {
 /// handles are `F` (a [`FrameSource`]'s).
 pub struct FrameService<F, const N: usize> {
     slots: [Slot<F>; N],
+    /// Every socket listening and no session at the end of the last poll.
+    quiet: bool,
 }
 
 impl<F: Copy, const N: usize> FrameService<F, N> {
@@ -67,7 +69,17 @@ impl<F: Copy, const N: usize> FrameService<F, N> {
             i += 1;
             Slot { handle: sockets.add(socket), mode, session: None, handshake: Handshake::new() }
         });
-        FrameService { slots }
+        FrameService { slots, quiet: false }
+    }
+
+    /// Whether the last [`poll`](Self::poll) left every socket listening
+    /// and no session open: until the interface reports a socket's state
+    /// may have changed (`PollResult::SocketStateChanged`: a packet taken
+    /// in or sent), another poll would do nothing, and the main loop may
+    /// skip it (24 sockets looked at, on every turn of a board that
+    /// streams over RTP).
+    pub fn quiet(&self) -> bool {
+        self.quiet
     }
 
     /// Sockets listening for a client, of `N`.
@@ -91,10 +103,13 @@ impl<F: Copy, const N: usize> FrameService<F, N> {
         log: &mut impl Write,
     ) {
         let now = time::Instant::from_millis(u64::try_from(now.total_millis()).unwrap_or(0));
+        let mut quiet = true;
         for (index, slot) in self.slots.iter_mut().enumerate() {
             let socket = sockets.get_mut::<tcp::Socket>(slot.handle);
             serve_slot(index, slot, socket, now, frames, log);
+            quiet &= slot.session.is_none() && socket.state() == tcp::State::Listen;
         }
+        self.quiet = quiet;
     }
 }
 

@@ -52,6 +52,8 @@ pub struct WebService<F, const N: usize> {
     slots: [Slot<F>; N],
     frames_sent: u64,
     turns: Turns<N>,
+    /// Every socket listening and no connection at the end of the last poll.
+    quiet: bool,
 }
 
 impl<F: Copy, const N: usize> WebService<F, N> {
@@ -61,7 +63,15 @@ impl<F: Copy, const N: usize> WebService<F, N> {
             let socket = b.socket();
             Slot { handle: sockets.add(socket), connection: None, closing_since: None, handshake: Handshake::new() }
         });
-        WebService { slots, frames_sent: 0, turns: Turns::new() }
+        WebService { slots, frames_sent: 0, turns: Turns::new(), quiet: false }
+    }
+
+    /// Whether the last [`poll`](Self::poll) left every socket listening
+    /// and no connection open: until the interface reports a socket's
+    /// state may have changed (`PollResult::SocketStateChanged`), another
+    /// poll would do nothing, and the main loop may skip it.
+    pub fn quiet(&self) -> bool {
+        self.quiet
     }
 
     /// Sockets listening, of `N`.
@@ -105,6 +115,11 @@ impl<F: Copy, const N: usize> WebService<F, N> {
             let wants = slot.connection.as_ref().is_some_and(Connection::wants_frame);
             self.turns.served(index, wants);
         }
+        self.quiet = self.slots.iter().all(|slot| {
+            slot.connection.is_none()
+                && slot.closing_since.is_none()
+                && sockets.get::<tcp::Socket>(slot.handle).state() == tcp::State::Listen
+        });
     }
 }
 
