@@ -8,7 +8,7 @@
 use std::collections::VecDeque;
 use std::net::Ipv4Addr;
 
-use rt_services::address::assign::{Addressing, ArpNotes};
+use rt_services::address::assign::{Addressing, LinkNotes};
 use rt_services::address::settings::AddressMode;
 use rt_services::address::{Assignment, Origin};
 use rt_services::snoop::Snoop;
@@ -93,7 +93,7 @@ struct Board {
     iface: Interface,
     sockets: SocketSet<'static>,
     addressing: Addressing,
-    notes: ArpNotes,
+    notes: LinkNotes,
     /// Every change `poll` reported, with its time (ms).
     changes: Vec<(i64, Option<Assignment>)>,
     now: i64,
@@ -108,7 +108,7 @@ impl Board {
         let iface = Interface::new(config, &mut wire, Instant::from_millis(0));
         let mut sockets = SocketSet::new(Vec::new());
         let addressing = Addressing::new(mode, BOARD_MAC, &mut sockets, &OPTIONS);
-        Board { wire, iface, sockets, addressing, notes: ArpNotes::new(), changes: Vec::new(), now: 0 }
+        Board { wire, iface, sockets, addressing, notes: LinkNotes::new(), changes: Vec::new(), now: 0 }
     }
 
     /// Run in 10 ms steps until `until_ms`, the network answering.

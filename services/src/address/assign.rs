@@ -5,7 +5,7 @@
 //! [`Addressing::poll`] runs once a main-loop turn after the interface's
 //! poll: it takes the DHCP socket's events (smoltcp renews at T1 and
 //! rebinds at T2, RFC 2131 section 4.4.5, and reports a changed or lost
-//! lease), feeds the ARP packets received ([`ArpNotes`], filled by the
+//! lease), feeds the ARP packets received ([`LinkNotes`], filled by the
 //! [`Snoop`](crate::snoop::Snoop) device) to the claim, puts the claim's
 //! probes and announcements on the wire, and sets the interface's address
 //! and default route to the one [`Assignment`] that wins: static, else the
@@ -21,7 +21,7 @@ use smoltcp::socket::dhcpv4;
 use smoltcp::time::Instant as NetInstant;
 use smoltcp::wire::{
     ArpOperation, ArpPacket, ArpRepr, DhcpOption, EthernetAddress, EthernetFrame, EthernetProtocol, EthernetRepr,
-    IpCidr,
+    IpCidr, IpProtocol, Ipv4Packet, UdpPacket,
 };
 
 use super::link_local::{ArpSeen, ArpSend, LinkLocal};
@@ -37,31 +37,56 @@ pub const ARP_NOTES: usize = 8;
 /// Prefix length of the link-local network 169.254/16 (RFC 3927 section 2.1).
 const LINK_LOCAL_PREFIX: u8 = 16;
 
-/// The ARP packets received since the last [`Addressing::poll`].
+/// UDP ports whose datagrams wake the housekeeping: the DHCP client's
+/// (RFC 2131 section 4.1) and mDNS (RFC 6762 section 3).
+const WAKE_PORTS: [u16; 2] = [68, 5353];
+
+/// What the link brought for the address and the name since they were
+/// last looked after: the ARP packets (for the link-local claim), and
+/// whether a DHCP or mDNS datagram arrived ([`take_wake`](Self::take_wake)),
+/// so that the main loop looks after them when something came or a timer
+/// is due, not on every turn.
 #[derive(Clone, Debug, Default)]
-pub struct ArpNotes {
+pub struct LinkNotes {
     seen: heapless::Deque<ArpSeen, ARP_NOTES>,
+    wake: bool,
 }
 
-impl ArpNotes {
+impl LinkNotes {
     /// None yet.
-    pub const fn new() -> ArpNotes {
-        ArpNotes { seen: heapless::Deque::new() }
+    pub const fn new() -> LinkNotes {
+        LinkNotes { seen: heapless::Deque::new(), wake: false }
     }
 
     fn pop(&mut self) -> Option<ArpSeen> {
         self.seen.pop_front()
     }
+
+    /// Whether an ARP, DHCP or mDNS frame arrived since the last call.
+    pub fn take_wake(&mut self) -> bool {
+        core::mem::take(&mut self.wake)
+    }
 }
 
-impl Learn for ArpNotes {
-    /// Note an Ethernet/IPv4 ARP request or reply; anything else is
+impl Learn for LinkNotes {
+    /// Note an Ethernet/IPv4 ARP request or reply, and the arrival of a
+    /// UDP datagram for DHCP's client port or mDNS; anything else is
     /// ignored.
     fn learn(&mut self, frame: &[u8]) {
         let Ok(eth) = EthernetFrame::new_checked(frame) else { return };
+        if eth.ethertype() == EthernetProtocol::Ipv4 {
+            let Ok(ip) = Ipv4Packet::new_checked(eth.payload()) else { return };
+            if ip.next_header() == IpProtocol::Udp {
+                if let Ok(udp) = UdpPacket::new_checked(ip.payload()) {
+                    self.wake |= WAKE_PORTS.contains(&udp.dst_port());
+                }
+            }
+            return;
+        }
         if eth.ethertype() != EthernetProtocol::Arp {
             return;
         }
+        self.wake = true;
         let Ok(packet) = ArpPacket::new_checked(eth.payload()) else { return };
         let Ok(ArpRepr::EthernetIpv4 { source_hardware_addr, source_protocol_addr, target_protocol_addr, .. }) =
             ArpRepr::parse(&packet)
@@ -138,6 +163,13 @@ impl Addressing {
         self.link_local.conflicts()
     }
 
+    /// When [`poll`](Self::poll) must run next without a frame for it: the
+    /// link-local claim's next step (the DHCP client's own timers run in
+    /// smoltcp's egress; what they change shows at the next look).
+    pub fn poll_at(&self) -> Option<NetInstant> {
+        self.link_local.poll_at().map(|t| NetInstant::from_millis(i64::try_from(t.millis()).unwrap_or(i64::MAX)))
+    }
+
     /// One turn (module docs). `link_up`: the PHY has a link (the claim
     /// starts only then). Returns the new assignment if it changed (`Some(None)`:
     /// the board has no address any more).
@@ -147,7 +179,7 @@ impl Addressing {
         link_up: bool,
         iface: &mut Interface,
         sockets: &mut SocketSet<'_>,
-        notes: &mut ArpNotes,
+        notes: &mut LinkNotes,
         device: &mut D,
     ) -> Option<Option<Assignment>> {
         let t = Instant::from_millis(u64::try_from(now.total_millis()).unwrap_or(0));

@@ -498,7 +498,7 @@ fn print_mode(name: &str, m: &Measured) {
         "  MAC                 {:>11.0} bytes in {:.0} frames sent, {:.0} of them read by the MAC from the ring (zero-copy)",
         m.counts.mac_tx, m.counts.tx_frames, m.counts.mac_tx_zero_copy
     );
-    println!("  main loop           {:>11.0} busy iterations", m.counts.busy_loops);
+    println!("  main loop           {:>11.3} busy iterations", m.counts.busy_loops);
 }
 
 fn print_estimate(name: &str, m: &Measured, fpga_cycles: f64) -> f64 {
