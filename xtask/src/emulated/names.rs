@@ -40,10 +40,32 @@ fn address_of(uart: &str) -> Option<Ipv4Addr> {
 /// Run the check against the firmware `elf` (a frame-mode build).
 pub fn run(elf: &Path) -> Result<()> {
     let first = Addressing::Settings { text: settings("02:de:1c:00:35:0a"), dhcp: Some(Ipv4Addr::new(10, 0, 2, 77)) };
+    let started = std::time::Instant::now();
     let mut lan = Lan::boot_addressed(elf, 1, &[], first)?;
+    // `boot_addressed` returns once the board's address line is out.
+    let addressed = started.elapsed();
     lan.guest
         .wait_for_line(0, "mdns: raytracer.local is this board's", Duration::from_secs(30))
         .map_err(|e| lan.with_uart(e))?;
+    // The first frame by name: the seed service found by browsing, its
+    // instance resolved, a frame from it.
+    let found = browse(&lan, "1")?;
+    let entry = found["_raytracer._tcp.local."]
+        .as_array()
+        .and_then(|l| l.iter().find(|e| e["name"] == "raytracer._raytracer._tcp.local."))
+        .ok_or_else(|| format!("python-zeroconf did not find the first board's seed service: {found}"))?;
+    let resolved: Ipv4Addr = entry["addresses"][0]
+        .as_str()
+        .and_then(|a| a.parse().ok())
+        .ok_or_else(|| format!("no address for raytracer.local: {entry}"))?;
+    let want = expected_frame(LIGHT)?;
+    let frame = want.clone();
+    lan.on_host(0, move || by_name("raytracer", resolved, &frame)).map_err(|e| lan.with_uart(e))?;
+    println!(
+        "names: from QEMU's start: a DHCP address after {:.1} s, the first frame by name (browsed, resolved, fetched) after {:.1} s",
+        addressed.as_secs_f64(),
+        started.elapsed().as_secs_f64()
+    );
     let second = lan.add_board(elf, &settings("02:de:1c:00:35:0b"))?;
     let renamed = second.wait_for_line(0, "mdns: another host has the name", Duration::from_secs(30));
     let second_uart = second.uart();
@@ -61,18 +83,8 @@ pub fn run(elf: &Path) -> Result<()> {
     }
     println!("names: two boards with hostname=raytracer: raytracer.local at {a}, raytracer-2.local at {b} (renamed on the conflict)");
 
-    let script = root().join("tests/mdns/browse.py");
-    let out = lan
-        .command(0, "/usr/bin/python3")
-        .arg(&script)
-        .args(["--seconds", "4"])
-        .output()
-        .map_err(|e| format!("{}: {e}", script.display()))?;
-    let text = String::from_utf8_lossy(&out.stdout).into_owned();
-    if !out.status.success() {
-        return Err(lan.with_uart(format!("browse.py failed: {text}{}", String::from_utf8_lossy(&out.stderr))));
-    }
-    let found: serde_json::Value = serde_json::from_str(&text).map_err(|e| format!("browse.py's JSON: {e}: {text}"))?;
+    let found = browse(&lan, "4")?;
+    let text = found.to_string();
     for (ty, port) in [("_http._tcp.local.", 80), ("_rtsp._tcp.local.", 8554), ("_raytracer._tcp.local.", 7878)] {
         for (name, address) in [("raytracer", a), ("raytracer-2", b)] {
             let instance = format!("{name}.{ty}");
@@ -95,7 +107,6 @@ pub fn run(elf: &Path) -> Result<()> {
         "names: python-zeroconf lists both boards' _http, _rtsp and _raytracer services, each resolved to its board"
     );
 
-    let want = expected_frame(LIGHT)?;
     for (name, address) in [("raytracer", a), ("raytracer-2", b)] {
         let frame = want.clone();
         lan.on_host(0, move || by_name(name, address, &frame)).map_err(|e| lan.with_uart(e))?;
@@ -115,7 +126,25 @@ pub fn run(elf: &Path) -> Result<()> {
         }
     }
     println!("names: from each, by the address its name resolved to: a seed frame and FFmpeg's RTSP frame byte-exact, the page for Host: NAME.local");
+
     Ok(())
+}
+
+/// What tests/mdns/browse.py (python-zeroconf) finds from host 0 in
+/// `seconds`.
+fn browse(lan: &Lan, seconds: &str) -> Result<serde_json::Value> {
+    let script = root().join("tests/mdns/browse.py");
+    let out = lan
+        .command(0, "/usr/bin/python3")
+        .arg(&script)
+        .args(["--seconds", seconds])
+        .output()
+        .map_err(|e| format!("{}: {e}", script.display()))?;
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    if !out.status.success() {
+        return Err(lan.with_uart(format!("browse.py failed: {text}{}", String::from_utf8_lossy(&out.stderr))));
+    }
+    serde_json::from_str(&text).map_err(|e| format!("browse.py's JSON: {e}: {text}"))
 }
 
 /// A seed frame from `address`, and the page asked for by `name.local`.
