@@ -27,7 +27,7 @@ use rt_services::mdns::service::{MdnsBuffers, MdnsService};
 use rt_services::seed::service::{FrameService, SocketBuffers};
 use rt_services::snoop::SynWatch;
 use rt_services::web::service::{SocketBuffers as WebBuffers, WebService};
-use rt_services::web::status::{BoardStatus, Viewers};
+use rt_services::web::status::{BoardStatus, Identity, Viewers};
 use rt_services::web::WEB_PORT;
 use rt_services::{FrameSource, FRAME_PORT, PERSISTENT_PORT};
 use smoltcp::iface::{Config, Interface, SocketSet, SocketStorage};
@@ -457,6 +457,12 @@ pub fn run<B: Board, P: RegisterPort>(
                 rtsp: camera.as_ref().map_or(0, |c| c.server().sessions().len()),
             },
             rtsp_port: RTSP_PORT,
+            identity: Identity {
+                version: env!("CARGO_PKG_VERSION"),
+                name: mdns.as_ref().map_or(host_name.as_str(), |m| m.responder().name()),
+                address: addressing.current().map(|a| a.address),
+                address_from: addressing.current().map_or("none", |a| a.origin.as_str()),
+            },
         };
         let mut counted = Counting { frames: &mut *frames, begun: &mut requests, ended: &mut ended };
         if syns.take(2) || !web.quiet() {

@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 
 use model::ROW_BYTES;
 use rt_services::web::server::{drive, Action, Connection, Context, Turns, SEND_TIMEOUT};
-use rt_services::web::status::{BoardStatus, Viewers};
+use rt_services::web::status::{BoardStatus, Identity, Viewers};
 use rt_services::web::{WEB_SOCKETS, WEB_VIEWERS};
 use rt_services::{FrameSource, Instant as ProtocolInstant};
 
@@ -253,6 +253,12 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
                 rtsp: 0,
             },
             rtsp_port: shared.rtsp_port.load(Ordering::Relaxed),
+            identity: Identity {
+                version: env!("CARGO_PKG_VERSION"),
+                name: rt_services::DEFAULT_HOST_NAME,
+                address: None,
+                address_from: "host",
+            },
         };
         let before = connection.frames_sent();
         let mut write_failed = false;

@@ -881,7 +881,7 @@ pub fn drive<S: FrameSource>(
 mod tests {
     use super::*;
     use crate::frames::{FrameRing, RowEngine, SliceMemory, SoftwareRenderer};
-    use crate::web::status::Viewers;
+    use crate::web::status::{Identity, Viewers};
 
     type Source = FrameRing<SliceMemory<'static>, RowEngine<SoftwareRenderer>, 2>;
 
@@ -898,6 +898,7 @@ mod tests {
         frames_sent: 8,
         viewers: Viewers { web: 0, web_max: 4, seed: 0, rtsp: 0 },
         rtsp_port: 8554,
+        identity: Identity { version: "0.1.0", name: "raytracer", address: None, address_from: "none" },
     };
 
     const UPGRADE: &[u8] = b"GET /ws HTTP/1.1\r\nHost: raytracer\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n";
@@ -997,7 +998,7 @@ mod tests {
     #[test]
     fn status_is_json_and_errors_have_their_codes() {
         let (s, _) = answer("GET /status HTTP/1.1\r\nHost: raytracer\r\n\r\n");
-        assert!(s.contains("application/json") && s.ends_with("\"rtsp_port\":8554}"), "{s}");
+        assert!(s.contains("application/json") && s.ends_with("\"rtsp_port\":8554,\"version\":\"0.1.0\",\"name\":\"raytracer\",\"address\":null,\"address_from\":\"none\"}"), "{s}");
         for (req, code) in [
             ("GET /nope HTTP/1.1\r\nHost: raytracer\r\n\r\n", "404"),
             ("DELETE / HTTP/1.1\r\nHost: raytracer\r\n\r\n", "405"),

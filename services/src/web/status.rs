@@ -34,6 +34,23 @@ pub struct BoardStatus<'a> {
     pub viewers: Viewers,
     /// The RTSP port, for the page's stream URL.
     pub rtsp_port: u16,
+    /// Who the board is on the network.
+    pub identity: Identity<'a>,
+}
+
+/// Who the board is on the network, for the status page and
+/// `rt-client discover` / `doctor`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Identity<'a> {
+    /// The serving program's version (the firmware's, from its build).
+    pub version: &'a str,
+    /// The name it answers to (`NAME.local`).
+    pub name: &'a str,
+    /// Its IPv4 address, if it has one.
+    pub address: Option<core::net::Ipv4Addr>,
+    /// Where the address came from: `"dhcp"`, `"link-local"`, `"static"`
+    /// (docs/networking.md), `"host"` (hps-sim), `"none"`.
+    pub address_from: &'a str,
 }
 
 impl BoardStatus<'_> {
@@ -46,9 +63,26 @@ impl BoardStatus<'_> {
         json_string(w, self.link)?;
         write!(
             w,
-            ",\"frames_rendered\":{},\"frames_sent\":{},\"viewers\":{{\"web\":{},\"web_max\":{},\"seed\":{},\"rtsp\":{}}},\"rtsp_port\":{}}}",
+            ",\"frames_rendered\":{},\"frames_sent\":{},\"viewers\":{{\"web\":{},\"web_max\":{},\"seed\":{},\"rtsp\":{}}},\"rtsp_port\":{}",
             self.frames_rendered, self.frames_sent, v.web, v.web_max, v.seed, v.rtsp, self.rtsp_port
-        )
+        )?;
+        // Then who the board is, and the closing brace.
+        self.write_identity(w)
+    }
+
+    fn write_identity(&self, w: &mut impl Write) -> fmt::Result {
+        let id = &self.identity;
+        w.write_str(",\"version\":")?;
+        json_string(w, id.version)?;
+        w.write_str(",\"name\":")?;
+        json_string(w, id.name)?;
+        match id.address {
+            Some(a) => write!(w, ",\"address\":\"{a}\"")?,
+            None => w.write_str(",\"address\":null")?,
+        }
+        w.write_str(",\"address_from\":")?;
+        json_string(w, id.address_from)?;
+        w.write_char('}')
     }
 }
 
@@ -81,12 +115,18 @@ mod tests {
             frames_sent: 5,
             viewers: Viewers { web: 1, web_max: 4, seed: 2, rtsp: 3 },
             rtsp_port: 8554,
+            identity: Identity {
+                version: "0.1.0",
+                name: "raytracer-2",
+                address: Some(core::net::Ipv4Addr::new(169, 254, 7, 9)),
+                address_from: "link-local",
+            },
         };
         let mut out = String::new();
         s.write_json(&mut out).unwrap();
         assert_eq!(
             out,
-            r#"{"uptime_s":61,"renderer":"fpga","link":"1000 Mbit/s \"full\"\u000a","frames_rendered":7,"frames_sent":5,"viewers":{"web":1,"web_max":4,"seed":2,"rtsp":3},"rtsp_port":8554}"#
+            r#"{"uptime_s":61,"renderer":"fpga","link":"1000 Mbit/s \"full\"\u000a","frames_rendered":7,"frames_sent":5,"viewers":{"web":1,"web_max":4,"seed":2,"rtsp":3},"rtsp_port":8554,"version":"0.1.0","name":"raytracer-2","address":"169.254.7.9","address_from":"link-local"}"#
         );
     }
 }

@@ -6,7 +6,8 @@
 //!    suite relies on it too).
 //! 2. **dnsmasq on a virtual LAN.** Settings with `ip=dhcp` and a MAC of
 //!    their own: the board takes the address dnsmasq keeps for that MAC,
-//!    and serves a byte-exact frame, `/status` and an RTSP description
+//!    and serves a byte-exact frame, `/status` (naming the address and
+//!    that it came from DHCP) and an RTSP description
 //!    there. dnsmasq then keeps another address for it and refuses the
 //!    old one: at its renewal (T1, a minute into the two-minute lease) the
 //!    board moves, and every service (seed port, page, RTSP's description)
@@ -132,8 +133,9 @@ fn every_service(lan: &Lan, address: Ipv4Addr) -> Result<()> {
             SocketAddr::from((address, 80)),
             &format!("GET /status HTTP/1.1\r\nHost: {address}\r\nConnection: close\r\n\r\n"),
         )?;
-        if !status.starts_with("HTTP/1.1 200") {
-            return Err(format!("/status at {address}: {:?}", &status[..status.len().min(80)]));
+        let says = format!("\"address\":\"{address}\",\"address_from\":\"dhcp\"");
+        if !status.starts_with("HTTP/1.1 200") || !status.contains(&says) {
+            return Err(format!("/status at {address} lacks {says}: {status:?}"));
         }
         let sdp = exchange(
             SocketAddr::from((address, 8554)),
