@@ -152,7 +152,7 @@ fn every_service(lan: &Lan, address: Ipv4Addr) -> Result<()> {
 
 /// Send `request` to `to` and read the answer until the peer closes or
 /// goes quiet for 3 s.
-fn exchange(to: SocketAddr, request: &str) -> Result<String> {
+pub(crate) fn exchange(to: SocketAddr, request: &str) -> Result<String> {
     let mut c = TcpStream::connect_timeout(&to, Duration::from_secs(5)).map_err(|e| format!("{to}: {e}"))?;
     c.set_read_timeout(Some(Duration::from_secs(3))).map_err(|e| e.to_string())?;
     c.write_all(request.as_bytes()).map_err(|e| e.to_string())?;
@@ -168,7 +168,7 @@ fn exchange(to: SocketAddr, request: &str) -> Result<String> {
 }
 
 /// A seed-protocol frame from `to`, byte-exact.
-fn seed_frame(to: SocketAddr, want: &[u8]) -> Result<()> {
+pub(crate) fn seed_frame(to: SocketAddr, want: &[u8]) -> Result<()> {
     let mut c = TcpStream::connect_timeout(&to, Duration::from_secs(5)).map_err(|e| format!("{to}: {e}"))?;
     c.set_read_timeout(Some(Duration::from_secs(30))).map_err(|e| e.to_string())?;
     let light: Vec<u8> = LIGHT.iter().flat_map(|v| v.to_be_bytes()).collect();

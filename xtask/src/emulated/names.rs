@@ -10,11 +10,11 @@
 //! answering to `Host: NAME.local`. Multicast stays inside the test's
 //! namespaces (DEVELOPERS.md's network rule).
 
-use std::io::{Read, Write};
-use std::net::{Ipv4Addr, SocketAddr, TcpStream};
+use std::net::{Ipv4Addr, SocketAddr};
 use std::path::Path;
 use std::time::Duration;
 
+use super::addressing::{exchange, seed_frame};
 use super::lan::{Addressing, Lan};
 use super::qemu_e2e::expected_frame;
 use crate::support::tools::root;
@@ -24,7 +24,8 @@ use crate::support::Result;
 /// FFmpeg.
 pub const PACKAGES: [&str; 2] = ["python3-zeroconf", "ffmpeg"];
 
-/// The light of every frame asked for.
+/// The light of every frame asked for (the seed frames' too,
+/// `addressing::seed_frame`).
 const LIGHT: [i32; 3] = [3 << 10, 4 << 10, -(2 << 10)];
 
 fn settings(mac: &str) -> String {
@@ -149,24 +150,9 @@ fn browse(lan: &Lan, seconds: &str) -> Result<serde_json::Value> {
 
 /// A seed frame from `address`, and the page asked for by `name.local`.
 fn by_name(name: &str, address: Ipv4Addr, want: &[u8]) -> Result<()> {
-    let to = SocketAddr::from((address, 7878));
-    let mut c = TcpStream::connect_timeout(&to, Duration::from_secs(5)).map_err(|e| format!("{to}: {e}"))?;
-    c.set_read_timeout(Some(Duration::from_secs(30))).map_err(|e| e.to_string())?;
-    let light: Vec<u8> = LIGHT.iter().flat_map(|v| v.to_be_bytes()).collect();
-    c.write_all(&light).map_err(|e| e.to_string())?;
-    let mut got = Vec::new();
-    c.read_to_end(&mut got).map_err(|e| format!("{to}: {e}"))?;
-    if got != want {
-        return Err(format!("{name}.local's seed frame: {} bytes, not the model's", got.len()));
-    }
-    let to = SocketAddr::from((address, 80));
-    let mut c = TcpStream::connect_timeout(&to, Duration::from_secs(5)).map_err(|e| format!("{to}: {e}"))?;
-    c.set_read_timeout(Some(Duration::from_secs(10))).map_err(|e| e.to_string())?;
-    c.write_all(format!("GET / HTTP/1.1\r\nHost: {name}.local\r\nConnection: close\r\n\r\n").as_bytes())
-        .map_err(|e| e.to_string())?;
-    let mut page = Vec::new();
-    let _ = c.read_to_end(&mut page);
-    let page = String::from_utf8_lossy(&page);
+    seed_frame(SocketAddr::from((address, 7878)), want).map_err(|e| format!("{name}.local: {e}"))?;
+    let request = format!("GET / HTTP/1.1\r\nHost: {name}.local\r\nConnection: close\r\n\r\n");
+    let page = exchange(SocketAddr::from((address, 80)), &request)?;
     if !page.starts_with("HTTP/1.1 200") || !page.contains("<html") {
         return Err(format!("{name}.local's page: {:?}", &page[..page.len().min(120)]));
     }
