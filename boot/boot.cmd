@@ -14,7 +14,7 @@ if test -e ${devtype} ${devnum}:${distro_bootpart} raytracer.rbf; then
 		bridge enable
 	else
 		echo raytracer: fpga load FAILED: the FPGA is not configured.
-		echo raytracer: check SW10 (MSEL) on the back of the board: 00000 (all ON) for an
+		echo raytracer: check the MSEL switches, SW10: 00000 (all ON) for an
 		echo raytracer: uncompressed raytracer.rbf, 01010 for a compressed one; and that the
 		echo raytracer: .rbf was built for the DE1-SoC's 5CSEMA5F31C6 (docs/quick-start.md).
 		echo raytracer: booting without the FPGA: the firmware renders in software.
