@@ -478,9 +478,22 @@ struct Output {
     last_rtcp: Option<Instant>,
     unreachable: u8,
     stats: OutputStats,
+    /// Packets of its stream an interleaved output skipped while playing
+    /// (frames lost as a laggard): subtracted from the sequence numbers it
+    /// sends, so that its client sees no jump. RFC 3550's receivers
+    /// (appendix A.1: MAX_DROPOUT 3,000; FFmpeg's rtpdec) drop the first
+    /// packet after a larger one, a row of the next frame. Outputs over UDP
+    /// keep the stream's numbers: their NACKs name them. PLAY starts again
+    /// at 0 (RTP-Info names the stream's number).
+    seq_shift: u32,
 }
 
 impl Output {
+    /// Packet `p` as this output numbers it.
+    fn numbered(&self, p: RowPacket) -> RowPacket {
+        RowPacket { seq: p.seq.wrapping_sub(self.seq_shift), ..p }
+    }
+
     /// How long it may take no rows before it is cut from its frame.
     fn stall_limit(&self) -> Duration {
         match self.dest {
@@ -799,6 +812,7 @@ impl<const N: usize> Camera<N> {
                     last_rtcp: None,
                     unreachable: 0,
                     stats: OutputStats::default(),
+                    seq_shift: 0,
                 });
                 self.resends[o].clear();
                 o
@@ -828,6 +842,7 @@ impl<const N: usize> Camera<N> {
         if o.cursor == Cursor::Paused {
             o.cursor = Cursor::Waiting { from };
             o.reports = ReportTimer::new(now);
+            o.seq_shift = 0;
         }
         let seq = match o.cursor {
             Cursor::Waiting { from } => from,
@@ -1220,6 +1235,9 @@ impl<const N: usize> Camera<N> {
                             if (first_seq.wrapping_sub(from) as i32) >= 0 {
                                 o.cursor = Cursor::Sending { next: 0 };
                                 o.stalled_since = None;
+                                if matches!(o.dest, Dest::Interleaved { .. }) {
+                                    o.seq_shift = o.seq_shift.wrapping_add(first_seq.wrapping_sub(from));
+                                }
                             }
                         }
                     }
@@ -1287,7 +1305,7 @@ impl<const N: usize> Camera<N> {
                             continue;
                         }
                         let want = ready - next;
-                        let first = frame.packet(next);
+                        let first = o.numbered(frame.packet(next));
                         let sent = sink.send_rows(&o.dest, &media.packetiser, &first, want, frame.slot, source);
                         let sent = sent.min(want);
                         o.stats.packets += u32::from(sent);
@@ -1448,7 +1466,8 @@ fn finish_late<S: FrameSource<Frame = usize>, K: RtpSink>(
     let Cursor::Finishing { slot, next } = o.cursor else { return false };
     let want = ROWS - next.row;
     let end = next.seq.wrapping_add(u32::from(want));
-    let sent = sink.send_rows(&o.dest, packetiser, &next, want, usize::from(slot), source).min(want);
+    let numbered = o.numbered(next);
+    let sent = sink.send_rows(&o.dest, packetiser, &numbered, want, usize::from(slot), source).min(want);
     o.stats.packets += u32::from(sent);
     if sent == 0 {
         let since = *o.stalled_since.get_or_insert(now);

@@ -918,6 +918,39 @@ fn a_slow_reader_loses_whole_frames_never_parts_of_them() {
     assert!((10..=20).contains(&whole), "the slow reader had {whole} whole frames (60% of 30 is 18)");
 }
 
+/// A slow interleaved reader that loses whole frames still sees its
+/// packets' sequence numbers one after another: RFC 3550's receivers
+/// (appendix A.1, MAX_DROPOUT 3,000; FFmpeg's rtpdec) drop the first packet
+/// after a larger jump, and a reader that missed nine frames (3,240
+/// packets) lost a row of the next one it got (a suite run: FFmpeg's "bad
+/// cseq 88be expected=73a6", 15 frames missed).
+#[test]
+fn a_slow_reader_that_loses_frames_sees_no_jump_in_sequence_numbers() {
+    let mut r = rig(ROWS);
+    let fixed = spec(Kind::Light(light(1.0)), Fps::Rate(30));
+    r.join(1, fixed, udp(6000), CLIENT, t(0));
+    let slow = Dest::Interleaved { conn: ConnId(2), rtp_channel: 0, rtcp_channel: 1 };
+    r.join(2, fixed, Transport::Interleaved { rtp_channel: 0, rtcp_channel: 1 }, CLIENT2, t(0));
+    for ms in 0..=2_000 {
+        // A tenth of the stream's rows: it loses most frames.
+        r.sink.slow = Some((slow, if ms % 10 == 0 { 10 } else { 0 }));
+        r.settle(t(ms));
+    }
+    let got = r.sink.rows_to(slow);
+    let udp_frames = r.sink.rows_to(udp_dest(CLIENT, 6000)).iter().filter(|x| x.line() == ROWS - 1).count();
+    let slow_frames = got.iter().filter(|x| x.line() == ROWS - 1).count();
+    assert!(udp_frames >= 59 && (2..10).contains(&slow_frames), "{udp_frames} and {slow_frames} frames");
+    for pair in got.windows(2) {
+        assert_eq!(
+            pair[1].seq16(),
+            pair[0].seq16().wrapping_add(1),
+            "the slow reader's packets {:04x} then {:04x}",
+            pair[0].seq16(),
+            pair[1].seq16()
+        );
+    }
+}
+
 /// Issue 34, item 11: each stream has a group address of its own (one
 /// address for all, told apart by port, gave every receiver behind an
 /// IGMP-snooping switch every stream); the board is told which to join.
