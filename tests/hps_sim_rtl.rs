@@ -12,7 +12,7 @@ use model::{render_frame, Light};
 use rt_services::encode_request;
 
 fn rtl_sim(render: RenderMode) -> HpsSim {
-    let config = Config { render, device: Device::Rtl };
+    let config = Config { render, device: Device::Rtl, ..Config::default() };
     HpsSim::start_config("127.0.0.1:0".parse().expect("address"), config, false).expect("hps-sim with the RTL starts")
 }
 

@@ -22,6 +22,9 @@ use crate::render::{Frames, Ring};
 /// The display policy, on a board whose accelerator has the VGA block.
 pub struct Display {
     monitor: Monitor,
+    /// The frame DMA renders (the scan-out reads the same memory); when it
+    /// failed its self-test only the LEDs and 7-segment displays run.
+    scan_out: bool,
 }
 
 impl Display {
@@ -30,6 +33,7 @@ impl Display {
     /// never in the `bench` build.
     pub fn probe<P: RegisterPort>(frames: &mut Frames<P>, log: &mut impl Write) -> Option<Display> {
         let Frames::Ring(ring) = frames else { return None };
+        let scan_out = ring.engine().primary_kept().is_some();
         let port = port(ring)?;
         let id = port.read(Csr::Id);
         if !has_board_io(id) {
@@ -40,12 +44,35 @@ impl Display {
             let _ = writeln!(log, "display: off in the bench build (its figures are the clients' frames alone)");
             return None;
         }
-        let _ = writeln!(
-            log,
-            "display: VGA scan-out and board I/O (register map version {}): attract mode on until a client asks for a frame",
-            id & 0xffff
-        );
-        Some(Display { monitor: Monitor::new() })
+        if scan_out {
+            let _ = writeln!(
+                log,
+                "display: VGA scan-out and board I/O (register map version {}): attract mode on until a client asks for a frame",
+                id & 0xffff
+            );
+        } else {
+            let _ = writeln!(
+                log,
+                "display: LEDs and 7-segment displays only (register map version {}): VGA off, its memory port failed with the frame DMA's",
+                id & 0xffff
+            );
+        }
+        Some(Display { monitor: Monitor::new(), scan_out })
+    }
+
+    /// The VGA output in words, for `/status`.
+    pub fn vga(&self) -> &'static str {
+        match (self.scan_out, self.monitor.scanout().enabled(), self.monitor.scanout().port_fault()) {
+            (false, _, _) => "off: the frame DMA failed its self-test, and the scan-out reads the same memory",
+            (true, _, true) => "on, memory port fault (check fpgaportrst)",
+            (true, true, false) => "on",
+            (true, false, false) => "starting",
+        }
+    }
+
+    /// Whether the scan-out reported a memory fault.
+    pub fn vga_fault(&self) -> bool {
+        self.monitor.scanout().port_fault()
     }
 
     /// One step of the main loop: `requests` counts the clients' frame
@@ -60,16 +87,24 @@ impl Display {
         log: &mut impl Write,
     ) {
         let Frames::Ring(ring) = frames else { return };
-        let status = Status { fpga: ring.engine().primary_active(), self_test_passed: true, ..*status };
-        if let Some(report) = self.monitor.poll(now, &mut Device { ring }, requests, &status) {
+        if !self.scan_out {
+            self.monitor.poll_panel(now, &mut Device { ring }, status);
+            return;
+        }
+        if let Some(report) = self.monitor.poll(now, &mut Device { ring }, requests, status) {
             let _ = writeln!(log, "{report}");
         }
     }
 }
 
-/// The accelerator's port behind the ring, switched off or not, without
-/// the bus-access counting (the bench's figures are the frames').
+/// The accelerator's port behind the ring, switched off or not (or the
+/// one rendering the ring's rows in row mode), without the bus-access
+/// counting (the bench's figures are the frames').
 fn port<P: RegisterPort>(ring: &mut Ring<P>) -> Option<&mut P> {
+    if ring.engine().primary_kept().is_none() {
+        let rows = ring.engine().fallback().rows().primary()?;
+        return Some(rows.inner().accelerator().port_mut().inner_mut());
+    }
     let engine = ring.engine().primary_kept()?;
     Some(engine.inner().engine().port_mut().inner_mut())
 }

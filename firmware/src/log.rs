@@ -3,21 +3,34 @@
 //! A9 a copy, not milliseconds at 115,200 baud. Start-up, which waits
 //! anyway, flushes after each step ([`flush`]); fault handlers write through
 //! [`Fault`], which empties the ring first and then writes directly.
+//! Everything logged is also kept in a history of the newest
+//! [`HISTORY_BYTES`], which `/log` answers with ([`Tail`]).
 
 use core::cell::UnsafeCell;
 use core::fmt;
 use core::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
+use heapless::HistoryBuf;
+use rt_services::web::status::{copy_tail, LogTail};
 use soc::log::LogRing;
 use soc::uart16550::Uart16550;
 
 /// Bytes the ring holds (about a hundred log lines).
 const RING_BYTES: usize = 8192;
 
-/// The ring, with a flag that makes a re-entrant use (a fault while the
+/// Bytes of history kept for `/log`.
+pub const HISTORY_BYTES: usize = 8192;
+
+/// What the UART has yet to take, and the history.
+struct Rings {
+    uart: LogRing<RING_BYTES>,
+    history: HistoryBuf<u8, HISTORY_BYTES>,
+}
+
+/// The rings, with a flag that makes a re-entrant use (a fault while the
 /// main loop is inside the ring) skip instead of aliasing it.
 struct Shared {
-    ring: UnsafeCell<LogRing<RING_BYTES>>,
+    ring: UnsafeCell<Rings>,
     busy: AtomicBool,
 }
 
@@ -25,10 +38,13 @@ struct Shared {
 // interrupt a ring access find `busy` set and leave the ring alone.
 unsafe impl Sync for Shared {}
 
-static SHARED: Shared = Shared { ring: UnsafeCell::new(LogRing::new()), busy: AtomicBool::new(false) };
+static SHARED: Shared = Shared {
+    ring: UnsafeCell::new(Rings { uart: LogRing::new(), history: HistoryBuf::new() }),
+    busy: AtomicBool::new(false),
+};
 
-/// Run `f` on the ring unless it is already in use.
-fn with_ring<R>(f: impl FnOnce(&mut LogRing<RING_BYTES>) -> R) -> Option<R> {
+/// Run `f` on the rings unless they are already in use.
+fn with_rings<R>(f: impl FnOnce(&mut Rings) -> R) -> Option<R> {
     if SHARED.busy.swap(true, Ordering::Acquire) {
         return None;
     }
@@ -58,7 +74,10 @@ pub struct Log;
 impl fmt::Write for Log {
     fn write_str(&mut self, s: &str) -> fmt::Result {
         // Text written while the ring is busy (only from a fault) is lost.
-        let _ = with_ring(|r| r.write_str(s));
+        let _ = with_rings(|r| {
+            r.history.extend_from_slice(s.as_bytes());
+            r.uart.write_str(s)
+        });
         Ok(())
     }
 }
@@ -66,7 +85,7 @@ impl fmt::Write for Log {
 /// Move what the UART's FIFO takes now; never waits.
 pub fn drain() {
     if let Some(mut u) = uart() {
-        let _ = with_ring(|r| r.drain(&mut u));
+        let _ = with_rings(|r| r.uart.drain(&mut u));
     }
 }
 
@@ -83,14 +102,14 @@ pub fn init(uart_base: usize) {
 /// Send everything queued, waiting for the UART (start-up only).
 pub fn flush() {
     let Some(mut u) = uart() else { return };
-    let _ = with_ring(|r| {
+    let _ = with_rings(|r| {
         // Bounded: each round either moves bytes or finds the FIFO full;
         // a UART that never drains costs about 2 s, then the rest waits.
         for _ in 0..200_000 {
-            if r.is_empty() {
+            if r.uart.is_empty() {
                 break;
             }
-            r.drain(&mut u);
+            r.uart.drain(&mut u);
         }
     });
 }
@@ -106,5 +125,19 @@ impl fmt::Write for Fault {
             Some(mut u) => u.write_str(s),
             None => Ok(()),
         }
+    }
+}
+
+/// The log's newest lines, for `/log`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Tail;
+
+impl LogTail for Tail {
+    fn tail(&self, out: &mut [u8]) -> usize {
+        with_rings(|r| {
+            let (old, new) = r.history.as_slices();
+            copy_tail([old, new], r.history.len() == HISTORY_BYTES, out)
+        })
+        .unwrap_or(0)
     }
 }

@@ -22,6 +22,7 @@ mod boards;
 mod camera;
 mod cpu;
 mod display;
+mod health;
 mod limits;
 mod log;
 mod mem;
@@ -60,9 +61,10 @@ fn main() -> ! {
     Active::init(&mut log);
     let caches = cpu::Caches { l2 };
     let board_settings = settings::load(&mut log);
-    let mut frames = Active::renderer(&mut log, &TIMER, caches);
+    let mut facts = health::BootFacts::new();
+    let mut frames = Active::renderer(&mut log, &TIMER, caches, &mut facts);
     log::flush();
-    match net::run::<Active, _>(&TIMER, caches, &mut frames, &board_settings) {
+    match net::run::<Active, _>(&TIMER, caches, &mut frames, &board_settings, &facts) {
         Ok(never) => match never {},
         Err(why) => {
             let _ = writeln!(log, "network not started: {why}");

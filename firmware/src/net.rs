@@ -24,10 +24,11 @@ use rt_services::camera::service::{CameraBuffers, CameraService, GroupMembership
 use rt_services::frames::Quota;
 use rt_services::mdns::responder::{Services, MDNS_GROUP};
 use rt_services::mdns::service::{MdnsBuffers, MdnsService};
+use rt_services::monitor::code::{hps_led, Code};
 use rt_services::seed::service::{FrameService, SocketBuffers};
 use rt_services::snoop::SynWatch;
 use rt_services::web::service::{SocketBuffers as WebBuffers, WebService};
-use rt_services::web::status::{BoardStatus, Identity, Viewers};
+use rt_services::web::status::{BoardStatus, Health, Identity, Viewers};
 use rt_services::web::WEB_PORT;
 use rt_services::{FrameSource, FRAME_PORT, PERSISTENT_PORT};
 use smoltcp::iface::{Config, Interface, SocketSet, SocketStorage};
@@ -38,6 +39,7 @@ use static_cell::{ConstStaticCell, StaticCell};
 
 use crate::cpu::Caches;
 use crate::display::Display;
+use crate::health::BootFacts;
 use crate::limits::{FRAME_PORT_SOCKETS, RING_SLOTS, SEED_FRAMES, SOCKETS, WEB_FRAMES, WEB_SOCKETS, WEB_VIEWERS};
 use crate::log::{self, Log};
 use crate::platform::Board;
@@ -51,6 +53,24 @@ const CAMERA_SOCKETS: usize = RTSP_SOCKETS + 2;
 /// the link-local claim) and the name (mDNS) when no frame for them came
 /// and none of their timers is due (a lease's end shows at the next look).
 const HOUSEKEEPING_US: u64 = 1_000_000;
+
+/// How often the fault code and the HPS LED are looked at (the LED's
+/// blinks are 200 ms lit, 300 ms dark: rt_services::monitor::code).
+const INDICATORS_US: u64 = 100_000;
+
+/// Where a code shows: the 7-segment text and the HPS LED's pattern.
+fn shown_as(code: Code) -> &'static str {
+    match code.number() {
+        0 => "HPS LED: heartbeat",
+        1 => "HPS LED: 1 blink, then a pause",
+        2 => "7-segment \"Err  2\", HPS LED: 2 blinks",
+        3 => "7-segment \"Err  3\", HPS LED: 3 blinks",
+        4 => "7-segment \"Err  4\", HPS LED: 4 blinks",
+        5 => "7-segment \"Err  5\", HPS LED: 5 blinks",
+        6 => "7-segment \"Err  6\", HPS LED: 6 blinks",
+        _ => "7-segment \"Err  7\", HPS LED: 7 blinks",
+    }
+}
 
 /// Every socket: the seed server's, the camera's, the page's, the DHCP
 /// client's and mDNS's.
@@ -143,6 +163,7 @@ pub fn run<B: Board, P: RegisterPort>(
     caches: Caches,
     frames: &mut Frames<P>,
     settings: &Settings,
+    facts: &BootFacts,
 ) -> Result<core::convert::Infallible, NetError> {
     static SOCKET_BUFFERS: ConstStaticCell<[SocketBuffers; SOCKETS]> =
         ConstStaticCell::new([const { SocketBuffers::new() }; SOCKETS]);
@@ -342,6 +363,13 @@ pub fn run<B: Board, P: RegisterPort>(
     let mut idle_since: Option<u64> = None;
     // When the camera's sessions were last reported (µs).
     let mut camera_report = 0u64;
+    // The fault code, and when it and the HPS LED are next looked at (µs).
+    let mut code: Option<Code> = None;
+    let mut indicators_at = 0u64;
+    // How frames are made (`Frames::mode`), looked at with the code: it
+    // changes only when the accelerator is switched off.
+    let mut mode = frames.mode();
+    let mut led_on: Option<bool> = None;
     loop {
         let iteration = crate::bench::Iteration::start(mac_moved(&mac));
         let now_us = timer.now_us();
@@ -442,30 +470,68 @@ pub fn run<B: Board, P: RegisterPort>(
             crate::bench::camera(|| c.poll(now, &mut sockets, &mut peers, &mut counted, &mut tx, entropy, &mut log));
             groups.sync(c.camera(), &mut iface, &mut log);
         }
+        // The fault code and the HPS LED's blinks, ten times a second (not
+        // on every turn: the frame path's instruction count, bench-fw).
+        if now_us >= indicators_at {
+            indicators_at = now_us + INDICATORS_US;
+            mode = frames.mode();
+            let in_use = mode != "software";
+            let vga_fault = display.as_ref().is_some_and(Display::vga_fault);
+            let now_code = Code::of(&facts.facts(in_use, link_up, addressing.current().is_some(), vga_fault));
+            if code != Some(now_code) {
+                code = Some(now_code);
+                let _ = writeln!(log, "status: {now_code} ({})", shown_as(now_code));
+            }
+            let on = hps_led(now_code, rt_services::Instant::from_millis(now_us / 1000));
+            if led_on != Some(on) {
+                led_on = Some(on);
+                B::status_led(on);
+            }
+        }
+        let code = code.unwrap_or_default();
         // The web page: its viewers' frames count for the display too, and
-        // stay within their quota of slots.
-        let status = BoardStatus {
-            uptime_s: now_us / 1_000_000,
-            renderer: frames.renderer(),
-            link: &link_text,
-            frames_rendered: frames.completed().map_or(u64::from(requests), u64::from),
-            frames_sent: ended,
-            viewers: Viewers {
-                web: web.viewers(),
-                web_max: WEB_VIEWERS,
-                seed: service.active_sessions(),
-                rtsp: camera.as_ref().map_or(0, |c| c.server().sessions().len()),
-            },
-            rtsp_port: RTSP_PORT,
-            identity: Identity {
-                version: env!("CARGO_PKG_VERSION"),
-                name: mdns.as_ref().map_or(host_name.as_str(), |m| m.responder().name()),
-                address: addressing.current().map(|a| a.address),
-                address_from: addressing.current().map_or("none", |a| a.origin.as_str()),
-            },
-        };
-        let mut counted = Counting { frames: &mut *frames, begun: &mut requests, ended: &mut ended };
+        // stay within their quota of slots. Its status is made only when
+        // the page has something to do (the frame path's instruction
+        // count, bench-fw).
         if syns.take(2) || !web.quiet() {
+            let vga = match &display {
+                Some(d) => d.vga(),
+                None if facts.register_map.is_some_and(|v| v >= hal_avalon::map::ID_VERSION_VGA) => {
+                    "off: the software renderer makes the frames"
+                }
+                None => "off: no VGA block in this accelerator",
+            };
+            let status = BoardStatus {
+                uptime_s: now_us / 1_000_000,
+                // Who renders, as the page names it.
+                renderer: if mode == "software" { "software" } else { "fpga" },
+                link: &link_text,
+                frames_rendered: frames.completed().map_or(u64::from(requests), u64::from),
+                frames_sent: ended,
+                viewers: Viewers {
+                    web: web.viewers(),
+                    web_max: WEB_VIEWERS,
+                    seed: service.active_sessions(),
+                    rtsp: camera.as_ref().map_or(0, |c| c.server().sessions().len()),
+                },
+                rtsp_port: RTSP_PORT,
+                identity: Identity {
+                    version: env!("CARGO_PKG_VERSION"),
+                    name: mdns.as_ref().map_or(host_name.as_str(), |m| m.responder().name()),
+                    address: addressing.current().map(|a| a.address),
+                    address_from: addressing.current().map_or("none", |a| a.origin.as_str()),
+                },
+                health: Health {
+                    self_test: facts.self_test,
+                    self_test_detail: &facts.self_test_detail,
+                    mode,
+                    register_map: facts.register_map,
+                    bridges: &facts.bridges,
+                    vga,
+                    code: code.as_str(),
+                },
+            };
+            let mut counted = Counting { frames: &mut *frames, begun: &mut requests, ended: &mut ended };
             crate::bench::web(|| {
                 web.poll(
                     now,
@@ -473,6 +539,7 @@ pub fn run<B: Board, P: RegisterPort>(
                     &mut Quota::new(&mut counted, &mut web_frames, WEB_FRAMES),
                     &status,
                     mdns.as_ref().map_or(host_name.as_str(), |m| m.responder().name()),
+                    &crate::log::Tail,
                     &mut log,
                 )
             });
@@ -487,9 +554,11 @@ pub fn run<B: Board, P: RegisterPort>(
         if let Some(d) = &mut display {
             let status = rt_services::monitor::Status {
                 link_up,
+                fpga: mode != "software",
+                self_test_passed: facts.self_test == "pass",
                 clients: service.active_sessions(),
                 address,
-                ..Default::default()
+                code,
             };
             d.poll(rt_services::Instant::from_millis(now_us / 1000), frames, requests, &status, &mut log);
         }

@@ -149,7 +149,10 @@ fn now() -> rt_services::Instant {
 
 type Clock = fn() -> rt_services::Instant;
 type Software = bench::TimedRows<SoftwareRenderer>;
-type RingEngine<P> = FallbackEngine<bench::TimedEngine<Watchdog<Accel<P>, Clock>>, RowEngine<Software>>;
+/// The frame DMA first; where it fails, rows rendered into the ring by the
+/// FPGA in row mode (when only the frame path failed the self-test) or by
+/// the software renderer.
+type RingEngine<P> = FallbackEngine<bench::TimedEngine<Watchdog<Accel<P>, Clock>>, RowEngine<RowSources<P>>>;
 type RowSources<P> = Fallback<bench::TimedRows<PipelinedRows<Counted<P>, TimerDelay<'static>>>, Software>;
 
 /// Frame mode's ring.
@@ -185,11 +188,17 @@ impl fmt::Display for RenderError {
 impl core::error::Error for RenderError {}
 
 impl<P: RegisterPort> Frames<P> {
-    /// Frame mode with the accelerator `fpga` (none: the software renderer
-    /// fills the ring), the ring's cache maintenance done with `caches`.
-    pub fn ring(fpga: Option<Accel<P>>, caches: Caches) -> Frames<P> {
+    /// Frame mode with the accelerator `fpga` rendering whole frames, or
+    /// `rows`, an accelerator fit for row mode only, rendering the ring's
+    /// frames a row at a time (neither: the software renderer fills the
+    /// ring), the ring's cache maintenance done with `caches`.
+    pub fn ring(fpga: Option<Accel<P>>, rows: Option<Accel<P>>, caches: Caches) -> Frames<P> {
         let primary = fpga.map(|a| bench::TimedEngine::new(Watchdog::new(a, now as Clock, STALL_LIMIT)));
-        let engine = FallbackEngine::new(primary, RowEngine::new(bench::TimedRows::new(SoftwareRenderer)));
+        let rows = Fallback::new(
+            rows.map(|a| bench::TimedRows::new(PipelinedRows::new(a))),
+            bench::TimedRows::new(SoftwareRenderer),
+        );
+        let engine = FallbackEngine::new(primary, RowEngine::new(rows));
         Frames::Ring(FrameRing::new(RingMemory::frames(caches), engine))
     }
 
@@ -210,28 +219,28 @@ impl<P: RegisterPort> Frames<P> {
 
     /// "frame mode" or "row mode", and what renders.
     pub fn describe(&mut self) -> &'static str {
-        match self {
-            Frames::Ring(r) => match r.engine().primary_active() {
-                true => "frame mode, FPGA frame DMA into the ring (software fallback)",
-                false => "frame mode, software renderer into the ring",
-            },
-            Frames::Rows(r) => match r.rows().primary_active() {
-                true => "row mode, FPGA rows (software fallback)",
-                false => "row mode, software renderer",
-            },
+        match (self.mode(), self) {
+            ("frames", _) => "frame mode, FPGA frame DMA into the ring (software fallback)",
+            ("rows", Frames::Ring(_)) => {
+                "frame mode, FPGA rows into the ring (its frame DMA is not used; software fallback)"
+            }
+            (_, Frames::Ring(_)) => "frame mode, software renderer into the ring",
+            ("rows", Frames::Rows(_)) => "row mode, FPGA rows (software fallback)",
+            (_, Frames::Rows(_)) => "row mode, software renderer",
         }
     }
 
-    /// Who renders, as the web page's status names it.
-    pub fn renderer(&mut self) -> &'static str {
-        let fpga = match self {
-            Frames::Ring(r) => r.engine().primary_active(),
-            Frames::Rows(r) => r.rows().primary_active(),
+    /// How frames are made, as `/status` names it: `"frames"` (the FPGA's
+    /// frame DMA), `"rows"` (the FPGA a row at a time) or `"software"`.
+    pub fn mode(&mut self) -> &'static str {
+        let (frames, rows) = match self {
+            Frames::Ring(r) => (r.engine().primary_active(), r.engine().fallback().rows().primary_active()),
+            Frames::Rows(r) => (false, r.rows().primary_active()),
         };
-        if fpga {
-            "fpga"
-        } else {
-            "software"
+        match (frames, rows) {
+            (true, _) => "frames",
+            (false, true) => "rows",
+            (false, false) => "software",
         }
     }
 
@@ -247,7 +256,10 @@ impl<P: RegisterPort> Frames<P> {
     /// Bus accesses to the accelerator so far.
     pub fn bus_accesses(&mut self) -> bench::Bus {
         let port = match self {
-            Frames::Ring(r) => r.engine().primary().map(|t| t.inner().engine().port()),
+            Frames::Ring(r) => match r.engine().primary_active() {
+                true => r.engine().primary().map(|t| t.inner().engine().port()),
+                false => r.engine().fallback().rows().primary().map(|p| p.inner().accelerator().port()),
+            },
             Frames::Rows(r) => r.rows().primary().map(|p| p.inner().accelerator().port()),
         };
         port.map_or(bench::Bus::default(), |c| bench::Bus {
@@ -267,17 +279,26 @@ impl<P: RegisterPort> Frames<P> {
                         "FPGA: {WEDGED_AFTER} frames failed in a row: accelerator switched off, software from now on"
                     );
                 }
+                report_rows(r.engine().fallback().rows(), log);
             }
-            Frames::Rows(r) => match r.rows().take_event() {
-                Some(FallbackEvent::RowsFailed { error, total }) => {
-                    let _ = writeln!(log, "FPGA: {error}; row rendered in software ({total} so far)");
-                }
-                Some(FallbackEvent::SwitchedOff { error }) => {
-                    let _ = writeln!(log, "FPGA: {error}; {WEDGED_AFTER} rows failed in a row: accelerator switched off, software from now on");
-                }
-                None => {}
-            },
+            Frames::Rows(r) => report_rows(r.rows(), log),
         }
+    }
+}
+
+/// Report (once) what the accelerator did in row mode.
+fn report_rows<P: RegisterPort>(rows: &mut RowSources<P>, log: &mut impl Write) {
+    match rows.take_event() {
+        Some(FallbackEvent::RowsFailed { error, total }) => {
+            let _ = writeln!(log, "FPGA: {error}; row rendered in software ({total} so far)");
+        }
+        Some(FallbackEvent::SwitchedOff { error }) => {
+            let _ = writeln!(
+                log,
+                "FPGA: {error}; {WEDGED_AFTER} rows failed in a row: accelerator switched off, software from now on"
+            );
+        }
+        None => {}
     }
 }
 

@@ -313,6 +313,37 @@ where
     SelfTestReport { plan, outcome, abort_unconfirmed }
 }
 
+/// After a failure in frame mode, whether the fault lies in the frame path
+/// alone (the frame DMA, its port into memory: on the board most likely
+/// the FPGA-to-SDRAM port left in reset) and not in the pipeline: row
+/// mode renders the frame's failing row (the middle row when the frame
+/// failed without a wrong pixel) at the frame's light equal to
+/// `reference`. Then the accelerator may go on in row mode. `false` for
+/// a failure in row mode, or when that row is wrong or fails too.
+pub fn frame_path_only<P, D, R>(accel: &mut Accelerator<P, D>, reference: &mut R, failure: &Failure) -> bool
+where
+    P: RegisterPort,
+    D: DelayNs,
+    R: RowSource<Error = Infallible>,
+{
+    if failure.mode != Mode::Frame {
+        return false;
+    }
+    let row = match failure.problem {
+        Problem::Mismatch { row, .. } => row,
+        Problem::BadLight => return false,
+        _ => ROWS / 2,
+    };
+    let Ok(light) = light_of(Mode::Frame, failure.light) else { return false };
+    let mut got = [0u32; LINE_WORDS];
+    if accel.run_row(row, &light, &mut got).is_err() {
+        return false;
+    }
+    let mut want = [0u32; WIDTH];
+    reference_row(reference, row, &light, &mut want);
+    got[..WIDTH] == want[..]
+}
+
 fn light_of(mode: Mode, raw: [i32; 3]) -> Result<Light, Failure> {
     Light::from_raw(raw[0], raw[1], raw[2]).map_err(|_| Failure { mode, light: raw, problem: Problem::BadLight })
 }

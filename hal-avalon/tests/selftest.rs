@@ -239,6 +239,27 @@ fn a_wrong_pixel_in_a_frame_row_is_the_failure_reported_after_the_frame_ends() {
 }
 
 #[test]
+fn a_wrong_pixel_that_row_mode_renders_too_is_not_blamed_on_the_frame_path() {
+    let mut b = Bench::new();
+    b.sim().set_wrong_pixel(Some((270, 123)));
+    let report = b.run(&PLAN);
+    let failure = report.failure().copied().expect("fails");
+    assert!(!selftest::frame_path_only(&mut b.accel, &mut SoftwareRenderer, &failure));
+}
+
+#[test]
+fn a_frame_that_never_lands_with_sound_rows_is_the_frame_paths_fault() {
+    let mut b = Bench::new();
+    b.accel.port_mut().stall_frames = true;
+    let plan = Plan { frame_wait: PollTimeout::new(200, 5_000), ..PLAN };
+    let failure = b.run(&plan).failure().copied().expect("fails");
+    assert!(selftest::frame_path_only(&mut b.accel, &mut SoftwareRenderer, &failure));
+    // A failure in row mode is never the frame path's.
+    let row_failure = selftest::Failure { mode: Mode::Row, ..failure };
+    assert!(!selftest::frame_path_only(&mut b.accel, &mut SoftwareRenderer, &row_failure));
+}
+
+#[test]
 fn frame_rows_are_read_the_moment_a_lagging_rows_done_covers_them() {
     let mut b = Bench::new();
     b.accel.port_mut().lagged = Some(0);

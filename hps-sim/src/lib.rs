@@ -39,7 +39,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use hal_avalon::sim::{CountingDelay, DmaTarget, SimAccelerator};
-use hal_avalon::{Accelerator, PollTimeout};
+use hal_avalon::{selftest, Accelerator, PollTimeout};
 use model::{FRAME_BYTES, ROW_BYTES};
 use rt_services::seed::server::{drive, Action, Closed, Mode, Session};
 use rt_services::{
@@ -82,6 +82,99 @@ pub struct Config {
     pub render: RenderMode,
     /// Simulated accelerator or RTL.
     pub device: Device,
+    /// Faults injected (none by default).
+    pub faults: Faults,
+}
+
+/// A fault `hps-sim --fault` injects, so that `rt-client doctor` can be
+/// shown to name it.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, clap::ValueEnum)]
+pub enum Fault {
+    /// The simulated accelerator inverts one pixel ([`WRONG_PIXEL`]) of
+    /// every frame, where the boot self-test does not look: only a whole
+    /// frame compared with the model finds it.
+    WrongPixel,
+    /// RTSP `SETUP`s asking for RTP over UDP are answered 461 Unsupported
+    /// Transport (RTP over the RTSP connection still plays).
+    RefuseUdp,
+    /// `/status` claims version [`OLD_VERSION`], not this build's.
+    OldVersion,
+}
+
+/// The faults injected.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
+pub struct Faults {
+    /// [`Fault::WrongPixel`].
+    pub wrong_pixel: bool,
+    /// [`Fault::RefuseUdp`].
+    pub refuse_udp: bool,
+    /// [`Fault::OldVersion`].
+    pub old_version: bool,
+}
+
+impl Faults {
+    /// The faults of a list of them.
+    pub fn of(list: &[Fault]) -> Faults {
+        Faults {
+            wrong_pixel: list.contains(&Fault::WrongPixel),
+            refuse_udp: list.contains(&Fault::RefuseUdp),
+            old_version: list.contains(&Fault::OldVersion),
+        }
+    }
+
+    /// The version `/status` gives.
+    pub fn version(&self) -> &'static str {
+        if self.old_version {
+            OLD_VERSION
+        } else {
+            env!("CARGO_PKG_VERSION")
+        }
+    }
+}
+
+/// The pixel (row, x) [`Fault::WrongPixel`] inverts: a row neither half
+/// of the boot self-test checks (hal-avalon `selftest::PLAN`).
+pub const WRONG_PIXEL: (u16, u16) = (100, 200);
+
+/// The version [`Fault::OldVersion`] claims.
+pub const OLD_VERSION: &str = "0.0.1";
+
+/// The boot self-test's outcome, as `/status` gives it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SelfTest {
+    /// `"pass"`, `"fail"` or `"skipped"`.
+    pub result: &'static str,
+    /// Its log line.
+    pub detail: String,
+}
+
+/// Run the board's boot self-test (hal-avalon `selftest`, the firmware's
+/// plan) on a fresh accelerator of `config`, as the firmware does at boot;
+/// skipped for the RTL (a frame takes it about a second).
+pub fn self_test(config: Config) -> SelfTest {
+    if config.device == Device::Rtl {
+        return SelfTest { result: "skipped", detail: "self-test: skipped on the RTL (slow)".into() };
+    }
+    let mem = SharedMemory::new(FRAME_SLOTS);
+    let mut accel =
+        Accelerator::new(simulated(mem.clone(), config.faults), CountingDelay::default(), PollTimeout::DEFAULT);
+    let report = selftest::run(
+        &mut accel,
+        &mut mem.clone(),
+        &mut rt_services::SoftwareRenderer,
+        &mut CountingDelay::default(),
+        &selftest::PLAN,
+    );
+    SelfTest { result: if report.passed() { "pass" } else { "fail" }, detail: report.to_string() }
+}
+
+/// The simulated accelerator over `mem` with `faults`.
+pub(crate) fn simulated<M: DmaTarget>(mem: M, faults: Faults) -> SimAccelerator<M> {
+    let mut sim = SimAccelerator::with_memory(mem, SIM_BUSY_POLLS);
+    if faults.wrong_pixel {
+        sim.set_wrong_pixel(Some(WRONG_PIXEL));
+    }
+    sim
 }
 
 /// Frame slots per connection in frame mode: one being sent, one rendering.
@@ -143,13 +236,11 @@ impl FrameMemory for SharedMemory {
 /// The driver over a simulated accelerator whose frame DMA writes `M`.
 pub type SimDriver<M> = Accelerator<SimAccelerator<M>, CountingDelay>;
 
-/// Row mode: the driver over a fresh simulated accelerator, one frame.
-pub fn row_frames() -> RowFrames<SimDriver<hal_avalon::sim::NoMemory>, 1> {
-    let accel = Accelerator::new(
-        SimAccelerator::with_busy_polls(SIM_BUSY_POLLS),
-        CountingDelay::default(),
-        PollTimeout::DEFAULT,
-    );
+/// Row mode: the driver over a fresh simulated accelerator with
+/// `faults`, one frame.
+pub fn row_frames(faults: Faults) -> RowFrames<SimDriver<hal_avalon::sim::NoMemory>, 1> {
+    let accel =
+        Accelerator::new(simulated(hal_avalon::sim::NoMemory, faults), CountingDelay::default(), PollTimeout::DEFAULT);
     RowFrames::new(accel)
 }
 
@@ -157,10 +248,10 @@ pub fn row_frames() -> RowFrames<SimDriver<hal_avalon::sim::NoMemory>, 1> {
 pub type SimFrameRing = FrameRing<SharedMemory, SimDriver<SharedMemory>, FRAME_SLOTS>;
 
 /// Frame mode: a ring of [`FRAME_SLOTS`] in host memory, filled by the
-/// simulated accelerator's frame DMA through the driver.
-pub fn frame_ring() -> SimFrameRing {
+/// simulated accelerator's frame DMA through the driver, with `faults`.
+pub fn frame_ring(faults: Faults) -> SimFrameRing {
     let mem = SharedMemory::new(FRAME_SLOTS);
-    let sim = SimAccelerator::with_memory(mem.clone(), SIM_BUSY_POLLS);
+    let sim = simulated(mem.clone(), faults);
     FrameRing::new(mem, Accelerator::new(sim, CountingDelay::default(), PollTimeout::DEFAULT))
 }
 
@@ -237,7 +328,7 @@ impl HpsSim {
     /// Listen on `addr` and its port + 1 with the simulated accelerator in
     /// `render` mode, logging to stderr if `verbose`.
     pub fn start_with(addr: SocketAddr, render: RenderMode, verbose: bool) -> io::Result<HpsSim> {
-        HpsSim::start_config(addr, Config { render, device: Device::Sim }, verbose)
+        HpsSim::start_config(addr, Config { render, device: Device::Sim, faults: Faults::default() }, verbose)
     }
 
     /// Listen on `addr` and its port + 1 running `config`, logging to
@@ -253,7 +344,7 @@ impl HpsSim {
             persistent_addr: persistent.local_addr()?,
             stop: Arc::new(AtomicBool::new(false)),
             rtsp: None,
-            shared: Arc::new(web::Shared::new(rt_services::camera::rtsp::RTSP_PORT)),
+            shared: Arc::new(web::Shared::new(rt_services::camera::rtsp::RTSP_PORT, config, self_test(config))),
             web: None,
         };
         let ids = Arc::new(AtomicU64::new(1));
@@ -280,7 +371,7 @@ impl HpsSim {
     /// Also serve RTSP/RTP ([`rtsp::RtspServer`]) on `addr` (port 0: any
     /// free one) with `device`, logging if `verbose`, without multicast.
     pub fn start_rtsp(&mut self, addr: SocketAddr, device: Device, verbose: bool) -> io::Result<SocketAddr> {
-        self.start_rtsp_with(addr, rtsp::Options { device, verbose, multicast: None })
+        self.start_rtsp_with(addr, rtsp::Options { device, verbose, multicast: None, faults: Faults::default() })
     }
 
     /// Also serve RTSP/RTP on `addr` as `options` say.
@@ -446,10 +537,40 @@ impl fmt::Write for Log {
         }
         self.line.push_str(s);
         while let Some(end) = self.line.find('\n') {
-            eprintln!("[{}] {}", self.id, &self.line[..end]);
+            let line = format!("[{}] {}", self.id, &self.line[..end]);
+            eprintln!("{line}");
+            keep(&line);
             self.line.drain(..=end);
         }
         Ok(())
+    }
+}
+
+/// Bytes of log history kept for `/log`, as on the board.
+pub const HISTORY_BYTES: usize = 8192;
+
+/// The newest [`HISTORY_BYTES`] of the log, whole lines, every
+/// connection's (the board's UART log is one too).
+static HISTORY: Mutex<std::collections::VecDeque<u8>> = Mutex::new(std::collections::VecDeque::new());
+
+/// Keep `line` in the history.
+fn keep(line: &str) {
+    let mut h = HISTORY.lock().unwrap_or_else(|e| e.into_inner());
+    h.extend(line.as_bytes());
+    h.push_back(b'\n');
+    let over = h.len().saturating_sub(HISTORY_BYTES);
+    h.drain(..over);
+}
+
+/// The log's newest lines, for `/log`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Tail;
+
+impl rt_services::web::status::LogTail for Tail {
+    fn tail(&self, out: &mut [u8]) -> usize {
+        let h = HISTORY.lock().unwrap_or_else(|e| e.into_inner());
+        let (old, new) = h.as_slices();
+        rt_services::web::status::copy_tail([old, new], h.len() == HISTORY_BYTES, out)
     }
 }
 
@@ -457,8 +578,8 @@ impl fmt::Write for Log {
 /// says. Never panics on peer behaviour.
 pub fn serve_connection(stream: TcpStream, mode: Mode, config: Config, mut log: Log) {
     let unavailable = match (config.device, config.render) {
-        (Device::Sim, RenderMode::Frames) => return serve(stream, mode, &mut frame_ring(), log),
-        (Device::Sim, RenderMode::Rows) => return serve(stream, mode, &mut row_frames(), log),
+        (Device::Sim, RenderMode::Frames) => return serve(stream, mode, &mut frame_ring(config.faults), log),
+        (Device::Sim, RenderMode::Rows) => return serve(stream, mode, &mut row_frames(config.faults), log),
         (Device::Rtl, RenderMode::Frames) => match rtl_frame_ring() {
             Ok(mut ring) => return serve(stream, mode, &mut ring, log),
             Err(e) => e,

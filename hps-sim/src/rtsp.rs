@@ -26,7 +26,6 @@ use std::thread;
 use std::time::{Duration, Instant as StdInstant, SystemTime, UNIX_EPOCH};
 
 use hal_avalon::sim::CountingDelay;
-use hal_avalon::sim::SimAccelerator;
 use hal_avalon::{Accelerator, PollTimeout};
 use model::{Light, ROW_BYTES};
 use rt_services::camera::random::SessionRng;
@@ -35,10 +34,13 @@ use rt_services::camera::rtp::{self, Packetiser, RowPacket};
 use rt_services::camera::rtsp::{
     self, ConnId, Connection, Server, CONNECTIONS, CONNECTIONS_PER_ADDRESS, MAX_RESPONSE_BYTES, MAX_SESSIONS,
 };
+use rt_services::camera::rtsp::{
+    EndReason, Fresh, Group, Position, Profile, SessionId, SetUp, StreamSpec, Streams, Transport,
+};
 use rt_services::camera::sender::{self, Bound, Camera, Dest, Multicast, RtpSink, CAMERA_SLOTS};
 use rt_services::{FrameEngine, FrameMemory, FrameRing, FrameSource, Instant};
 
-use crate::{Device, Log, SharedMemory, SIM_BUSY_POLLS};
+use crate::{Device, Faults, Log, SharedMemory};
 
 /// The light of a live stream before its first `SET_PARAMETER` (the one
 /// `rt-client` starts with).
@@ -57,6 +59,8 @@ pub struct Options {
     pub verbose: bool,
     /// Where multicast streams go (`None`: SETUP of multicast answers 461).
     pub multicast: Option<Multicast>,
+    /// Faults injected ([`Faults::refuse_udp`], [`Faults::wrong_pixel`]).
+    pub faults: Faults,
 }
 
 /// A running RTSP server; stops when dropped.
@@ -100,7 +104,7 @@ impl RtspServer {
             let result = match options.device {
                 Device::Sim => {
                     let mem = SharedMemory::new(CAMERA_SLOTS);
-                    let sim = SimAccelerator::with_memory(mem.clone(), SIM_BUSY_POLLS);
+                    let sim = crate::simulated(mem.clone(), options.faults);
                     let engine = Accelerator::new(sim, CountingDelay::default(), PollTimeout::DEFAULT);
                     run(sockets, FrameRing::new(mem.clone(), engine), mem, options, &flag, &mut log)
                 }
@@ -433,7 +437,8 @@ fn run<E: FrameEngine<SharedMemory>>(
                 if c.out.len() + MAX_RESPONSE_BYTES > CLIENT_OUT_BYTES {
                     break; // its responses wait until it reads
                 }
-                let mut streams = Bound { camera: &mut camera, source: &mut ring, now: now(), wall: wall() };
+                let bound = Bound { camera: &mut camera, source: &mut ring, now: now(), wall: wall() };
+                let mut streams = Refusing { inner: bound, udp: !options.faults.refuse_udp };
                 let Some(reply) = server.handle(&mut c.conn, now(), &mut rng, &mut streams, &mut response) else {
                     break;
                 };
@@ -555,5 +560,54 @@ impl Joined {
                 }
             }
         }
+    }
+}
+
+/// The camera's streams, refusing RTP over UDP (unicast or multicast) when
+/// `udp` is off ([`Faults::refuse_udp`]): 461, as the board would answer a
+/// transport it does not offer.
+struct Refusing<S> {
+    inner: S,
+    udp: bool,
+}
+
+impl<S: Streams> Streams for Refusing<S> {
+    fn setup(
+        &mut self,
+        session: SessionId,
+        spec: &StreamSpec,
+        transport: Transport,
+        profile: Profile,
+        client: rtsp::Client,
+        fresh: Fresh,
+    ) -> Result<SetUp, rtsp::Status> {
+        if !self.udp && !matches!(transport, Transport::Interleaved { .. }) {
+            return Err(rtsp::Status::UnsupportedTransport);
+        }
+        self.inner.setup(session, spec, transport, profile, client, fresh)
+    }
+
+    fn play(&mut self, session: SessionId) -> Result<Position, rtsp::Status> {
+        self.inner.play(session)
+    }
+
+    fn pause(&mut self, session: SessionId) {
+        self.inner.pause(session)
+    }
+
+    fn end(&mut self, session: SessionId, why: EndReason) {
+        self.inner.end(session, why)
+    }
+
+    fn set_light(&mut self, session: SessionId, light: Light) {
+        self.inner.set_light(session, light)
+    }
+
+    fn rtcp(&mut self, session: SessionId, datagram: &[u8]) {
+        self.inner.rtcp(session, datagram)
+    }
+
+    fn group(&self, spec: &StreamSpec) -> Option<Group> {
+        self.inner.group(spec)
     }
 }

@@ -16,15 +16,20 @@ use std::time::{Duration, Instant};
 
 use model::ROW_BYTES;
 use rt_services::web::server::{drive, Action, Connection, Context, Turns, SEND_TIMEOUT};
-use rt_services::web::status::{BoardStatus, Identity, Viewers};
+use rt_services::web::status::{BoardStatus, Health, Identity, Viewers};
 use rt_services::web::{WEB_SOCKETS, WEB_VIEWERS};
 use rt_services::{FrameSource, Instant as ProtocolInstant};
 
-use crate::{close_gracefully, frame_ring, spawn_reader, ConnectionCap, Input, Log, SimFrameRing};
+use crate::{
+    close_gracefully, frame_ring, spawn_reader, Config, ConnectionCap, Faults, Input, Log, SelfTest, SimFrameRing, Tail,
+};
 
 /// What the connections share: the board's figures, and the frames.
 pub struct Shared {
     started: Instant,
+    /// What the board runs, and its boot self-test's outcome.
+    config: Config,
+    self_test: SelfTest,
     frames: Mutex<WebFrames>,
     /// Viewers now (the lock also orders handshakes against the cap).
     viewers: Mutex<usize>,
@@ -36,11 +41,19 @@ pub struct Shared {
 }
 
 impl Shared {
-    /// Figures from now on; the page's RTSP URLs name `rtsp_port`.
-    pub fn new(rtsp_port: u16) -> Shared {
+    /// Figures from now on; the page's RTSP URLs name `rtsp_port`; the
+    /// board runs `config` and its self-test said `self_test`.
+    pub fn new(rtsp_port: u16, config: Config, self_test: SelfTest) -> Shared {
         Shared {
             started: Instant::now(),
-            frames: Mutex::new(WebFrames { ring: None, turns: Turns::new(), taken: [false; WEB_SOCKETS] }),
+            config,
+            self_test,
+            frames: Mutex::new(WebFrames {
+                ring: None,
+                faults: config.faults,
+                turns: Turns::new(),
+                taken: [false; WEB_SOCKETS],
+            }),
             viewers: Mutex::new(0),
             seed_clients: AtomicUsize::new(0),
             frames_rendered: AtomicU64::new(0),
@@ -118,13 +131,15 @@ impl Drop for WebServer {
 /// (connection indices) are taken.
 struct WebFrames {
     ring: Option<SimFrameRing>,
+    faults: Faults,
     turns: Turns<WEB_SOCKETS>,
     taken: [bool; WEB_SOCKETS],
 }
 
 impl WebFrames {
     fn ring(&mut self) -> &mut SimFrameRing {
-        self.ring.get_or_insert_with(frame_ring)
+        let faults = self.faults;
+        self.ring.get_or_insert_with(|| frame_ring(faults))
     }
 }
 
@@ -254,10 +269,22 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
             },
             rtsp_port: shared.rtsp_port.load(Ordering::Relaxed),
             identity: Identity {
-                version: env!("CARGO_PKG_VERSION"),
+                version: shared.config.faults.version(),
                 name: rt_services::DEFAULT_HOST_NAME,
                 address: None,
                 address_from: "host",
+            },
+            health: Health {
+                self_test: shared.self_test.result,
+                self_test_detail: &shared.self_test.detail,
+                mode: match shared.config.render {
+                    crate::RenderMode::Frames => "frames",
+                    crate::RenderMode::Rows => "rows",
+                },
+                register_map: Some(hal_avalon::map::ID_VERSION),
+                bridges: "not a board (hps-sim)",
+                vga: "off: not a board (hps-sim)",
+                code: if shared.self_test.result == "fail" { "E2" } else { "ok" },
             },
         };
         let before = connection.frames_sent();
@@ -281,6 +308,7 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
                 status: &status_now,
                 name: rt_services::DEFAULT_HOST_NAME,
                 may_begin,
+                log: &Tail,
             };
             let action = drive(&mut connection, &cx, &mut frames, &mut send, &mut log);
             lock(&shared.frames).turns.served(place.index, connection.wants_frame());
@@ -295,6 +323,7 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
                 status: &status_now,
                 name: rt_services::DEFAULT_HOST_NAME,
                 may_begin: true,
+                log: &Tail,
             };
             let action = drive(&mut connection, &cx, &mut frames, &mut send, &mut log);
             if connection.is_viewer() {

@@ -38,6 +38,11 @@ pub const DE1_SOC_OSC1_HZ: u32 = 25_000_000;
 #[bitfield(u32)]
 #[derive(Debug, PartialEq, Eq)]
 pub struct PerModRst {
+    /// GPIO1, which drives the DE1-SoC's HPS LED (U-Boot's
+    /// `dt-bindings/reset/altr,rst-mgr.h`: `GPIO1_RESET` = bank 1, bit 26;
+    /// SPL holds it in reset unless a U-Boot driver probed the GPIO).
+    #[bit(26, rw)]
+    pub gpio1: bool,
     /// L4 watchdog 0 (the boot ROM starts it).
     #[bit(6, rw)]
     pub l4wd0: bool,
@@ -444,6 +449,98 @@ impl Managers {
     }
 }
 
+// ---- The SDRAM controller's FPGA ports ---------------------------------------------
+
+/// The SDRAM controller's `ctrlgrp.fpgaportrst` (Cyclone V HPS register
+/// map, SDR module at 0xFFC2_0000, offset 0x5080): bits 3:0 read ports,
+/// 7:4 write ports, 13:8 command ports; a port runs while its bit is 1
+/// (docs/frame-dma.md, "The FPGA-to-SDRAM port").
+pub const FPGAPORTRST: usize = 0xffc2_5080;
+
+/// The value U-Boot writes for this project's FPGA image (read port 0,
+/// write port 0, command ports 0 and 1: the frame DMA and the VGA reader),
+/// docs/flash-and-boot.md.
+pub const FPGAPORTRST_RELEASED: u32 = 0x311;
+
+/// Read `fpgaportrst`.
+///
+/// # Safety
+///
+/// Only on a Cyclone V HPS with the SDRAM controller's registers mapped
+/// Device (or the MMU off).
+pub unsafe fn fpgaportrst() -> u32 {
+    // SAFETY: forwarded to the caller; a read has no side effect.
+    unsafe { core::ptr::read_volatile(FPGAPORTRST as *const u32) }
+}
+
+// ---- The HPS LED -------------------------------------------------------------------
+
+/// GPIO1 (Synopsys DesignWare APB GPIO), Cyclone V HPS register map, "GPIO
+/// Module Address Map": `gpio_swporta_dr` at 0x0, `gpio_swporta_ddr` at
+/// 0x4 (1 = output).
+pub const GPIO1_BASE: usize = 0xff70_9000;
+
+/// The DE1-SoC's HPS LED: HPS_GPIO53, GPIO1 bit 24 (29 lines per bank),
+/// lit by a 1 (the DE0-Nano-SoC device tree's `gpio-leds` node, which
+/// uses the same line; not yet checked against Terasic's schematic:
+/// docs/board-bring-up.md). U-Boot SPL's DE1-SoC pin-mux table makes the
+/// pin a GPIO (`GPLMUX53` = 1).
+pub const HPS_LED_BIT: u32 = 1 << 24;
+
+/// GPIO1's data and direction registers.
+#[repr(C)]
+pub struct Gpio {
+    /// `gpio_swporta_dr`: output levels.
+    pub dr: RW<u32>,
+    /// `gpio_swporta_ddr`: 1 = output.
+    pub ddr: RW<u32>,
+}
+
+impl Managers {
+    /// Take GPIO1 out of reset (SPL leaves it held), so that the HPS LED
+    /// can be driven.
+    pub fn release_gpio1(&self) {
+        // SAFETY: `at`'s contract; releasing GPIO1 touches nothing else.
+        unsafe { self.rst().permodrst.modify(|r| r.with_gpio1(false)) }
+    }
+}
+
+/// The HPS LED on GPIO1.
+pub struct HpsLed {
+    gpio: NonNull<Gpio>,
+}
+
+impl HpsLed {
+    /// The LED on the GPIO block at `gpio` (nothing written yet).
+    ///
+    /// # Safety
+    ///
+    /// `gpio` points to GPIO1's registers (mapped Device, out of reset) or
+    /// to memory laid out as them; only `HpsLed`s write the LED's bit.
+    pub unsafe fn at(gpio: *mut Gpio) -> Option<HpsLed> {
+        Some(HpsLed { gpio: NonNull::new(gpio)? })
+    }
+
+    /// Make the LED's line an output, dark; the other lines keep their
+    /// level and direction.
+    pub fn make_output(&mut self) {
+        // SAFETY: `at`'s contract; only the LED's bit changes.
+        unsafe {
+            let g = self.gpio.as_ref();
+            g.dr.modify(|v| v & !HPS_LED_BIT);
+            g.ddr.modify(|v| v | HPS_LED_BIT);
+        }
+    }
+
+    /// Light the LED or not.
+    pub fn set(&mut self, on: bool) {
+        // SAFETY: `at`'s contract; only the LED's bit changes.
+        unsafe {
+            self.gpio.as_ref().dr.modify(|v| if on { v | HPS_LED_BIT } else { v & !HPS_LED_BIT });
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -570,6 +667,23 @@ mod tests {
             ]
         );
         assert_eq!(*w.delays.borrow(), [hold, hold]);
+    }
+
+    #[test]
+    fn gpio1_leaves_reset_and_the_hps_led_moves_only_its_own_bit() {
+        let mut f = Fake::new();
+        f.rst[0x14 / 4] = 0x3fff_ffff; // permodrst's reset value
+        f.managers().release_gpio1();
+        assert_eq!(f.rst[0x14 / 4], 0x3fff_ffff & !(1 << 26));
+        let mut regs = [0x0000_0005u32, 0x0000_0001];
+        // SAFETY: `regs` is laid out as `Gpio` and outlives `led`.
+        let mut led = unsafe { HpsLed::at(regs.as_mut_ptr().cast()) }.expect("non-null");
+        led.make_output();
+        assert_eq!(regs, [0x5, 0x1 | HPS_LED_BIT], "an output, dark");
+        led.set(true);
+        assert_eq!(regs[0], 0x5 | (1 << 24));
+        led.set(false);
+        assert_eq!(regs[0], 0x5);
     }
 
     #[test]

@@ -10,42 +10,84 @@ use soc::cyclone_v::FpgaMode;
 use soc::global_timer::GlobalTimer;
 use soc::mmu::MemType;
 
+use heapless::String;
+use soc::cyclone_v::FPGAPORTRST_RELEASED;
+
 use super::Renderer;
 use crate::cpu::Caches;
+use crate::health::BootFacts;
 use crate::platform::de1_soc::managers;
 use crate::platform::{De1Soc, PROBE};
 use crate::render::{Accel, Frames};
+use crate::selftest::Gated;
 
 impl Renderer for De1Soc {
     type Port = MmioPort;
 
-    fn renderer(log: &mut impl Write, timer: &'static GlobalTimer, caches: Caches) -> Frames<MmioPort> {
-        let mut frames = match fpga(timer) {
-            Ok((accel, version)) => {
-                let _ = writeln!(log, "FPGA: ray tracer, register map version {version}");
-                match crate::selftest::gate(log, Some(accel), caches) {
-                    Some(accel) if version >= hal_avalon::map::ID_VERSION_FRAMES => Frames::ring(Some(accel), caches),
-                    Some(accel) => {
-                        // A row-mode accelerator answered: its line buffer
-                        // may now be Normal non-cacheable (burst reads).
-                        let line = (LW_BRIDGE_BASE + LINE_BUFFER_OFFSET) as u32;
-                        if crate::cpu::retype_page::<De1Soc>(line, MemType::NormalUncached, caches) {
-                            let _ = writeln!(log, "mmu: line-buffer page {line:#010x} Normal non-cacheable");
-                        }
-                        Frames::rows(Some(accel))
-                    }
-                    None => Frames::ring(None, caches),
-                }
-            }
+    fn renderer(
+        log: &mut impl Write,
+        timer: &'static GlobalTimer,
+        caches: Caches,
+        facts: &mut BootFacts,
+    ) -> Frames<MmioPort> {
+        facts.bridges = bridge_state();
+        let _ = writeln!(log, "FPGA: bridges and SDRAM ports: {}", facts.bridges);
+        let (accel, version) = match fpga(timer) {
+            Ok(found) => found,
             Err(why) => {
                 let _ = writeln!(log, "FPGA: {why}");
-                crate::selftest::gate::<MmioPort>(log, None, caches);
-                Frames::ring(None, caches)
+                crate::selftest::gate::<MmioPort>(log, None, caches, facts);
+                facts.set_detail(format_args!("self-test: skipped: {why}"));
+                let mut frames = Frames::ring(None, None, caches);
+                let _ = writeln!(log, "renderer: {}", frames.describe());
+                return frames;
             }
+        };
+        let _ = writeln!(log, "FPGA: ray tracer, register map version {version}");
+        (facts.fpga_answers, facts.register_map) = (true, Some(version));
+        let mut frames = match crate::selftest::gate(log, Some(accel), caches, facts) {
+            Gated::Passed(accel) if version >= hal_avalon::map::ID_VERSION_FRAMES => {
+                Frames::ring(Some(accel), None, caches)
+            }
+            Gated::Passed(accel) => {
+                burst_line_buffer(log, caches);
+                Frames::rows(Some(accel))
+            }
+            Gated::RowsOnly(accel) => {
+                burst_line_buffer(log, caches);
+                Frames::ring(None, Some(accel), caches)
+            }
+            Gated::Software => Frames::ring(None, None, caches),
         };
         let _ = writeln!(log, "renderer: {}", frames.describe());
         frames
     }
+}
+
+/// A row-mode accelerator answered: its line buffer may now be Normal
+/// non-cacheable (burst reads).
+fn burst_line_buffer(log: &mut impl Write, caches: Caches) {
+    let line = (LW_BRIDGE_BASE + LINE_BUFFER_OFFSET) as u32;
+    if crate::cpu::retype_page::<De1Soc>(line, MemType::NormalUncached, caches) {
+        let _ = writeln!(log, "mmu: line-buffer page {line:#010x} Normal non-cacheable");
+    }
+}
+
+/// The bridges' resets and `fpgaportrst`, in words, as read now.
+fn bridge_state() -> String<96> {
+    let b = managers().bridges();
+    let held = |r: bool| if r { "held in reset" } else { "out of reset" };
+    // SAFETY: a Cyclone V HPS (this board's build); the SDRAM controller's
+    // registers are mapped Device by the firmware's table.
+    let ports = unsafe { soc::cyclone_v::fpgaportrst() };
+    let mut s = String::new();
+    let _ = write!(
+        s,
+        "lwhps2fpga {}, fpgaportrst {ports:#x}{}",
+        held(b.lwhps2fpga()),
+        if ports & FPGAPORTRST_RELEASED == FPGAPORTRST_RELEASED { "" } else { " (the FPGA's ports held: want 0x311)" }
+    );
+    s
 }
 
 /// Why the FPGA path is not used.

@@ -11,6 +11,7 @@ use hal_avalon::RegisterPort;
 use soc::global_timer::GlobalTimer;
 
 use crate::cpu::Caches;
+use crate::health::BootFacts;
 use crate::platform::Board;
 use crate::render::Frames;
 
@@ -27,7 +28,13 @@ pub trait Renderer: Board {
 
     /// The frames: the FPGA accelerator's if one answers and passes the
     /// boot self-test (`crate::selftest`; frame mode when its register map
-    /// has the frame DMA, else row mode), else the software renderer's.
-    /// `caches` maintains the frame ring.
-    fn renderer(log: &mut impl Write, timer: &'static GlobalTimer, caches: Caches) -> Frames<Self::Port>;
+    /// has the frame DMA, else row mode; its rows into the ring when only
+    /// the frame path failed), else the software renderer's. `caches`
+    /// maintains the frame ring; `facts` keeps what was found.
+    fn renderer(
+        log: &mut impl Write,
+        timer: &'static GlobalTimer,
+        caches: Caches,
+        facts: &mut BootFacts,
+    ) -> Frames<Self::Port>;
 }

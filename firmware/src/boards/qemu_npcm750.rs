@@ -5,14 +5,16 @@
 use core::fmt::Write;
 
 use hal_avalon::map::{Csr, FABRIC_HZ, LINE_WORDS};
-use hal_avalon::sim::SimAccelerator;
+use hal_avalon::sim::{DmaTarget, SimAccelerator};
 use hal_avalon::RegisterPort;
 use soc::global_timer::GlobalTimer;
 
 use super::Renderer;
 use crate::cpu::Caches;
+use crate::health::BootFacts;
 use crate::platform::QemuNpcm750;
 use crate::render::{Frames, RingMemory};
+use crate::selftest::Gated;
 
 impl Renderer for QemuNpcm750 {
     /// No FPGA; the `sim-accelerator` build puts hal-avalon's simulated
@@ -21,9 +23,18 @@ impl Renderer for QemuNpcm750 {
     type Port = ClockedSim;
 
     /// Frame mode, or row mode with the `row-mode` feature.
-    fn renderer(log: &mut impl Write, timer: &'static GlobalTimer, caches: Caches) -> Frames<Self::Port> {
+    fn renderer(
+        log: &mut impl Write,
+        timer: &'static GlobalTimer,
+        caches: Caches,
+        facts: &mut BootFacts,
+    ) -> Frames<Self::Port> {
+        facts.bridges = crate::health::str_of("not a board (emulated: no bridges, no SDRAM ports)");
         let fpga = cfg!(feature = "sim-accelerator").then(|| {
-            let mut sim = SimAccelerator::with_memory(RingMemory::frames(caches), 2);
+            // `frame-port-fault`: the frame DMA's memory never answers, as
+            // with the FPGA-to-SDRAM port held in reset.
+            let port = FramePort { mem: RingMemory::frames(caches), held: cfg!(feature = "frame-port-fault") };
+            let mut sim = SimAccelerator::with_memory(port, 2);
             // A row per status read: the main loop stays responsive.
             sim.set_frame_rows_per_poll(1);
             // `selftest-fault`: one wrong pixel, for the self-test to catch.
@@ -32,10 +43,39 @@ impl Renderer for QemuNpcm750 {
             }
             crate::render::accelerator(ClockedSim::new(sim, timer), timer)
         });
-        let fpga = crate::selftest::gate(log, fpga, caches);
-        let mut frames = if cfg!(feature = "row-mode") { Frames::rows(fpga) } else { Frames::ring(fpga, caches) };
+        if fpga.is_some() {
+            (facts.fpga_answers, facts.register_map) = (true, Some(hal_avalon::map::ID_VERSION));
+        }
+        let mut frames = match (crate::selftest::gate(log, fpga, caches, facts), cfg!(feature = "row-mode")) {
+            (Gated::Passed(accel), true) => Frames::rows(Some(accel)),
+            (Gated::Passed(accel), false) => Frames::ring(Some(accel), None, caches),
+            (Gated::RowsOnly(accel), _) => Frames::ring(None, Some(accel), caches),
+            (Gated::Software, true) => Frames::rows(None),
+            (Gated::Software, false) => Frames::ring(None, None, caches),
+        };
         let _ = writeln!(log, "renderer: {}", frames.describe());
         frames
+    }
+}
+
+/// The simulated frame DMA's memory: the ring, or nothing that answers
+/// (`held`: the FPGA-to-SDRAM port in reset).
+pub struct FramePort {
+    mem: RingMemory,
+    held: bool,
+}
+
+impl DmaTarget for FramePort {
+    fn write(&mut self, addr: u32, bytes: &[u8]) -> bool {
+        !self.held && self.mem.write(addr, bytes)
+    }
+
+    fn read(&mut self, addr: u32, out: &mut [u8]) -> bool {
+        !self.held && self.mem.read(addr, out)
+    }
+
+    fn answers(&self) -> bool {
+        !self.held
     }
 }
 
@@ -46,7 +86,7 @@ impl Renderer for QemuNpcm750 {
 /// advances the simulated device's time; its frames still land a row per
 /// status read).
 pub struct ClockedSim {
-    sim: SimAccelerator<RingMemory>,
+    sim: SimAccelerator<FramePort>,
     timer: &'static GlobalTimer,
     /// The timer's count at the last access.
     last: u64,
@@ -56,7 +96,7 @@ pub struct ClockedSim {
 
 impl ClockedSim {
     /// `sim`, its time from now on taken from `timer`.
-    pub fn new(sim: SimAccelerator<RingMemory>, timer: &'static GlobalTimer) -> ClockedSim {
+    pub fn new(sim: SimAccelerator<FramePort>, timer: &'static GlobalTimer) -> ClockedSim {
         ClockedSim { sim, timer, last: timer.ticks(), rest: 0 }
     }
 

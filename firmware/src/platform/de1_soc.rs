@@ -12,7 +12,7 @@ use core::ops::Range;
 
 use dwmac::phy::PhyConfig;
 use hal_avalon::map::LW_BRIDGE_BASE;
-use soc::cyclone_v::{periph_clock_hz, Managers, DE1_SOC_OSC1_HZ};
+use soc::cyclone_v::{periph_clock_hz, Gpio, HpsLed, Managers, DE1_SOC_OSC1_HZ, GPIO1_BASE};
 use soc::global_timer::TimerDelay;
 use soc::mmu::{sections_of, MemType, PagedSection};
 
@@ -27,6 +27,13 @@ pub(crate) fn managers() -> Managers {
     // mapped Device by the firmware's table (or the MMU is off), and only
     // this module touches them, one call at a time on core 0.
     unsafe { Managers::cyclone_v() }
+}
+
+/// The HPS LED on GPIO1.
+fn hps_led() -> Option<HpsLed> {
+    // SAFETY: GPIO1's registers on this board, mapped Device by the
+    // firmware's table; only this module writes the LED's bit, on core 0.
+    unsafe { HpsLed::at(GPIO1_BASE as *mut Gpio) }
 }
 
 impl Board for De1Soc {
@@ -68,6 +75,14 @@ impl Board for De1Soc {
     /// KSZ9021's erratum.
     const PHY: PhyConfig = PhyConfig { ksz9021_skews: Some((0xe3f0, 0x3333)), ksz9021_force_master: true };
 
+    /// The HPS LED (GPIO1 bit 24, soc::cyclone_v::HPS_LED_BIT), made an
+    /// output by `init`.
+    fn status_led(on: bool) {
+        if let Some(mut led) = hps_led() {
+            led.set(on);
+        }
+    }
+
     fn timer_hz(log: &mut impl Write) -> u32 {
         let mpu = managers().mpu_clock_hz(DE1_SOC_OSC1_HZ);
         let _ = writeln!(log, "clock: MPU {} MHz from the main PLL (osc1 25 MHz)", mpu / 1_000_000);
@@ -81,6 +96,12 @@ impl Board for De1Soc {
         let m = managers();
         m.stop_watchdog();
         let _ = writeln!(log, "board: L4 watchdog 0 held in reset");
+        m.release_gpio1();
+        if let Some(mut led) = hps_led() {
+            led.make_output();
+            let _ =
+                writeln!(log, "board: GPIO1 out of reset, HPS LED (GPIO53) an output: its blinks say the fault code");
+        }
         match m.emac1_rgmii(&mut TimerDelay(&TIMER), aarch32_cpu::asm::dsb) {
             Ok(()) => {
                 let _ = writeln!(log, "board: EMAC1 reset, RGMII selected");

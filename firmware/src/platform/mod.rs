@@ -88,4 +88,8 @@ pub trait Board {
     fn timer_hz(log: &mut impl Write) -> u32;
     /// Board set-up before the MAC: resets, watchdog, pin routing.
     fn init(log: &mut impl Write);
+
+    /// Light the board's own status LED (the HPS LED), or not; boards
+    /// without one ignore it.
+    fn status_led(_on: bool) {}
 }

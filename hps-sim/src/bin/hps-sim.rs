@@ -12,7 +12,7 @@ use std::net::{Ipv4Addr, SocketAddr};
 use std::process::ExitCode;
 
 use clap::Parser;
-use hps_sim::{rtsp::Options, Config, Device, HpsSim, RenderMode};
+use hps_sim::{rtsp::Options, Config, Device, Fault, Faults, HpsSim, RenderMode};
 use rt_services::camera::sender::Multicast;
 
 #[derive(Parser)]
@@ -52,12 +52,19 @@ struct Args {
     /// picture in a browser, the light under the mouse.
     #[arg(long)]
     http: Option<SocketAddr>,
+    /// Inject a fault (repeat for more), so that `rt-client doctor` can be
+    /// shown to name it: `wrong-pixel` (one pixel of every frame wrong,
+    /// where the self-test does not look), `refuse-udp` (RTSP answers
+    /// SETUP for UDP with 461), `old-version` (/status claims 0.0.1).
+    #[arg(long, value_enum)]
+    fault: Vec<Fault>,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
     let (render, device) = (args.mode, args.accelerator);
-    match HpsSim::start_config(args.listen, Config { render, device }, true) {
+    let faults = Faults::of(&args.fault);
+    match HpsSim::start_config(args.listen, Config { render, device, faults }, true) {
         Ok(mut sim) => {
             let rtsp = args.rtsp.unwrap_or(SocketAddr::new(args.listen.ip(), rt_services::camera::rtsp::RTSP_PORT));
             let multicast = args.multicast_group.map(|group| Multicast {
@@ -69,7 +76,7 @@ fn main() -> ExitCode {
                 eprintln!("hps-sim: --multicast-group must be a multicast address (224.0.0.0/4)");
                 return ExitCode::FAILURE;
             }
-            let rtsp = match sim.start_rtsp_with(rtsp, Options { device, verbose: true, multicast }) {
+            let rtsp = match sim.start_rtsp_with(rtsp, Options { device, verbose: true, multicast, faults }) {
                 Ok(addr) => addr,
                 Err(e) => {
                     eprintln!("hps-sim: cannot serve RTSP on {rtsp}: {e}");

@@ -73,6 +73,11 @@ impl<P, F> FallbackEngine<P, F> {
         self.primary.as_mut()
     }
 
+    /// The fallback engine.
+    pub fn fallback(&mut self) -> &mut F {
+        &mut self.fallback
+    }
+
     /// `true` once, right after the primary was switched off.
     pub fn take_switched_off(&mut self) -> bool {
         core::mem::take(&mut self.switched_off)

@@ -410,6 +410,11 @@ impl<R: RowSource> RowEngine<R> {
     pub fn new(rows: R) -> RowEngine<R> {
         RowEngine { rows, job: None, words: [0; WIDTH], bytes: [0; ROW_BYTES] }
     }
+
+    /// The row source.
+    pub fn rows(&mut self) -> &mut R {
+        &mut self.rows
+    }
 }
 
 impl<R: RowSource, M: FrameMemory> FrameEngine<M> for RowEngine<R>

@@ -45,6 +45,10 @@ use model::Light;
 use crate::frames::{Completed, FrameEngine, FrameMemory, FrameRing, FrameSource, ROWS};
 use crate::time::Instant;
 
+pub mod code;
+
+pub use code::Code;
+
 /// Client requests keep attract mode off this long after the last one.
 pub const RESUME_AFTER: Duration = Duration::from_secs(3);
 
@@ -489,6 +493,8 @@ pub struct Status {
     pub clients: usize,
     /// The board's IPv4 address.
     pub address: [u8; 4],
+    /// What is wrong: shown on the 7-segment displays after the address.
+    pub code: Code,
 }
 
 /// The LED bits for `status`, attract mode `attract`, the orbit `paused`,
@@ -691,15 +697,7 @@ impl Monitor {
             self.requests = requests;
             self.last_request = Some(now);
         }
-        // The address scrolls once the board has one on a link: DHCP (or
-        // the link-local claim) answers after the link comes up, and a new
-        // lease scrolls again.
-        let reachable = status.link_up && status.address != [0; 4];
-        if reachable && (!self.link_was_up || status.address != self.address_shown) {
-            self.link_up_at = Some(now);
-            self.address_shown = status.address;
-        }
-        self.link_was_up = reachable;
+        self.track_address(now, status);
 
         let inputs = dev.inputs();
         self.orbit.keys(inputs.pressed);
@@ -714,21 +712,7 @@ impl Monitor {
         let fps = self.fps.count(now, u32::from(step.shown.is_some()));
 
         let leds = leds(status, attract, self.orbit.paused(), self.scanout.underrun());
-        if self.leds != Some(leds) {
-            dev.set_leds(leds);
-            self.leds = Some(leds);
-        }
-        let text = self
-            .link_up_at
-            .and_then(|t| {
-                let step = now.saturating_duration_since(t).as_millis() / ADDRESS_STEP.as_millis();
-                address_text(status.address, u64::try_from(step).unwrap_or(u64::MAX))
-            })
-            .unwrap_or_else(|| fps_text(fps));
-        if self.text != Some(text) {
-            dev.set_text(text);
-            self.text = Some(text);
-        }
+        self.show(now, dev, status, leds, fps);
 
         if !self.scanout.enabled() {
             return None;
@@ -739,6 +723,49 @@ impl Monitor {
         }
         self.next_report = Some(now + REPORT_EVERY);
         Some(self.report(now))
+    }
+
+    /// The LEDs and 7-segment displays alone, where the scan-out cannot
+    /// run (the FPGA renders rows but cannot reach the frame memory, code
+    /// [`Code::RowsOnly`]): the address scrolls, then the fault code
+    /// stays; no attract mode.
+    pub fn poll_panel<D: Panel>(&mut self, now: Instant, dev: &mut D, status: &Status) {
+        self.track_address(now, status);
+        let leds = leds(status, false, false, false);
+        self.show(now, dev, status, leds, 0);
+    }
+
+    /// The address scrolls once the board has one on a link: DHCP (or the
+    /// link-local claim) answers after the link comes up, and a new lease
+    /// scrolls again.
+    fn track_address(&mut self, now: Instant, status: &Status) {
+        let reachable = status.link_up && status.address != [0; 4];
+        if reachable && (!self.link_was_up || status.address != self.address_shown) {
+            self.link_up_at = Some(now);
+            self.address_shown = status.address;
+        }
+        self.link_was_up = reachable;
+    }
+
+    /// Write the LEDs and the text where they changed: the address while
+    /// it scrolls, then the fault code, or else the frames per second.
+    fn show<D: Panel>(&mut self, now: Instant, dev: &mut D, status: &Status, leds: u16, fps: u32) {
+        if self.leds != Some(leds) {
+            dev.set_leds(leds);
+            self.leds = Some(leds);
+        }
+        let text = self
+            .link_up_at
+            .and_then(|t| {
+                let step = now.saturating_duration_since(t).as_millis() / ADDRESS_STEP.as_millis();
+                address_text(status.address, u64::try_from(step).unwrap_or(u64::MAX))
+            })
+            .or_else(|| status.code.hex_text())
+            .unwrap_or_else(|| fps_text(fps));
+        if self.text != Some(text) {
+            dev.set_text(text);
+            self.text = Some(text);
+        }
     }
 
     /// The summary at `now`.
@@ -1125,11 +1152,38 @@ mod tests {
 
     #[test]
     fn led_bits() {
-        let s = Status { link_up: true, fpga: true, self_test_passed: true, clients: 2, address: [0; 4] };
+        let s =
+            Status { link_up: true, fpga: true, self_test_passed: true, clients: 2, address: [0; 4], code: Code::Ok };
         assert_eq!(leds(&s, false, false, false), 0b1111);
         assert_eq!(leds(&Status::default(), true, true, true), (1 << 4) | (1 << 5) | (1 << 9));
         let sw = Status { fpga: false, clients: 0, ..s };
         assert_eq!(leds(&sw, true, false, false), LED_LINK | LED_SELF_TEST | LED_ATTRACT);
+    }
+
+    #[test]
+    fn in_row_mode_the_panel_shows_the_address_then_the_code_and_never_scans_out() {
+        let mut panel = FakePanel::default();
+        let mut m = Monitor::new();
+        let status =
+            Status { link_up: true, fpga: true, address: [10, 0, 2, 15], code: Code::RowsOnly, ..Status::default() };
+        m.poll_panel(Instant::from_millis(0), &mut panel, &status);
+        assert_eq!(&panel.text, b"      ", "the address scrolls first");
+        assert_eq!(panel.leds, LED_LINK | LED_FPGA);
+        m.poll_panel(Instant::from_millis(6 * 250), &mut panel, &status);
+        assert_eq!(&panel.text, b"10.0.2");
+        m.poll_panel(Instant::from_millis(30 * 250), &mut panel, &status);
+        assert_eq!(&panel.text, b"Err  4", "then the code stays");
+        assert_eq!((panel.enables, panel.base), (0, None), "no scan-out");
+    }
+
+    #[test]
+    fn a_fault_code_replaces_the_frame_rate() {
+        let mut mem = vec![0u8; 6 * FRAME_BYTES];
+        let mut d = dev(&mut mem);
+        let mut m = Monitor::new();
+        let status = Status { code: Code::NoLink, ..Status::default() };
+        m.poll(Instant::from_millis(0), &mut d, 0, &status);
+        assert_eq!(&d.panel.text, b"Err  5");
     }
 
     #[test]

@@ -36,7 +36,7 @@ use model::{Light, FRAME_BYTES, ROW_BYTES};
 use super::assets;
 use super::guard;
 use super::http::{self, Method, Out, Parsed, Status, Upgrade, HEAD_BYTES};
-use super::status::BoardStatus;
+use super::status::{BoardStatus, LogTail};
 use super::websocket::{self, CloseCode, Opcode, CONTROL_PAYLOAD, MAX_HEAD};
 use crate::frames::{FrameSource, ROWS};
 use crate::seed::wire::{decode_request, REQUEST_BYTES};
@@ -160,7 +160,13 @@ pub struct Context<'a> {
     /// Whether it is this viewer's turn to begin a frame ([`Turns`]); a
     /// viewer whose turn it is not waits with its request.
     pub may_begin: bool,
+    /// The board's log, for `/log`.
+    pub log: &'a dyn LogTail,
 }
+
+/// The most of the log `/log` answers with: its newest whole lines (about
+/// fifty).
+pub const LOG_BYTES: usize = 4096;
 
 /// Whose turn it is to begin a frame among `N` connections sharing a few
 /// frame slots: the viewers waiting for one, first come first served. A
@@ -251,9 +257,13 @@ pub struct Connection<F> {
     /// Bytes of `head` that were the request head (the rest: a viewer's).
     head_used: usize,
     since: Instant,
-    /// Output not yet taken: `small[small_sent..]`, then `body[body_sent..]`.
+    /// Output not yet taken: `small[small_sent..]`, then
+    /// `text[text_sent..]`, then `body[body_sent..]`.
     small: Out,
     small_sent: usize,
+    /// The log's tail for `/log`, copied when it was asked for.
+    text: Vec<u8, LOG_BYTES>,
+    text_sent: usize,
     body: &'static [u8],
     body_sent: usize,
     /// The last time output moved (or became due).
@@ -278,6 +288,8 @@ impl<F: Copy> Connection<F> {
             since: now,
             small: Out::new(),
             small_sent: 0,
+            text: Vec::new(),
+            text_sent: 0,
             body: &[],
             body_sent: 0,
             moved_at: now,
@@ -334,8 +346,9 @@ impl<F: Copy> Connection<F> {
 
     /// Output for [`Action::Write`].
     pub fn output(&self) -> &[u8] {
-        match self.small.get(self.small_sent..) {
-            Some(s) if !s.is_empty() => s,
+        match (self.small.get(self.small_sent..), self.text.get(self.text_sent..)) {
+            (Some(s), _) if !s.is_empty() => s,
+            (_, Some(t)) if !t.is_empty() => t,
             _ => self.body.get(self.body_sent..).unwrap_or(&[]),
         }
     }
@@ -362,8 +375,11 @@ impl<F: Copy> Connection<F> {
         self.advance(n);
         self.moved_at = now;
         let small_left = self.small.len() - self.small_sent;
+        let text_left = self.text.len() - self.text_sent;
         if small_left > 0 {
             self.small_sent += n.min(small_left);
+        } else if text_left > 0 {
+            self.text_sent += n.min(text_left);
         } else {
             self.body_sent = (self.body_sent + n).min(self.body.len());
         }
@@ -376,6 +392,8 @@ impl<F: Copy> Connection<F> {
     fn respond(&mut self, now: Instant, status: Status, extra: &[(&str, &str)]) {
         self.small.clear();
         self.small_sent = 0;
+        self.text.clear();
+        self.text_sent = 0;
         let text = status.reason();
         let mut body = Out::new();
         let _ = body.extend_from_slice(text.as_bytes());
@@ -515,6 +533,28 @@ impl<F: Copy> Connection<F> {
             }
             (_, Upgrade::WebSocket(_)) => {
                 self.respond(now, Status::NotFound, &[]);
+                Action::Write
+            }
+            ("/log", Upgrade::None) => {
+                self.text.clear();
+                self.text_sent = 0;
+                let _ = self.text.resize(LOG_BYTES, 0);
+                let n = cx.log.tail(&mut self.text);
+                self.text.truncate(n);
+                self.small.clear();
+                self.small_sent = 0;
+                let _ = http::head(
+                    &mut self.small,
+                    Status::Ok,
+                    Some(n),
+                    &[("Content-Type", "text/plain; charset=utf-8"), ("Cache-Control", "no-store")],
+                );
+                if request.method != Method::Get {
+                    self.text.clear();
+                }
+                self.body = &[];
+                self.moved_at = now;
+                self.state = State::Respond { then_viewer: false, closed: Closed::Answered(Some(Status::Ok)) };
                 Action::Write
             }
             ("/status", Upgrade::None) => {
@@ -881,7 +921,7 @@ pub fn drive<S: FrameSource>(
 mod tests {
     use super::*;
     use crate::frames::{FrameRing, RowEngine, SliceMemory, SoftwareRenderer};
-    use crate::web::status::{Identity, Viewers};
+    use crate::web::status::{Health, Identity, NoLog, Viewers};
 
     type Source = FrameRing<SliceMemory<'static>, RowEngine<SoftwareRenderer>, 2>;
 
@@ -899,7 +939,25 @@ mod tests {
         viewers: Viewers { web: 0, web_max: 4, seed: 0, rtsp: 0 },
         rtsp_port: 8554,
         identity: Identity { version: "0.1.0", name: "raytracer", address: None, address_from: "none" },
+        health: Health {
+            self_test: "pass",
+            self_test_detail: "",
+            mode: "frames",
+            register_map: None,
+            bridges: "not a board",
+            vga: "off",
+            code: "ok",
+        },
     };
+
+    /// A log of three lines.
+    struct ThreeLines;
+
+    impl LogTail for ThreeLines {
+        fn tail(&self, out: &mut [u8]) -> usize {
+            crate::web::status::copy_tail([b"boot\nself-test: PASS\n", b"net: address 10.0.2.15\n"], false, out)
+        }
+    }
 
     const UPGRADE: &[u8] = b"GET /ws HTTP/1.1\r\nHost: raytracer\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n";
 
@@ -933,11 +991,19 @@ mod tests {
         out: std::vec::Vec<u8>,
         now: Instant,
         room: bool,
+        tail: &'static dyn LogTail,
     }
 
     impl Peer {
         fn new() -> Peer {
-            Peer { c: Connection::new(Instant::ZERO), src: source(), out: vec![], now: Instant::ZERO, room: true }
+            Peer {
+                c: Connection::new(Instant::ZERO),
+                src: source(),
+                out: vec![],
+                now: Instant::ZERO,
+                room: true,
+                tail: &NoLog,
+            }
         }
 
         fn send(&mut self, bytes: &[u8]) {
@@ -952,7 +1018,14 @@ mod tests {
         }
 
         fn step(&mut self) -> Action<usize> {
-            let cx = Context { now: self.now, room: self.room, status: &STATUS, name: "raytracer", may_begin: true };
+            let cx = Context {
+                now: self.now,
+                room: self.room,
+                status: &STATUS,
+                name: "raytracer",
+                may_begin: true,
+                log: self.tail,
+            };
             let out = &mut self.out;
             drive(
                 &mut self.c,
@@ -996,9 +1069,27 @@ mod tests {
     }
 
     #[test]
+    fn the_log_is_its_newest_lines_as_text() {
+        let mut p = Peer::new();
+        p.tail = &ThreeLines;
+        p.send(b"GET /log HTTP/1.1\r\nHost: raytracer\r\n\r\n");
+        assert_eq!(p.step(), Action::Close(Closed::Answered(Some(Status::Ok))));
+        let text = p.text();
+        assert!(text.starts_with("HTTP/1.1 200 OK\r\n") && text.contains("text/plain"), "{text}");
+        assert!(text.ends_with("\r\n\r\nboot\nself-test: PASS\nnet: address 10.0.2.15\n"), "{text}");
+        let mut p = Peer::new();
+        p.tail = &ThreeLines;
+        p.send(b"HEAD /log HTTP/1.1\r\nHost: raytracer\r\n\r\n");
+        p.step();
+        let head = p.text();
+        assert!(head.ends_with("\r\n\r\n") && head.contains("Content-Length: 44\r\n"), "{head}");
+    }
+
+    #[test]
     fn status_is_json_and_errors_have_their_codes() {
         let (s, _) = answer("GET /status HTTP/1.1\r\nHost: raytracer\r\n\r\n");
-        assert!(s.contains("application/json") && s.ends_with("\"rtsp_port\":8554,\"version\":\"0.1.0\",\"name\":\"raytracer\",\"address\":null,\"address_from\":\"none\"}"), "{s}");
+        assert!(s.contains("application/json") && s.contains("\"rtsp_port\":8554,\"version\":\"0.1.0\",\"name\":\"raytracer\",\"address\":null,\"address_from\":\"none\","), "{s}");
+        assert!(s.ends_with(",\"mode\":\"frames\",\"register_map\":null,\"bridges\":\"not a board\",\"vga\":\"off\",\"code\":\"ok\"}"), "{s}");
         for (req, code) in [
             ("GET /nope HTTP/1.1\r\nHost: raytracer\r\n\r\n", "404"),
             ("DELETE / HTTP/1.1\r\nHost: raytracer\r\n\r\n", "405"),
@@ -1028,7 +1119,14 @@ mod tests {
     fn a_client_that_reads_nothing_is_dropped() {
         let mut p = Peer::new();
         p.send(b"GET / HTTP/1.1\r\nHost: raytracer\r\n\r\n");
-        let cx = Context { now: Instant::ZERO, room: true, status: &STATUS, name: "raytracer", may_begin: true };
+        let cx = Context {
+            now: Instant::ZERO,
+            room: true,
+            status: &STATUS,
+            name: "raytracer",
+            may_begin: true,
+            log: &NoLog,
+        };
         assert_eq!(p.c.poll(&cx), Action::Write);
         let later = Context { now: Instant::ZERO + SEND_TIMEOUT, ..cx };
         assert_eq!(p.c.poll(&later), Action::Close(Closed::Stalled));
@@ -1065,7 +1163,7 @@ mod tests {
 
     /// Drive with a transport that takes `chunks` buffers of 1,000 bytes.
     fn step_limited(p: &mut Peer, mut chunks: usize) {
-        let cx = Context { now: p.now, room: true, status: &STATUS, name: "raytracer", may_begin: true };
+        let cx = Context { now: p.now, room: true, status: &STATUS, name: "raytracer", may_begin: true, log: &NoLog };
         let out = &mut p.out;
         drive(
             &mut p.c,
@@ -1318,7 +1416,7 @@ mod tests {
                         let _ = c.receive(&request([3072, 4096, -2048 + i as i32]));
                     }
                     let may_begin = !fair || turns.may_begin(i);
-                    let cx = Context { now, room: true, status: &STATUS, name: "raytracer", may_begin };
+                    let cx = Context { now, room: true, status: &STATUS, name: "raytracer", may_begin, log: &NoLog };
                     let before = c.frames_sent();
                     // A link of 100 KB a millisecond.
                     let mut budget = 100_000usize;
@@ -1360,7 +1458,8 @@ mod tests {
         let mut closed = None;
         for s in 0..=FRAME_LIMIT.as_secs() {
             p.now = Instant::ZERO + Duration::from_secs(s);
-            let cx = Context { now: p.now, room: true, status: &STATUS, name: "raytracer", may_begin: true };
+            let cx =
+                Context { now: p.now, room: true, status: &STATUS, name: "raytracer", may_begin: true, log: &NoLog };
             let mut one = 1usize;
             let a = drive(
                 &mut p.c,

@@ -16,7 +16,7 @@ use smoltcp::time::Instant;
 
 use super::http::HEAD_BYTES;
 use super::server::{drive, Action, Connection, Context, Turns};
-use super::status::BoardStatus;
+use super::status::{BoardStatus, LogTail};
 use super::{WEB_PORT, WEB_VIEWERS};
 use crate::frames::FrameSource;
 use crate::tcp::Handshake;
@@ -96,6 +96,9 @@ impl<F: Copy, const N: usize> WebService<F, N> {
 
     /// Serve every socket once: accept, read, answer, stream frames from
     /// `frames`, close, re-listen. Call it after each `Interface::poll`.
+    // What the board is (status, name, log) comes as three borrows of
+    // three owners in the firmware's loop.
+    #[allow(clippy::too_many_arguments)]
     pub fn poll<S: FrameSource<Frame = F>>(
         &mut self,
         now: Instant,
@@ -103,12 +106,13 @@ impl<F: Copy, const N: usize> WebService<F, N> {
         frames: &mut S,
         status: &BoardStatus<'_>,
         name: &str,
+        tail: &dyn LogTail,
         log: &mut impl Write,
     ) {
         let now = time::Instant::from_millis(u64::try_from(now.total_millis()).unwrap_or(0));
         for index in 0..N {
             let room = self.viewers() < WEB_VIEWERS;
-            let cx = Context { now, room, status, name, may_begin: self.turns.may_begin(index) };
+            let cx = Context { now, room, status, name, may_begin: self.turns.may_begin(index), log: tail };
             let slot = &mut self.slots[index];
             let socket = sockets.get_mut::<tcp::Socket>(slot.handle);
             self.frames_sent += u64::from(serve_slot(index, slot, socket, &cx, frames, log));

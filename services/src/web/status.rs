@@ -36,6 +36,78 @@ pub struct BoardStatus<'a> {
     pub rtsp_port: u16,
     /// Who the board is on the network.
     pub identity: Identity<'a>,
+    /// What the board found at boot and what its display does.
+    pub health: Health<'a>,
+}
+
+/// What the board found at boot (kept from the boot log) and the state of
+/// its display, for `/status`, the page and `rt-client doctor`
+/// (docs/diagnostics.md lists the values).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Health<'a> {
+    /// The boot self-test: `"pass"`, `"fail"` or `"skipped"`.
+    pub self_test: &'a str,
+    /// Its log line, or why it was skipped.
+    pub self_test_detail: &'a str,
+    /// How frames are made: `"frames"` (the FPGA's frame DMA), `"rows"`
+    /// (the FPGA a row at a time over the bridge), `"software"` (the model
+    /// on the CPU).
+    pub mode: &'a str,
+    /// The accelerator's register-map version, if one answered.
+    pub register_map: Option<u16>,
+    /// The FPGA's bridges and its SDRAM port as the firmware read them
+    /// (`"not a board"` off the board).
+    pub bridges: &'a str,
+    /// The VGA output: `"on"`, `"off: WHY"`, or a fault.
+    pub vga: &'a str,
+    /// The code the board's LEDs and displays show (`"ok"`, or `E1`..,
+    /// docs/diagnostics.md).
+    pub code: &'a str,
+}
+
+/// The last lines of the board's log, for `/log`.
+pub trait LogTail {
+    /// Copy the log's newest bytes into `out`, whole lines (from the start
+    /// of a line) as far as they fit; returns the bytes copied.
+    fn tail(&self, out: &mut [u8]) -> usize;
+}
+
+impl fmt::Debug for dyn LogTail + '_ {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("LogTail")
+    }
+}
+
+/// A log with nothing in it.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoLog;
+
+impl LogTail for NoLog {
+    fn tail(&self, _out: &mut [u8]) -> usize {
+        0
+    }
+}
+
+/// The newest whole lines of a log held as two pieces, older then newer
+/// (a ring's halves: `heapless::HistoryBuf::as_slices`), copied into
+/// `out`: the oldest line that does not fit whole is left out, and so is
+/// the first one if the ring has `wrapped` (its start was overwritten).
+/// Returns the bytes copied.
+pub fn copy_tail(pieces: [&[u8]; 2], wrapped: bool, out: &mut [u8]) -> usize {
+    let total = pieces[0].len() + pieces[1].len();
+    let byte = |i: usize| if i < pieces[0].len() { pieces[0][i] } else { pieces[1][i - pieces[0].len()] };
+    let mut start = total.saturating_sub(out.len()).max(usize::from(wrapped)).min(total);
+    if start > 0 {
+        // Skip to just after the first line end at or after `start - 1`:
+        // the line cut by the ring or by `out` is dropped whole.
+        while start < total && byte(start - 1) != b'\n' {
+            start += 1;
+        }
+    }
+    for (o, i) in out.iter_mut().zip(start..total) {
+        *o = byte(i);
+    }
+    total - start
 }
 
 /// Who the board is on the network, for the status page and
@@ -82,6 +154,27 @@ impl BoardStatus<'_> {
         }
         w.write_str(",\"address_from\":")?;
         json_string(w, id.address_from)?;
+        self.write_health(w)
+    }
+
+    fn write_health(&self, w: &mut impl Write) -> fmt::Result {
+        let h = &self.health;
+        w.write_str(",\"self_test\":")?;
+        json_string(w, h.self_test)?;
+        w.write_str(",\"self_test_detail\":")?;
+        json_string(w, h.self_test_detail)?;
+        w.write_str(",\"mode\":")?;
+        json_string(w, h.mode)?;
+        match h.register_map {
+            Some(v) => write!(w, ",\"register_map\":{v}")?,
+            None => w.write_str(",\"register_map\":null")?,
+        }
+        w.write_str(",\"bridges\":")?;
+        json_string(w, h.bridges)?;
+        w.write_str(",\"vga\":")?;
+        json_string(w, h.vga)?;
+        w.write_str(",\"code\":")?;
+        json_string(w, h.code)?;
         w.write_char('}')
     }
 }
@@ -106,6 +199,25 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_log_tail_is_whole_lines_from_both_pieces() {
+        let mut out = [0u8; 12];
+        // Everything fits.
+        let n = copy_tail([b"ab\n", b"cd\n"], false, &mut out);
+        assert_eq!(&out[..n], b"ab\ncd\n");
+        // The ring cut "line1": only whole lines are copied.
+        let mut big = [0u8; 64];
+        let n = copy_tail([b"ne1\nline2\n", b"line3\n"], true, &mut big);
+        assert_eq!(&big[..n], b"line2\nline3\n");
+        // `out` cuts "line1".
+        let n = copy_tail([b"line1\nline2\n", b"line3\n"], false, &mut out);
+        assert_eq!(&out[..n], b"line2\nline3\n");
+        // A line too long for `out` alone: nothing rather than a piece.
+        let n = copy_tail([b"", b"a very long line\n"], false, &mut out);
+        assert_eq!(n, 0);
+        assert_eq!(copy_tail([b"", b""], true, &mut out), 0);
+    }
+
+    #[test]
     fn the_status_is_the_json_the_page_reads() {
         let s = BoardStatus {
             uptime_s: 61,
@@ -121,12 +233,21 @@ mod tests {
                 address: Some(core::net::Ipv4Addr::new(169, 254, 7, 9)),
                 address_from: "link-local",
             },
+            health: Health {
+                self_test: "fail",
+                self_test_detail: "self-test: FAIL: frame mode",
+                mode: "rows",
+                register_map: Some(3),
+                bridges: "lwhps2fpga out of reset",
+                vga: "off: frame mode failed",
+                code: "E1",
+            },
         };
         let mut out = String::new();
         s.write_json(&mut out).unwrap();
         assert_eq!(
             out,
-            r#"{"uptime_s":61,"renderer":"fpga","link":"1000 Mbit/s \"full\"\u000a","frames_rendered":7,"frames_sent":5,"viewers":{"web":1,"web_max":4,"seed":2,"rtsp":3},"rtsp_port":8554,"version":"0.1.0","name":"raytracer-2","address":"169.254.7.9","address_from":"link-local"}"#
+            r#"{"uptime_s":61,"renderer":"fpga","link":"1000 Mbit/s \"full\"\u000a","frames_rendered":7,"frames_sent":5,"viewers":{"web":1,"web_max":4,"seed":2,"rtsp":3},"rtsp_port":8554,"version":"0.1.0","name":"raytracer-2","address":"169.254.7.9","address_from":"link-local","self_test":"fail","self_test_detail":"self-test: FAIL: frame mode","mode":"rows","register_map":3,"bridges":"lwhps2fpga out of reset","vga":"off: frame mode failed","code":"E1"}"#
         );
     }
 }
