@@ -2,6 +2,8 @@
 //! the simulated board started in-process) as PNG, GIF or a live window.
 
 mod control;
+mod discover;
+mod doctor;
 mod live;
 mod net;
 mod orbit;
@@ -104,6 +106,29 @@ enum Command {
         #[arg(long)]
         save_last: Option<PathBuf>,
     },
+    /// List the boards on this network (mDNS/DNS-SD): name, address,
+    /// version, renderer, fault code.
+    Discover {
+        /// Seconds to listen for answers.
+        #[arg(long, default_value_t = 3)]
+        wait: u64,
+    },
+    /// Check every link from here to the board's picture, one line each
+    /// (a tick, or a cross and what to do); exit status 1 if any fails.
+    Doctor {
+        /// The board: a name (default raytracer.local) or an address.
+        #[arg(default_value = "raytracer.local")]
+        host: String,
+        /// The seed port (hps-sim: its --listen port).
+        #[arg(long, default_value_t = rt_services::FRAME_PORT)]
+        seed_port: u16,
+        /// The RTSP port.
+        #[arg(long, default_value_t = rt_services::camera::rtsp::RTSP_PORT)]
+        rtsp_port: u16,
+        /// The page's port.
+        #[arg(long, default_value_t = rt_services::web::WEB_PORT)]
+        http_port: u16,
+    },
     /// Print a server's stream URLs (light, orbit, live), for any RTSP
     /// player.
     Url {
@@ -197,6 +222,22 @@ fn main() -> ExitCode {
             live(server, scale, script, transport, rtsp, record, save_last)
         }
         Command::Url { server } => url(&server),
+        Command::Discover { wait } => discover::browse(std::time::Duration::from_secs(wait)).map(|boards| {
+            print!("{}", discover::table(&boards));
+        }),
+        Command::Doctor { host, seed_port, rtsp_port, http_port } => {
+            let target =
+                doctor::Target { seed: seed_port, rtsp: rtsp_port, http: http_port, ..doctor::Target::board(&host) };
+            println!("rt-client {} doctor: {}", env!("CARGO_PKG_VERSION"), target.host);
+            let checks = doctor::run(&target, |c| println!("{c}"));
+            let failed = checks.iter().filter(|c| !c.ok).count();
+            if failed == 0 {
+                println!("all {} checks passed", checks.len());
+                Ok(())
+            } else {
+                Err(format!("{failed} of {} checks failed", checks.len()))
+            }
+        }
         Command::BenchLive { server, events, hz, transport: Transport::Tcp, .. } => {
             board(server.as_deref()).and_then(|(addr, _b)| live::bench(addr, events, hz))
         }

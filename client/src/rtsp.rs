@@ -14,7 +14,7 @@ use std::net::{IpAddr, SocketAddr, TcpStream, UdpSocket};
 use std::time::{Duration, Instant};
 
 use model::Light;
-use rt_services::camera::receiver::{ReceivedFrame, Receiver, ReceiverConfig, ReceiverCounts, MAX_NACK_BYTES};
+use rt_services::camera::receiver::{Quality, ReceivedFrame, Receiver, ReceiverConfig, ReceiverCounts, MAX_NACK_BYTES};
 use rt_services::camera::rtcp;
 use rt_services::camera::rtp::PACKET_BYTES;
 use rt_services::camera::rtsp::RTSP_PORT;
@@ -356,6 +356,55 @@ impl RtspClient {
         Ok(Setup { server_ports, ssrc: transport_ssrc(t) })
     }
 
+    /// `SETUP` RTP and RTCP inside this connection (RFC 2326 section
+    /// 10.12) on channels 0 and 1; keeps the session for the requests
+    /// after.
+    pub fn setup_interleaved(&mut self, url: &str) -> Result<(), RtspError> {
+        let answer = self.request("SETUP", url, "Transport: RTP/AVP/TCP;unicast;interleaved=0-1\r\n", None)?;
+        let session = answer
+            .header("Session")
+            .and_then(session_id)
+            .ok_or_else(|| RtspError::Protocol("SETUP was answered without a Session".into()))?;
+        self.session = Some(session.to_string());
+        Ok(())
+    }
+
+    /// The next packet inside the connection (after an interleaved
+    /// `PLAY`): its channel and bytes. Waits at most the answer timeout.
+    pub fn interleaved_packet(&mut self) -> Result<(u8, Vec<u8>), RtspError> {
+        let mut chunk = [0u8; 16 * 1024];
+        loop {
+            if self.buf.len() >= 4 && self.buf[0] == b'$' {
+                let len = usize::from(u16::from_be_bytes([self.buf[2], self.buf[3]]));
+                if self.buf.len() >= 4 + len {
+                    let channel = self.buf[1];
+                    let packet = self.buf[4..4 + len].to_vec();
+                    self.buf.drain(..4 + len);
+                    return Ok((channel, packet));
+                }
+            } else if !self.buf.is_empty() && self.buf[0] != b'$' {
+                // An RTSP message from the server (a request or a late
+                // answer): taken and dropped whole.
+                match Response::parse(&self.buf)? {
+                    Some((_, used)) => {
+                        self.buf.drain(..used);
+                        continue;
+                    }
+                    None if self.buf.len() > MAX_HEADER_BYTES + MAX_BODY_BYTES => {
+                        return Err(RtspError::Protocol("neither RTP nor RTSP inside the connection".into()))
+                    }
+                    None => {}
+                }
+            }
+            match self.stream.read(&mut chunk) {
+                Ok(0) => return Err(RtspError::Protocol("the server closed the connection".into())),
+                Ok(n) => self.buf.extend_from_slice(&chunk[..n]),
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(RtspError::Io("waiting for RTP inside the connection".into(), e)),
+            }
+        }
+    }
+
     /// `PLAY`: where the stream starts, if announced.
     pub fn play(&mut self, url: &str) -> Result<Option<RtpInfo>, RtspError> {
         Ok(self.request("PLAY", url, "Range: npt=0-\r\n", None)?.header("RTP-Info").and_then(rtp_info))
@@ -581,6 +630,63 @@ impl Drop for RtpStream {
             let _ = self.client.teardown(&self.url);
         }
     }
+}
+
+/// One whole frame of `url` over RTP/UDP from the server at `addr`
+/// within `wait` (lost rows asked for again), then `TEARDOWN`.
+pub fn fetch_udp_frame(addr: SocketAddr, url: &str, wait: Duration) -> Result<Vec<u8>, RtspError> {
+    let mut stream = RtpStream::open(addr, url)?;
+    let until = Instant::now() + wait;
+    let mut frame = None;
+    while frame.is_none() {
+        let left = until.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            break;
+        }
+        match stream.receive(left, |f| {
+            if f.quality != Quality::Damaged {
+                frame = Some(f.pixels.to_vec());
+            }
+        }) {
+            Ok(_) => {}
+            Err(RtspError::Stalled(_)) => break,
+            Err(e) => return Err(e),
+        }
+    }
+    let _ = stream.close();
+    frame.ok_or_else(|| RtspError::Protocol(format!("no whole frame over RTP/UDP in {} s", wait.as_secs())))
+}
+
+/// One whole frame of `url` over RTP inside the RTSP connection to `addr`
+/// within `wait`; the connection is closed after it (the server then ends
+/// the session).
+pub fn fetch_interleaved_frame(addr: SocketAddr, url: &str, wait: Duration) -> Result<Vec<u8>, RtspError> {
+    let mut client = RtspClient::connect(addr)?;
+    client.options(url)?;
+    let sdp = client.describe(url)?;
+    let control = control_url(url, &sdp);
+    client.setup_interleaved(&control)?;
+    client.play(url)?;
+    let mut receiver =
+        Receiver::new(ReceiverConfig::new(CLIENT_SSRC), [vec![0; model::FRAME_BYTES], vec![0; model::FRAME_BYTES]])
+            .map_err(|e| RtspError::Protocol(e.to_string()))?;
+    let start = Instant::now();
+    let mut frame = None;
+    while frame.is_none() && start.elapsed() < wait {
+        let (channel, packet) = client.interleaved_packet()?;
+        if channel != 0 {
+            continue;
+        }
+        let t = rt_services::Instant::from_millis(start.elapsed().as_millis() as u64);
+        receiver.receive(t, &packet, |f| {
+            if f.quality != Quality::Damaged {
+                frame = Some(f.pixels.to_vec());
+            }
+        });
+    }
+    frame.ok_or_else(|| {
+        RtspError::Protocol(format!("no whole frame inside the RTSP connection in {} s", wait.as_secs()))
+    })
 }
 
 #[cfg(test)]
