@@ -113,6 +113,9 @@ enum Command {
     /// Two boards on one virtual LAN, found by name: mDNS probing and
     /// renaming, DNS-SD browsed with python-zeroconf, frames by name.
     Names,
+    /// `rt-client doctor` against hps-sim and the emulated board, healthy
+    /// and with five faults injected: each must be named.
+    Doctor,
     /// The client `lossy-bench` runs inside its network namespace.
     #[command(hide = true)]
     LossyClient(emulated::lossy::ClientArgs),
@@ -144,6 +147,7 @@ fn main() -> ExitCode {
         Command::PerHost => suite::per_host(),
         Command::Addressing => suite::addressing(),
         Command::Names => suite::names(),
+        Command::Doctor => suite::doctor(),
         Command::LossyTest => support::tools::ensure_qemu().and_then(|()| emulated::lossy::suite_test()),
         Command::EntropyTest => support::tools::ensure_qemu()
             .and_then(|()| images::firmware::build("qemu-npcm750", &["sim-accelerator"]))

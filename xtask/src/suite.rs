@@ -187,6 +187,14 @@ fn addressing_on(elf: &std::path::Path) -> Result<()> {
     names_on(elf)
 }
 
+/// `cargo xtask doctor`: the doctor names what is wrong, and ticks what
+/// is right.
+pub fn doctor() -> Result<()> {
+    ensure_qemu()?;
+    println!("==> rt-client doctor against hps-sim and the emulated board, healthy and with faults");
+    crate::emulated::doctor::run()
+}
+
 /// `cargo xtask names`: two boards on one LAN, found by name.
 pub fn names() -> Result<()> {
     ensure_qemu()?;
@@ -197,6 +205,7 @@ pub fn names() -> Result<()> {
 
 fn names_on(elf: &std::path::Path) -> Result<()> {
     ensure_apt_packages(&crate::emulated::names::PACKAGES, None)?;
+    step("build rt-client (release)", cargo(&["build", "--release", "-p", "rt-client"]))?;
     println!("==> two boards on one LAN, found by name (mDNS, DNS-SD) ({})", elf.display());
     crate::emulated::names::run(elf)
 }
@@ -241,8 +250,9 @@ pub fn qemu_tests() -> Result<()> {
     // frame DMA into the ring, pipelined rows) over the simulated
     // accelerator, which passes the boot self-test; and one whose
     // simulated accelerator gets a pixel wrong: the self-test fails and
-    // software serves the frames.
-    use crate::emulated::qemu_e2e::{selftest_fault_lines, SELFTEST_PASS, SELFTEST_SKIPPED};
+    // software serves the frames; and one whose frame DMA's memory never
+    // answers: row mode passes, the FPGA renders rows into the ring.
+    use crate::emulated::qemu_e2e::{frame_port_fault_lines, selftest_fault_lines, SELFTEST_PASS, SELFTEST_SKIPPED};
     let (skipped, pass) = (vec![SELFTEST_SKIPPED.to_string()], vec![SELFTEST_PASS.to_string()]);
     // The frame-mode build over the simulated accelerator (map version 3)
     // also drives the VGA display: attract mode, the display's counter, a
@@ -260,6 +270,7 @@ pub fn qemu_tests() -> Result<()> {
     crate::emulated::hostile::run(&elf)?;
     per_host_on(&elf)?;
     addressing_on(&elf)?;
+    doctor()?;
     // The web page in Chromium: served by hps-sim, then by the emulated
     // board while a hostile client attacks its port.
     crate::host::web_page::run()?;
@@ -269,6 +280,12 @@ pub fn qemu_tests() -> Result<()> {
         (&["sim-accelerator"][..], "frame mode, FPGA frame DMA into the ring (software fallback)", pass.clone(), true),
         (&["sim-accelerator", "row-mode"][..], "row mode, FPGA rows (software fallback)", pass, false),
         (&["selftest-fault"][..], "frame mode, software renderer into the ring", selftest_fault_lines()?, false),
+        (
+            &["frame-port-fault"][..],
+            "frame mode, FPGA rows into the ring (its frame DMA is not used; software fallback)",
+            frame_port_fault_lines(),
+            false,
+        ),
     ] {
         let elf = crate::images::firmware::build("qemu-npcm750", features)?;
         crate::emulated::qemu_e2e::variant(&elf, renderer, &uart, display)?;

@@ -10,6 +10,7 @@ pub mod addressing;
 pub mod bench_fw;
 pub mod boot_log;
 pub mod cost_model;
+pub mod doctor;
 pub mod early_frames;
 pub mod entropy;
 pub mod hostile;

@@ -107,6 +107,23 @@ pub fn run(elf: &Path) -> Result<()> {
     println!(
         "names: python-zeroconf lists both boards' _http, _rtsp and _raytracer services, each resolved to its board"
     );
+    let out = lan
+        .command(0, root().join("target/release/rt-client").to_str().unwrap_or("rt-client"))
+        .args(["discover", "--wait", "4"])
+        .output()
+        .map_err(|e| format!("rt-client discover: {e}"))?;
+    let table = String::from_utf8_lossy(&out.stdout).into_owned();
+    let version = env!("CARGO_PKG_VERSION");
+    for (name, address) in [("raytracer", a), ("raytracer-2", b)] {
+        let line = format!("{name}.local  {address}  seed port 7878  version {version}, renderer fpga, code ok");
+        if !out.status.success() || !table.lines().any(|l| l == line) {
+            return Err(format!(
+                "rt-client discover did not list {line:?}:\n{table}{}",
+                String::from_utf8_lossy(&out.stderr)
+            ));
+        }
+    }
+    println!("names: rt-client discover lists both boards with their version, renderer and fault code");
 
     for (name, address) in [("raytracer", a), ("raytracer-2", b)] {
         let frame = want.clone();

@@ -351,6 +351,21 @@ pub fn selftest_fault_lines() -> Result<Vec<String>> {
     ])
 }
 
+/// What the `frame-port-fault` build must log: frame mode fails its
+/// self-test (its memory never answers), row mode renders the same row
+/// right, so the FPGA renders rows into the ring; the displays stay lit
+/// without the scan-out, and the fault code is E4.
+pub fn frame_port_fault_lines() -> Vec<String> {
+    [
+        "self-test: FAIL: frame mode, ",
+        "FPGA: frame mode failed, row mode renders the same row right",
+        "display: LEDs and 7-segment displays only",
+        "status: E4: frame mode failed its self-test",
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
 /// The display's once-a-second line (firmware/src/display.rs,
 /// rt-services `monitor::Report`): frames shown, refreshes, layout,
 /// attract mode, and what is on screen.

@@ -269,6 +269,23 @@ pub struct ReceiveArgs {
 }
 
 /// Receive and check; print one line.
+/// Which rows of `f` differ from `want`'s, and which of them came after a
+/// NACK: what a wrong frame's diagnosis starts from.
+fn wrong_rows(f: &crate::support::rtsp_client::Frame, want: &[u8]) -> String {
+    let row = model::ROW_BYTES;
+    let wrong: Vec<usize> =
+        (0..want.len() / row).filter(|&y| f.bytes[y * row..(y + 1) * row] != want[y * row..(y + 1) * row]).collect();
+    let repaired: Vec<&usize> = wrong.iter().filter(|y| f.repaired.contains(y)).collect();
+    format!(
+        "{} rows differ ({:?}{}), {} of them came after a NACK ({repaired:?}); {} rows came after a NACK in all",
+        wrong.len(),
+        &wrong[..wrong.len().min(12)],
+        if wrong.len() > 12 { ", ..." } else { "" },
+        repaired.len(),
+        f.repaired.len()
+    )
+}
+
 pub fn receive(args: &ReceiveArgs) -> Result<()> {
     let l: Light = args.light.parse().map_err(|e| format!("--light: {e}"))?;
     let want = model::render_frame(&l);
@@ -285,7 +302,7 @@ pub fn receive(args: &ReceiveArgs) -> Result<()> {
     for k in 0..args.frames {
         let f = s.next_frame(Duration::from_secs(30))?;
         if f.bytes != want {
-            return Err(format!("frame {k} is not the model's"));
+            return Err(format!("frame {k} is not the model's: {}", wrong_rows(&f, &want)));
         }
     }
     let group = s.group.map_or("unicast".to_string(), |g| format!("group {g}"));

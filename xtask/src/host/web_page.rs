@@ -9,8 +9,8 @@ use std::net::TcpListener;
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
-use super::players::{free_ports, wait_for_port, Guard};
 use crate::support::browser::{check_page, ensure_browser, pages_share, PageCheck};
+use crate::support::process::{free_ports, wait_for_port, Guard};
 use crate::support::tools::{cargo, root, step};
 use crate::support::Result;
 

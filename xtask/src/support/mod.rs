@@ -6,6 +6,7 @@
 
 pub mod browser;
 pub mod player;
+pub mod process;
 pub mod rtsp_client;
 pub mod tools;
 

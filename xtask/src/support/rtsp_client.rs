@@ -103,6 +103,8 @@ fn smooth(delay: Option<Duration>, sample: Duration) -> Duration {
 /// A frame being received.
 struct Partial {
     rows: Vec<Option<Vec<u8>>>,
+    /// Rows that came after the frame's NACK (repairs, or late).
+    repaired: Vec<usize>,
     /// A row's sequence number and its line, to number the missing ones.
     known: Option<(u32, usize)>,
     marked: bool,
@@ -127,6 +129,8 @@ pub struct Frame {
     pub timestamp: u32,
     /// 518,400 bytes.
     pub bytes: Vec<u8>,
+    /// The rows that came after a NACK for the frame (repairs, or late).
+    pub repaired: Vec<usize>,
 }
 
 type Headers = BTreeMap<String, String>;
@@ -457,6 +461,7 @@ impl Stream {
         }
         let f = self.partial.entry(ts).or_insert_with(|| Partial {
             rows: vec![None; ROWS],
+            repaired: Vec::new(),
             known: None,
             marked: false,
             nacked_at: None,
@@ -467,6 +472,7 @@ impl Stream {
         } else if f.rows[line].is_none() {
             if let Some(asked) = f.nacked_at {
                 self.repaired_rows += 1;
+                f.repaired.push(line);
                 self.repair_delay = Some(smooth(self.repair_delay, asked.elapsed()));
             }
             f.rows[line] = Some(p[HEADER..].to_vec());
@@ -488,7 +494,12 @@ impl Stream {
         }
         if complete {
             let f = self.partial.remove(&ts).ok_or("frame vanished")?;
-            return Ok(Some(Frame { timestamp: ts, bytes: f.rows.into_iter().flatten().flatten().collect() }));
+            let repaired = f.repaired;
+            return Ok(Some(Frame {
+                timestamp: ts,
+                bytes: f.rows.into_iter().flatten().flatten().collect(),
+                repaired,
+            }));
         }
         self.give_up(now);
         Ok(None)
