@@ -13,6 +13,8 @@ pub struct BootFacts {
     pub fpga_answers: bool,
     /// Its register-map version.
     pub register_map: Option<u16>,
+    /// Its bitstream's build id (0: none recorded).
+    pub fpga_build: Option<u32>,
     /// `"pass"`, `"fail"` or `"skipped"`.
     pub self_test: &'static str,
     /// The self-test's log line, or why it was skipped.
@@ -47,6 +49,19 @@ impl BootFacts {
             link_up,
             has_address,
             vga_fault,
+        }
+    }
+}
+
+/// A bitstream's build id in words: `build 0123abc`, or `no build id`
+/// for 0 (a bitstream built without one, or from before the register).
+pub struct BuildId(pub u32);
+
+impl core::fmt::Display for BuildId {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self.0 {
+            0 => f.write_str("no build id"),
+            id => write!(f, "build {id:07x}"),
         }
     }
 }

@@ -526,6 +526,7 @@ pub fn run<B: Board, P: RegisterPort>(
                     self_test_detail: &facts.self_test_detail,
                     mode,
                     register_map: facts.register_map,
+                    fpga_build: facts.fpga_build,
                     bridges: &facts.bridges,
                     vga,
                     code: code.as_str(),

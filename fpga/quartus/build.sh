@@ -15,6 +15,12 @@ cd "$(dirname "$0")"
 COMPRESS=off
 [ "${1:-}" = "--compressed" ] && COMPRESS=on
 
+# The bitstream's build id (BUILD_ID register): the commit's first 7 hex
+# digits, 0 outside a git checkout.
+RT_BUILD_ID=$(printf '%d' "0x$( (git rev-parse HEAD 2>/dev/null || echo 0) | cut -c1-7)")
+export RT_BUILD_ID
+echo "build id $(printf '%07x' "$RT_BUILD_ID")"
+
 # 1. Platform Designer: system from the script, then HDL generation. The
 #    search path lets it find rt_accel_hw.tcl in this directory.
 qsys-script --script=soc_system.tcl --search-path="$PWD,\$"

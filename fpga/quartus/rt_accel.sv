@@ -9,7 +9,8 @@
 module rt_accel #(
   parameter int unsigned LANES    = 1,
   parameter int unsigned SQRT_BPS = 2,
-  parameter int unsigned DIV_BPS  = 2
+  parameter int unsigned DIV_BPS  = 2,
+  parameter int unsigned BUILD_ID = 0
 ) (
   input  logic        clk_i,
   input  logic        rst_ni,
@@ -79,7 +80,7 @@ module rt_accel #(
   output logic [6:0]  hex4_n_o,
   output logic [6:0]  hex5_n_o
 );
-  rt_top #(.LANES(LANES), .SQRT_BPS(SQRT_BPS), .DIV_BPS(DIV_BPS)) u_rt (
+  rt_top #(.LANES(LANES), .SQRT_BPS(SQRT_BPS), .DIV_BPS(DIV_BPS), .BUILD_ID(BUILD_ID)) u_rt (
     .clk_i, .rst_ni,
     .avs_address_i, .avs_read_i, .avs_write_i, .avs_writedata_i, .avs_readdata_o,
     .axm_awaddr_o, .axm_awlen_o, .axm_awsize_o, .axm_awburst_o, .axm_awcache_o, .axm_awprot_o,

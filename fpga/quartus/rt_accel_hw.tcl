@@ -52,6 +52,10 @@ add_parameter DIV_BPS INTEGER 2
 set_parameter_property DIV_BPS DISPLAY_NAME "Divider bits per pipeline stage"
 set_parameter_property DIV_BPS ALLOWED_RANGES {1 2 3 4}
 set_parameter_property DIV_BPS HDL_PARAMETER true
+add_parameter BUILD_ID INTEGER 0
+set_parameter_property BUILD_ID DISPLAY_NAME "Build id (BUILD_ID register; 0: none)"
+set_parameter_property BUILD_ID ALLOWED_RANGES 0:268435455
+set_parameter_property BUILD_ID HDL_PARAMETER true
 
 # ---- Clock and reset ----------------------------------------------------------
 add_interface clock clock end

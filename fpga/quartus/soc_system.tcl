@@ -124,6 +124,11 @@ set_instance_parameter_value hps_0 TIMING_BOARD_DQ_TO_DQS_SKEW {0.05}
 # ---- Ray-tracer accelerator (rt_accel_hw.tcl) ---------------------------------
 add_instance rt_accel_0 rt_accel
 set_instance_parameter_value rt_accel_0 LANES {1}
+# The build id the firmware logs and /status shows (BUILD_ID, 0x4C):
+# build.sh passes the commit's first 7 hex digits; 0 when built otherwise.
+if {[info exists ::env(RT_BUILD_ID)]} {
+  set_instance_parameter_value rt_accel_0 BUILD_ID $::env(RT_BUILD_ID)
+}
 
 # ---- Connections --------------------------------------------------------------
 add_connection clk_0.clk hps_0.h2f_lw_axi_clock

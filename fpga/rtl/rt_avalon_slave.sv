@@ -28,13 +28,17 @@
 //   0x40 LEDS        RW bits 9:0.
 //   0x44 HEX_LO      RW HEX0..HEX3 at bits 8n+6..8n (1 = lit).
 //   0x48 HEX_HI      RW HEX4 bits 6:0, HEX5 bits 14:8.
+//   0x4C BUILD_ID    R  BUILD_ID, the bitstream's build id (a synthesis
+//                   parameter; 0: none recorded, as the unmapped offset
+//                   read before the register existed).
 //   0x1000 + 4x  R  line buffer word x (x < 480), 0x00RRGGBB (row mode).
 // Everything else reads 0. address_i is the word address; fixed read
 // latency 1.
 module rt_avalon_slave
   import rt_pkg::*;
 #(
-  parameter int unsigned LANES = 1
+  parameter int unsigned LANES = 1,
+  parameter logic [31:0] BUILD_ID = 32'h0
 ) (
   input  logic        clk_i,
   input  logic        rst_ni,
@@ -100,6 +104,7 @@ module rt_avalon_slave
   localparam logic [10:0] AddrLeds        = 11'h010;
   localparam logic [10:0] AddrHexLo       = 11'h011;
   localparam logic [10:0] AddrHexHi       = 11'h012;
+  localparam logic [10:0] AddrBuildId     = 11'h013;
 
   coord_t row_q;
   vec3_t light_q;
@@ -236,6 +241,7 @@ module rt_avalon_slave
         AddrLeds:        csr_rdata_q <= {22'd0, leds_q};
         AddrHexLo:       csr_rdata_q <= hex_lo_q;
         AddrHexHi:       csr_rdata_q <= {16'd0, hex_hi_q};
+        AddrBuildId:     csr_rdata_q <= BUILD_ID;
         default:         csr_rdata_q <= '0;
       endcase
     end

@@ -11,7 +11,8 @@ module rt_top
 #(
   parameter int unsigned LANES    = 1,  // power of two dividing 480
   parameter int unsigned SQRT_BPS = 2,  // root bits per square-root stage
-  parameter int unsigned DIV_BPS  = 2   // quotient bits per divider stage
+  parameter int unsigned DIV_BPS  = 2,  // quotient bits per divider stage
+  parameter logic [31:0] BUILD_ID = 32'h0  // read at BUILD_ID (0x4C); 0: none
 ) (
   input  logic        clk_i,
   input  logic        rst_ni,
@@ -96,7 +97,7 @@ module rt_top
   logic [31:0] hex_lo;
   logic [15:0] hex_hi;
 
-  rt_avalon_slave #(.LANES(LANES)) u_slave (
+  rt_avalon_slave #(.LANES(LANES), .BUILD_ID(BUILD_ID)) u_slave (
     .clk_i, .rst_ni,
     .address_i(avs_address_i), .read_i(avs_read_i), .write_i(avs_write_i),
     .writedata_i(avs_writedata_i), .readdata_o(avs_readdata_o),

@@ -61,6 +61,9 @@ constexpr int kReadIssuing = 4;
 // nothing for this long.
 constexpr uint64_t kVgaStallCycles = 1u << 17;
 constexpr uint32_t kIdValue = 0x52540003u;
+// BUILD_ID (0x4C): the co-simulation is verilated with -GBUILD_ID=<this>
+// (xtask/src/fpga/rtl.rs, COSIM_BUILD_ID).
+constexpr uint32_t kBuildIdOffset = 0x4c, kBuildId = 0x0123abcu;
 constexpr uint32_t kKeyDebounce = 1u << 20;  // hal-avalon KEY_DEBOUNCE_CLOCKS
 constexpr int kWidth = 480, kHeight = 360;
 constexpr uint32_t kRowBytes = kWidth * 3, kFrameBytes = kRowBytes * kHeight;
@@ -889,7 +892,10 @@ void check_registers(Bench &b, const Golden &extra, const Golden *frame) {
   expect_eq("ROWS_DONE after reset", b.read(kRowsDone), 0);
   expect_eq("FRAME_CONTROL reads 0", b.read(kFrameControl), 0);
   expect_eq("CONTROL reads 0", b.read(kControl), 0);
-  expect_eq("unmapped 0x4c", b.read(0x4c), 0);
+  expect_eq("BUILD_ID", b.read(kBuildIdOffset), kBuildId);
+  b.write(kBuildIdOffset, 0xffffffffu);
+  expect_eq("BUILD_ID ignores writes", b.read(kBuildIdOffset), kBuildId);
+  expect_eq("unmapped 0x50", b.read(0x50), 0);
   expect_eq("unmapped 0xffc", b.read(0xffc), 0);
   expect_eq("line window past 480", b.read(kLine + 4 * 480), 0);
   expect_eq("line window end", b.read(0x1ffc), 0);

@@ -7,11 +7,11 @@
 //!
 //! | window | bridge offset | size | contents |
 //! |---|---|---|---|
-//! | CSR block | [`CSR_OFFSET`] `0x0000` | 19 registers (`0x00..=0x48`) | [`Csr`] |
+//! | CSR block | [`CSR_OFFSET`] `0x0000` | 20 registers (`0x00..=0x4C`) | [`Csr`] |
 //! | line buffer | [`LINE_BUFFER_OFFSET`] `0x1000` | [`LINE_WORDS`] x 32 bit | pixel `x` at `0x1000 + 4 * x`, word `0x00RRGGBB` |
 //!
 //! Every register is 32 bits wide and word aligned. Offsets of the bridge
-//! window outside the nineteen registers and the 480 line-buffer words are not
+//! window outside the twenty registers and the 480 line-buffer words are not
 //! part of the contract, except that unmapped offsets of the CSR block read 0.
 //!
 //! Map version 2 adds the frame DMA (`0x1C..=0x28`) to version 1's row
@@ -20,7 +20,9 @@
 //! ([Stopping a frame](#stopping-a-frame)) belong to version 2: no
 //! version 2 bitstream without them was ever released. Map version 3 adds
 //! the VGA scan-out and the board I/O block (`0x2C..=0x48`,
-//! [`ID_VERSION_VGA`]); earlier registers are unchanged.
+//! [`ID_VERSION_VGA`]); earlier registers are unchanged. `BUILD_ID`
+//! (`0x4C`) came later without a new version: it was an unmapped offset
+//! before, which reads 0, the value that says "no build id recorded".
 //!
 //! # CSR block
 //!
@@ -45,6 +47,7 @@
 //! | `0x40` | [`Csr::Leds`] | R/W | bits 9:0: LEDR9..LEDR0 (1 = lit). |
 //! | `0x44` | [`Csr::HexLo`] | R/W | HEX0..HEX3, 7 bits each at bits `8n+6..8n` (segment a = bit 0 .. g = bit 6; 1 = lit: the RTL drives the active-low pins inverted). |
 //! | `0x48` | [`Csr::HexHi`] | R/W | HEX4 in bits 6:0, HEX5 in bits 14:8, as [`Csr::HexLo`]. |
+//! | `0x4C` | [`Csr::BuildId`] | R | the bitstream's build id, a synthesis parameter (`fpga/quartus/build.sh` sets the first 7 hex digits of the commit it was built from); 0: none recorded. Writes ignored. |
 //!
 //! # Behaviour
 //!
@@ -202,11 +205,13 @@ pub enum Csr {
     HexLo,
     /// `0x48`, read/write: HEX4 and HEX5 segments.
     HexHi,
+    /// `0x4C`, read-only: the bitstream's build id (0: none recorded).
+    BuildId,
 }
 
 impl Csr {
     /// Every register, in address order.
-    pub const ALL: [Csr; 19] = [
+    pub const ALL: [Csr; 20] = [
         Csr::Control,
         Csr::Status,
         Csr::RowY,
@@ -226,6 +231,7 @@ impl Csr {
         Csr::Leds,
         Csr::HexLo,
         Csr::HexHi,
+        Csr::BuildId,
     ];
 
     /// Byte offset of the register inside the CSR block.
@@ -250,6 +256,7 @@ impl Csr {
             Csr::Leds => 0x40,
             Csr::HexLo => 0x44,
             Csr::HexHi => 0x48,
+            Csr::BuildId => 0x4C,
         }
     }
 
@@ -276,6 +283,7 @@ impl Csr {
             0x40 => Some(Csr::Leds),
             0x44 => Some(Csr::HexLo),
             0x48 => Some(Csr::HexHi),
+            0x4C => Some(Csr::BuildId),
             _ => None,
         }
     }
@@ -422,7 +430,7 @@ mod tests {
             assert_eq!(Csr::at_offset(csr.offset()), Some(csr));
             assert_eq!(Csr::at_offset(csr.offset() + 3), Some(csr));
         }
-        assert_eq!(Csr::at_offset(0x4C), None);
+        assert_eq!(Csr::at_offset(0x50), None);
         assert_eq!(Csr::at_offset(CSR_WINDOW - 4), None);
     }
 

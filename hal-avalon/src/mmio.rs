@@ -63,6 +63,8 @@ pub struct CsrBlock {
     pub hex_lo: RW<u32>,
     /// `0x48` HEX_HI.
     pub hex_hi: RW<u32>,
+    /// `0x4C` BUILD_ID (read-only).
+    pub build_id: RO<u32>,
 }
 
 /// Words between the end of the CSR block and the line buffer.
@@ -102,6 +104,7 @@ const _: () = {
     assert!(offset_of!(CsrBlock, leds) == Csr::Leds.offset());
     assert!(offset_of!(CsrBlock, hex_lo) == Csr::HexLo.offset());
     assert!(offset_of!(CsrBlock, hex_hi) == Csr::HexHi.offset());
+    assert!(offset_of!(CsrBlock, build_id) == Csr::BuildId.offset());
     assert!(offset_of!(RegisterBlock, line) == LINE_BUFFER_OFFSET - CSR_OFFSET);
 };
 
@@ -182,6 +185,7 @@ impl RegisterPort for MmioPort {
             Csr::Leds => c.leds.read(),
             Csr::HexLo => c.hex_lo.read(),
             Csr::HexHi => c.hex_hi.read(),
+            Csr::BuildId => c.build_id.read(),
         }
     }
 
@@ -207,7 +211,7 @@ impl RegisterPort for MmioPort {
                 Csr::Leds => c.leds.write(value),
                 Csr::HexLo => c.hex_lo.write(value),
                 Csr::HexHi => c.hex_hi.write(value),
-                Csr::Status | Csr::Id | Csr::FrameStatus | Csr::RowsDone | Csr::Switches => {}
+                Csr::Status | Csr::Id | Csr::FrameStatus | Csr::RowsDone | Csr::Switches | Csr::BuildId => {}
             }
         }
     }

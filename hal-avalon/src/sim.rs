@@ -139,6 +139,8 @@ pub struct SimAccelerator<M = NoMemory> {
     fault: Option<Fault>,
     /// `(row, x)`: that pixel comes out inverted (self-test fault injection).
     wrong_pixel: Option<(u16, u16)>,
+    /// BUILD_ID (0 unless set: a bitstream built without one).
+    build_id: u32,
     status_reads: u32,
     starts: u32,
     rows_finished: u32,
@@ -255,6 +257,7 @@ impl<M: DmaTarget> SimAccelerator<M> {
             },
             fault: None,
             wrong_pixel: None,
+            build_id: 0,
             status_reads: 0,
             starts: 0,
             rows_finished: 0,
@@ -364,6 +367,12 @@ impl<M: DmaTarget> SimAccelerator<M> {
         self.fault = fault;
     }
 
+    /// The build id BUILD_ID reads, as a bitstream's synthesis parameter
+    /// sets it (0: none recorded, the default).
+    pub fn set_build_id(&mut self, id: u32) {
+        self.build_id = id;
+    }
+
     /// Make pixel `x` of row `y` come out wrong (RGB inverted) in row and
     /// frame mode from now on, or right again with `None`: a computing
     /// error, as opposed to the bus and timing [`Fault`]s.
@@ -452,7 +461,7 @@ impl<M: DmaTarget> SimAccelerator<M> {
             Csr::Leds => self.board.leds = value & LEDS_MASK,
             Csr::HexLo => self.board.hex_lo = value & HEX_LO_MASK,
             Csr::HexHi => self.board.hex_hi = value & HEX_HI_MASK,
-            Csr::Status | Csr::Id | Csr::FrameStatus | Csr::RowsDone | Csr::Switches => {}
+            Csr::Status | Csr::Id | Csr::FrameStatus | Csr::RowsDone | Csr::Switches | Csr::BuildId => {}
         }
     }
 
@@ -489,6 +498,7 @@ impl<M: DmaTarget> SimAccelerator<M> {
             Csr::Leds => self.board.leds,
             Csr::HexLo => self.board.hex_lo,
             Csr::HexHi => self.board.hex_hi,
+            Csr::BuildId => self.build_id,
         }
     }
 

@@ -5,6 +5,7 @@
 
 use hal_avalon::map::*;
 use hal_avalon::sim::{Fault, SimAccelerator, LINE_POISON};
+use hal_avalon::RegisterPort;
 use model::Light;
 
 const CONTROL: usize = CSR_OFFSET; // + 0x00
@@ -186,4 +187,15 @@ fn reset_restores_power_on_state_and_keeps_configuration() {
     assert_eq!(sim.busy_polls(), 9);
     sim.bus_write(CONTROL, CONTROL_START);
     assert_eq!(run_to_idle(&mut sim), (9, STATUS_DONE));
+}
+
+#[test]
+fn build_id_reads_what_the_bitstream_was_built_with_and_ignores_writes() {
+    let mut sim = SimAccelerator::new();
+    assert_eq!(sim.read(Csr::BuildId), 0, "none recorded");
+    sim.set_build_id(0x0012_3abc);
+    sim.write(Csr::BuildId, 0);
+    assert_eq!(sim.read(Csr::BuildId), 0x0012_3abc);
+    sim.reset();
+    assert_eq!(sim.read(Csr::BuildId), 0x0012_3abc, "a synthesis parameter survives reset");
 }

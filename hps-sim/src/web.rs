@@ -282,6 +282,7 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
                     crate::RenderMode::Rows => "rows",
                 },
                 register_map: Some(hal_avalon::map::ID_VERSION),
+                fpga_build: Some(0),
                 bridges: "not a board (hps-sim)",
                 vga: "off: not a board (hps-sim)",
                 code: if shared.self_test.result == "fail" { "E2" } else { "ok" },

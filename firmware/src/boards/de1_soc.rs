@@ -5,7 +5,7 @@
 use core::fmt::{self, Write};
 
 use hal_avalon::map::{ID_MAGIC, LINE_BUFFER_OFFSET, LW_BRIDGE_BASE};
-use hal_avalon::MmioPort;
+use hal_avalon::{MmioPort, RegisterPort};
 use soc::cyclone_v::FpgaMode;
 use soc::global_timer::GlobalTimer;
 use soc::mmu::MemType;
@@ -43,8 +43,10 @@ impl Renderer for De1Soc {
                 return frames;
             }
         };
-        let _ = writeln!(log, "FPGA: ray tracer, register map version {version}");
-        (facts.fpga_answers, facts.register_map) = (true, Some(version));
+        let mut accel = accel;
+        let build = accel.port_mut().read(hal_avalon::map::Csr::BuildId);
+        let _ = writeln!(log, "FPGA: ray tracer, register map version {version}, {}", crate::health::BuildId(build));
+        (facts.fpga_answers, facts.register_map, facts.fpga_build) = (true, Some(version), Some(build));
         let mut frames = match crate::selftest::gate(log, Some(accel), caches, facts) {
             Gated::Passed(accel) if version >= hal_avalon::map::ID_VERSION_FRAMES => {
                 Frames::ring(Some(accel), None, caches)

@@ -43,8 +43,17 @@ impl Renderer for QemuNpcm750 {
             }
             crate::render::accelerator(ClockedSim::new(sim, timer), timer)
         });
-        if fpga.is_some() {
-            (facts.fpga_answers, facts.register_map) = (true, Some(hal_avalon::map::ID_VERSION));
+        let mut fpga = fpga;
+        if let Some(accel) = &mut fpga {
+            let build = accel.port_mut().read(Csr::BuildId);
+            let _ = writeln!(
+                log,
+                "FPGA: simulated, register map version {}, {}",
+                hal_avalon::map::ID_VERSION,
+                crate::health::BuildId(build)
+            );
+            (facts.fpga_answers, facts.register_map, facts.fpga_build) =
+                (true, Some(hal_avalon::map::ID_VERSION), Some(build));
         }
         let mut frames = match (crate::selftest::gate(log, fpga, caches, facts), cfg!(feature = "row-mode")) {
             (Gated::Passed(accel), true) => Frames::rows(Some(accel)),

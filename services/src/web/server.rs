@@ -944,6 +944,7 @@ mod tests {
             self_test_detail: "",
             mode: "frames",
             register_map: None,
+            fpga_build: None,
             bridges: "not a board",
             vga: "off",
             code: "ok",
@@ -1089,7 +1090,7 @@ mod tests {
     fn status_is_json_and_errors_have_their_codes() {
         let (s, _) = answer("GET /status HTTP/1.1\r\nHost: raytracer\r\n\r\n");
         assert!(s.contains("application/json") && s.contains("\"rtsp_port\":8554,\"version\":\"0.1.0\",\"name\":\"raytracer\",\"address\":null,\"address_from\":\"none\","), "{s}");
-        assert!(s.ends_with(",\"mode\":\"frames\",\"register_map\":null,\"bridges\":\"not a board\",\"vga\":\"off\",\"code\":\"ok\"}"), "{s}");
+        assert!(s.ends_with(",\"mode\":\"frames\",\"register_map\":null,\"fpga_build\":null,\"bridges\":\"not a board\",\"vga\":\"off\",\"code\":\"ok\"}"), "{s}");
         for (req, code) in [
             ("GET /nope HTTP/1.1\r\nHost: raytracer\r\n\r\n", "404"),
             ("DELETE / HTTP/1.1\r\nHost: raytracer\r\n\r\n", "405"),

@@ -55,6 +55,9 @@ pub struct Health<'a> {
     pub mode: &'a str,
     /// The accelerator's register-map version, if one answered.
     pub register_map: Option<u16>,
+    /// Its bitstream's build id (BUILD_ID: the commit's first 7 hex
+    /// digits; 0: none recorded), if one answered.
+    pub fpga_build: Option<u32>,
     /// The FPGA's bridges and its SDRAM port as the firmware read them
     /// (`"not a board"` off the board).
     pub bridges: &'a str,
@@ -169,6 +172,10 @@ impl BoardStatus<'_> {
             Some(v) => write!(w, ",\"register_map\":{v}")?,
             None => w.write_str(",\"register_map\":null")?,
         }
+        match h.fpga_build {
+            Some(b) => write!(w, ",\"fpga_build\":\"{b:07x}\"")?,
+            None => w.write_str(",\"fpga_build\":null")?,
+        }
         w.write_str(",\"bridges\":")?;
         json_string(w, h.bridges)?;
         w.write_str(",\"vga\":")?;
@@ -238,6 +245,7 @@ mod tests {
                 self_test_detail: "self-test: FAIL: frame mode",
                 mode: "rows",
                 register_map: Some(3),
+                fpga_build: Some(0x012_3abc),
                 bridges: "lwhps2fpga out of reset",
                 vga: "off: frame mode failed",
                 code: "E1",
@@ -247,7 +255,7 @@ mod tests {
         s.write_json(&mut out).unwrap();
         assert_eq!(
             out,
-            r#"{"uptime_s":61,"renderer":"fpga","link":"1000 Mbit/s \"full\"\u000a","frames_rendered":7,"frames_sent":5,"viewers":{"web":1,"web_max":4,"seed":2,"rtsp":3},"rtsp_port":8554,"version":"0.1.0","name":"raytracer-2","address":"169.254.7.9","address_from":"link-local","self_test":"fail","self_test_detail":"self-test: FAIL: frame mode","mode":"rows","register_map":3,"bridges":"lwhps2fpga out of reset","vga":"off: frame mode failed","code":"E1"}"#
+            r#"{"uptime_s":61,"renderer":"fpga","link":"1000 Mbit/s \"full\"\u000a","frames_rendered":7,"frames_sent":5,"viewers":{"web":1,"web_max":4,"seed":2,"rtsp":3},"rtsp_port":8554,"version":"0.1.0","name":"raytracer-2","address":"169.254.7.9","address_from":"link-local","self_test":"fail","self_test_detail":"self-test: FAIL: frame mode","mode":"rows","register_map":3,"fpga_build":"0123abc","bridges":"lwhps2fpga out of reset","vga":"off: frame mode failed","code":"E1"}"#
         );
     }
 }

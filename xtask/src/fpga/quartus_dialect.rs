@@ -564,6 +564,11 @@ pub fn run(root: &Path) -> Result<()> {
 mod tests {
     use super::*;
 
+    #[test]
+    fn the_repositorys_sources_pass_the_gate() {
+        run(&crate::support::tools::root()).expect("fpga/rtl and fpga/quartus in Quartus 18.1's dialect");
+    }
+
     fn rules(src: &str) -> Vec<&'static str> {
         check_source(src).into_iter().map(|f| f.rule).collect()
     }

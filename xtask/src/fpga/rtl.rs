@@ -235,15 +235,20 @@ pub fn vga_args(sim: &mut Command, maps: &[PathBuf; 2]) {
     ));
 }
 
+/// The build id the co-simulation's rt_top is built with (its testbench,
+/// fpga/tb/tb_rt_top.cpp, `kBuildId`, reads it back at BUILD_ID).
+const COSIM_BUILD_ID: u32 = 0x0012_3abc;
+
 /// Verilate rt_top with the C++ testbench into target/rtl/obj-lanesN.
 pub fn build_cosim(root: &Path, out: &Path, files: &[String], lanes: u32) -> Result<PathBuf> {
     let lanes_param = format!("-GLANES={lanes}");
+    let build_param = format!("-GBUILD_ID={COSIM_BUILD_ID}");
     verilator_build(
         root,
         &out.join(format!("obj-lanes{lanes}")),
         files,
         "rt_top",
-        &["--x-assign", "unique", "--x-initial", "unique", &lanes_param],
+        &["--x-assign", "unique", "--x-initial", "unique", &lanes_param, &build_param],
         &[root.join("fpga/tb/tb_rt_top.cpp")],
         &format!("verilator build of the co-simulation, LANES={lanes}"),
     )
