@@ -540,6 +540,8 @@ pub struct Camera<const N: usize = MAX_SESSIONS> {
     /// Outputs finishing a late frame ([`Cursor::Finishing`]): the rest
     /// of the main loop skips them, at no cost, while there are none.
     late_outputs: u32,
+    /// The held slots last given to the source ([`give_held`](Self::give_held)).
+    held_given: u32,
 }
 
 impl<const N: usize> Default for Camera<N> {
@@ -567,6 +569,7 @@ impl<const N: usize> Camera<N> {
             frame_edges: 0,
             output_changes: 0,
             late_outputs: 0,
+            held_given: 0,
         }
     }
 
@@ -651,6 +654,12 @@ impl<const N: usize> Camera<N> {
             }),
         };
         self.windows.iter().fold(late, |m, w| m | w.held())
+    }
+
+    /// Give the source the slots held now ([`held`](Self::held)).
+    pub fn give_held<S: SlotSource>(&mut self, source: &mut S) {
+        self.held_given = self.held();
+        source.set_held(self.held_given);
     }
 
     /// A session the sender ended itself, and why: the RTSP server must
@@ -892,7 +901,7 @@ impl<const N: usize> Camera<N> {
         }
         m.media_at_resume = m.media_ticks(now) + 1;
         m.running = false;
-        source.set_held(self.held());
+        self.give_held(source);
     }
 
     /// `session` is over: its membership goes; an output no session uses
@@ -934,7 +943,7 @@ impl<const N: usize> Camera<N> {
             }
         }
         self.windows[media].clear(MIN_REPAIR_HOLD);
-        source.set_held(self.held());
+        self.give_held(source);
     }
 
     /// End every session of output `o` (its client is gone).
@@ -1110,7 +1119,7 @@ impl<const N: usize> Camera<N> {
                 self.outputs.iter().flatten().filter(|o| matches!(o.cursor, Cursor::Finishing { .. })).count() as u32;
         }
         if progress {
-            source.set_held(self.held());
+            self.give_held(source);
         }
         progress
     }
@@ -1215,11 +1224,19 @@ impl<const N: usize> Camera<N> {
             }
             let ticks = media.media_ticks(now);
             let light = media.spec.light_at(Duration::from_micros(ticks * 100 / 9), media.live);
+            // The window keeps the frame before the new one and no older
+            // one: forget the older one first, so that its slot may take the
+            // new frame (the source learns at once; with a late output,
+            // which may read that slot too, at the poll's end).
+            if let Some(p) = media.previous_first {
+                let released = window.forget_before(p).released;
+                if released != 0 && self.late_outputs == 0 {
+                    self.held_given &= !released;
+                    source.set_held(self.held_given);
+                }
+            }
             match source.begin(&light) {
                 Ok(Some(slot)) => {
-                    if let Some(p) = media.previous_first {
-                        window.forget_before(p);
-                    }
                     let stamp = media.packetiser.begin_frame(ticks);
                     let first_seq = media.packetiser.next_seq();
                     media.current =
@@ -1382,6 +1399,14 @@ impl<const N: usize> Camera<N> {
         let sending =
             self.outputs.iter().flatten().any(|o| o.media == mi && matches!(o.cursor, Cursor::Sending { .. }));
         if failed || (frame.landed == ROWS && !sending) {
+            // The ring frees the slot, but the repair window (and any late
+            // output) still reads it: the source must know at once, not at
+            // the poll's end, or a stream polled after this one could
+            // begin its frame there and overwrite these repairs.
+            if let Some(bit) = 1u32.checked_shl(frame.slot as u32) {
+                self.held_given |= bit;
+                source.set_held(self.held_given);
+            }
             source.end(frame.slot);
             window.restart_hold(frame.first_seq, now);
             if failed {
@@ -1541,7 +1566,7 @@ impl<S: SlotSource, const N: usize> Streams for Bound<'_, S, N> {
         fresh: Fresh,
     ) -> Result<SetUp, Status> {
         let r = self.camera.setup_session(session, spec, transport, client, fresh, self.now, self.source);
-        self.source.set_held(self.camera.held());
+        self.camera.give_held(self.source);
         r
     }
 
@@ -1555,7 +1580,7 @@ impl<S: SlotSource, const N: usize> Streams for Bound<'_, S, N> {
 
     fn end(&mut self, session: SessionId, _why: EndReason) {
         self.camera.leave(session, self.now, self.source, true);
-        self.source.set_held(self.camera.held());
+        self.camera.give_held(self.source);
     }
 
     fn set_light(&mut self, session: SessionId, light: Light) {
