@@ -673,7 +673,16 @@ pub fn fetch_interleaved_frame(addr: SocketAddr, url: &str, wait: Duration) -> R
     let start = Instant::now();
     let mut frame = None;
     while frame.is_none() && start.elapsed() < wait {
-        let (channel, packet) = client.interleaved_packet()?;
+        // No read waits past `wait` (a server that goes silent ends it).
+        let left = wait.saturating_sub(start.elapsed()).max(Duration::from_millis(1));
+        client.stream.set_read_timeout(Some(left)).map_err(io_error("RTSP connection"))?;
+        let (channel, packet) = match client.interleaved_packet() {
+            Ok(p) => p,
+            Err(RtspError::Io(_, e)) if matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => {
+                break;
+            }
+            Err(e) => return Err(e),
+        };
         if channel != 0 {
             continue;
         }

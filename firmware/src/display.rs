@@ -33,7 +33,10 @@ impl Display {
     /// never in the `bench` build.
     pub fn probe<P: RegisterPort>(frames: &mut Frames<P>, log: &mut impl Write) -> Option<Display> {
         let Frames::Ring(ring) = frames else { return None };
-        let scan_out = ring.engine().primary_kept().is_some();
+        // The scan-out runs where the frame DMA renders (it reads the same
+        // memory); an accelerator kept only for its board I/O (it failed
+        // its self-test) or rendering rows gets the LEDs and displays.
+        let scan_out = ring.engine().primary_active();
         let port = port(ring)?;
         let id = port.read(Csr::Id);
         if !has_board_io(id) {
@@ -53,7 +56,7 @@ impl Display {
         } else {
             let _ = writeln!(
                 log,
-                "display: LEDs and 7-segment displays only (register map version {}): VGA off, its memory port failed with the frame DMA's",
+                "display: LEDs and 7-segment displays only (register map version {}): VGA off, the frame DMA failed its self-test",
                 id & 0xffff
             );
         }
@@ -63,7 +66,7 @@ impl Display {
     /// The VGA output in words, for `/status`.
     pub fn vga(&self) -> &'static str {
         match (self.scan_out, self.monitor.scanout().enabled(), self.monitor.scanout().port_fault()) {
-            (false, _, _) => "off: the frame DMA failed its self-test, and the scan-out reads the same memory",
+            (false, _, _) => "off: the FPGA's frame DMA is not used (self-test), and the scan-out needs it",
             (true, _, true) => "on, memory port fault (check fpgaportrst)",
             (true, true, false) => "on",
             (true, false, false) => "starting",

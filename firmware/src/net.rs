@@ -473,7 +473,8 @@ pub fn run<B: Board, P: RegisterPort>(
         // The fault code and the HPS LED's blinks, ten times a second (not
         // on every turn: the frame path's instruction count, bench-fw).
         if now_us >= indicators_at {
-            indicators_at = now_us + INDICATORS_US;
+            // On a grid, so that the LED's 100 ms flashes keep their length.
+            indicators_at = (now_us / INDICATORS_US + 1) * INDICATORS_US;
             mode = frames.mode();
             let in_use = mode != "software";
             let vga_fault = display.as_ref().is_some_and(Display::vga_fault);

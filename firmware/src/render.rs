@@ -208,6 +208,16 @@ impl<P: RegisterPort> Frames<P> {
         Frames::Rows(RowFrames::new(Fallback::new(primary, bench::TimedRows::new(SoftwareRenderer))))
     }
 
+    /// Frame mode rendered in software, the accelerator `kept` only for its
+    /// board I/O (it failed its self-test).
+    pub fn ring_board_io_only(kept: Option<Accel<P>>, caches: Caches) -> Frames<P> {
+        let mut frames = Frames::ring(kept, None, caches);
+        if let Frames::Ring(r) = &mut frames {
+            r.engine().keep_primary_off();
+        }
+        frames
+    }
+
     /// Bus addresses of the ring's slots, in frame mode (the network
     /// camera points the MAC at its rows there).
     pub fn slot_addresses(&self) -> Option<[u32; RING_SLOTS]> {

@@ -41,8 +41,10 @@ pub enum Gated<P: RegisterPort> {
     /// Row mode only: frame mode failed and row mode renders the failing
     /// row right (the frame path's fault, `selftest::frame_path_only`).
     RowsOnly(Accel<P>),
-    /// Nothing: the software renderer makes every frame.
-    Software,
+    /// Nothing: the software renderer makes every frame. The accelerator,
+    /// if one answered, is kept for its board I/O (the displays show the
+    /// fault code), never to render.
+    Software(Option<Accel<P>>),
 }
 
 /// Self-test `fpga`, log the outcome and keep it in `facts`; what the
@@ -58,7 +60,7 @@ pub fn gate<P: RegisterPort>(
         let _ = writeln!(log, "{why}");
         facts.self_test = "skipped";
         facts.set_detail(why);
-        return Gated::Software;
+        return Gated::Software(None);
     };
     let start = crate::platform::TIMER.now_us();
     let report = selftest::run(
@@ -87,5 +89,5 @@ pub fn gate<P: RegisterPort>(
         return Gated::RowsOnly(accel);
     }
     let _ = writeln!(log, "FPGA: failed its self-test: accelerator not used, software renderer from now on");
-    Gated::Software
+    Gated::Software(Some(accel))
 }

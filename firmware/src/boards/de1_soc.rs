@@ -59,7 +59,7 @@ impl Renderer for De1Soc {
                 burst_line_buffer(log, caches);
                 Frames::ring(None, Some(accel), caches)
             }
-            Gated::Software => Frames::ring(None, None, caches),
+            Gated::Software(kept) => Frames::ring_board_io_only(kept, caches),
         };
         let _ = writeln!(log, "renderer: {}", frames.describe());
         frames

@@ -59,8 +59,8 @@ impl Renderer for QemuNpcm750 {
             (Gated::Passed(accel), true) => Frames::rows(Some(accel)),
             (Gated::Passed(accel), false) => Frames::ring(Some(accel), None, caches),
             (Gated::RowsOnly(accel), _) => Frames::ring(None, Some(accel), caches),
-            (Gated::Software, true) => Frames::rows(None),
-            (Gated::Software, false) => Frames::ring(None, None, caches),
+            (Gated::Software(_), true) => Frames::rows(None),
+            (Gated::Software(kept), false) => Frames::ring_board_io_only(kept, caches),
         };
         let _ = writeln!(log, "renderer: {}", frames.describe());
         frames

@@ -78,6 +78,13 @@ impl<P, F> FallbackEngine<P, F> {
         &mut self.fallback
     }
 
+    /// Stop using the primary from now on, keeping it (its device may
+    /// have more than frames to offer: board I/O), without the
+    /// switch-off event (a caller's own decision, logged by it).
+    pub fn keep_primary_off(&mut self) {
+        self.active = false;
+    }
+
     /// `true` once, right after the primary was switched off.
     pub fn take_switched_off(&mut self) -> bool {
         core::mem::take(&mut self.switched_off)

@@ -324,9 +324,9 @@ pub fn head(out: &mut Out, status: Status, length: Option<usize>, extra: &[(&str
 }
 
 /// `core::fmt::Write` into a byte vector (heapless's `Vec` has none).
-pub struct Writer<'a>(pub &'a mut Out);
+pub struct Writer<'a, const N: usize = OUT_BYTES>(pub &'a mut Vec<u8, N>);
 
-impl Write for Writer<'_> {
+impl<const N: usize> Write for Writer<'_, N> {
     fn write_str(&mut self, s: &str) -> core::fmt::Result {
         self.0.extend_from_slice(s.as_bytes()).map_err(|_| core::fmt::Error)
     }

@@ -558,18 +558,21 @@ impl<F: Copy> Connection<F> {
                 Action::Write
             }
             ("/status", Upgrade::None) => {
-                let mut json = Out::new();
-                let _ = cx.status.write_json(&mut http::Writer(&mut json));
+                // The JSON in the larger text buffer (`/log`'s): with the
+                // longest values it is about 930 bytes.
+                self.text.clear();
+                self.text_sent = 0;
+                let _ = cx.status.write_json(&mut http::Writer(&mut self.text));
                 self.small.clear();
                 self.small_sent = 0;
                 let _ = http::head(
                     &mut self.small,
                     Status::Ok,
-                    Some(json.len()),
+                    Some(self.text.len()),
                     &[("Content-Type", "application/json"), ("Cache-Control", "no-store")],
                 );
-                if request.method == Method::Get {
-                    let _ = self.small.extend_from_slice(&json);
+                if request.method != Method::Get {
+                    self.text.clear();
                 }
                 self.body = &[];
                 self.moved_at = now;
@@ -1084,6 +1087,67 @@ mod tests {
         p.step();
         let head = p.text();
         assert!(head.ends_with("\r\n\r\n") && head.contains("Content-Length: 44\r\n"), "{head}");
+    }
+
+    #[test]
+    fn the_longest_status_goes_out_whole() {
+        // The longest values the firmware can give (BootFacts: a 240-byte
+        // self-test line, 96 bytes of bridges; a 63-byte name).
+        let (name, detail, bridges) = ("n".repeat(63), "d".repeat(240), "b".repeat(96));
+        let status = BoardStatus {
+            uptime_s: u64::MAX,
+            renderer: "software",
+            link: "1000 Mbit/s full duplex",
+            frames_rendered: u64::MAX,
+            frames_sent: u64::MAX,
+            viewers: Viewers { web: 99, web_max: 99, seed: 99, rtsp: 99 },
+            rtsp_port: 65535,
+            identity: Identity {
+                version: "0.1.0",
+                name: &name,
+                address: Some(core::net::Ipv4Addr::new(255, 255, 255, 255)),
+                address_from: "link-local",
+            },
+            health: Health {
+                self_test: "skipped",
+                self_test_detail: &detail,
+                mode: "software",
+                register_map: Some(u16::MAX),
+                fpga_build: Some(u32::MAX),
+                bridges: &bridges,
+                vga: "off: the FPGA's frame DMA is not used (self-test), and the scan-out needs it",
+                code: "E7",
+            },
+        };
+        let mut c: Connection<usize> = Connection::new(Instant::ZERO);
+        c.receive(b"GET /status HTTP/1.1\r\nHost: raytracer\r\n\r\n");
+        let cx = Context {
+            now: Instant::ZERO,
+            room: true,
+            status: &status,
+            name: "raytracer",
+            may_begin: true,
+            log: &NoLog,
+        };
+        let mut out = std::vec::Vec::new();
+        let mut src = source();
+        drive(
+            &mut c,
+            &cx,
+            &mut src,
+            |fill| {
+                let mut buf = vec![0u8; 4096];
+                let n = fill(&mut buf);
+                out.extend_from_slice(&buf[..n]);
+                n
+            },
+            &mut String::new(),
+        );
+        let text = String::from_utf8(out).unwrap();
+        let (head, body) = text.split_once("\r\n\r\n").unwrap();
+        let length: usize = head.lines().find_map(|l| l.strip_prefix("Content-Length: ")).unwrap().parse().unwrap();
+        assert_eq!(body.len(), length, "{text}");
+        assert!(body.starts_with("{\"uptime_s\":") && body.ends_with("\"code\":\"E7\"}"), "{body}");
     }
 
     #[test]

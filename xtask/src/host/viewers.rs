@@ -268,7 +268,6 @@ pub struct ReceiveArgs {
     pub rtcp_to_group: bool,
 }
 
-/// Receive and check; print one line.
 /// Which rows of `f` differ from `want`'s, and which of them came after a
 /// NACK: what a wrong frame's diagnosis starts from.
 fn wrong_rows(f: &crate::support::rtsp_client::Frame, want: &[u8]) -> String {
@@ -286,6 +285,7 @@ fn wrong_rows(f: &crate::support::rtsp_client::Frame, want: &[u8]) -> String {
     )
 }
 
+/// Receive and check; print one line.
 pub fn receive(args: &ReceiveArgs) -> Result<()> {
     let l: Light = args.light.parse().map_err(|e| format!("--light: {e}"))?;
     let want = model::render_frame(&l);
