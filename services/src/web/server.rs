@@ -408,6 +408,21 @@ impl<F: Copy> Connection<F> {
         self.state = State::Respond { then_viewer: false, closed: Closed::Answered(Some(status)) };
     }
 
+    /// Answer 200 with `text` as the body (none for HEAD), never cached.
+    fn answer_text(&mut self, now: Instant, method: Method, content_type: &str) -> Action<F> {
+        self.small.clear();
+        self.small_sent = 0;
+        let extra = [("Content-Type", content_type), ("Cache-Control", "no-store")];
+        let _ = http::head(&mut self.small, Status::Ok, Some(self.text.len()), &extra);
+        if method != Method::Get {
+            self.text.clear();
+        }
+        self.body = &[];
+        self.moved_at = now;
+        self.state = State::Respond { then_viewer: false, closed: Closed::Answered(Some(Status::Ok)) };
+        Action::Write
+    }
+
     /// The next action.
     pub fn poll(&mut self, cx: &Context<'_>) -> Action<F> {
         let now = cx.now;
@@ -541,21 +556,7 @@ impl<F: Copy> Connection<F> {
                 let _ = self.text.resize(LOG_BYTES, 0);
                 let n = cx.log.tail(&mut self.text);
                 self.text.truncate(n);
-                self.small.clear();
-                self.small_sent = 0;
-                let _ = http::head(
-                    &mut self.small,
-                    Status::Ok,
-                    Some(n),
-                    &[("Content-Type", "text/plain; charset=utf-8"), ("Cache-Control", "no-store")],
-                );
-                if request.method != Method::Get {
-                    self.text.clear();
-                }
-                self.body = &[];
-                self.moved_at = now;
-                self.state = State::Respond { then_viewer: false, closed: Closed::Answered(Some(Status::Ok)) };
-                Action::Write
+                self.answer_text(now, request.method, "text/plain; charset=utf-8")
             }
             ("/status", Upgrade::None) => {
                 // The JSON in the larger text buffer (`/log`'s): with the
@@ -563,21 +564,7 @@ impl<F: Copy> Connection<F> {
                 self.text.clear();
                 self.text_sent = 0;
                 let _ = cx.status.write_json(&mut http::Writer(&mut self.text));
-                self.small.clear();
-                self.small_sent = 0;
-                let _ = http::head(
-                    &mut self.small,
-                    Status::Ok,
-                    Some(self.text.len()),
-                    &[("Content-Type", "application/json"), ("Cache-Control", "no-store")],
-                );
-                if request.method != Method::Get {
-                    self.text.clear();
-                }
-                self.body = &[];
-                self.moved_at = now;
-                self.state = State::Respond { then_viewer: false, closed: Closed::Answered(Some(Status::Ok)) };
-                Action::Write
+                self.answer_text(now, request.method, "application/json")
             }
             (path, Upgrade::None) => {
                 let Some(asset) = assets::find(path) else {
