@@ -1,5 +1,6 @@
 //! The board on its own (map version 3): the VGA monitor showing the newest
-//! frame, attract mode, keys, switches, LEDs and 7-segment displays. The
+//! frame, attract mode (its first seconds captioned with the board's name
+//! and address), keys, switches, LEDs and 7-segment displays. The
 //! policy is `rt_services::monitor` (host-tested); this module only puts
 //! the frame ring and the accelerator's board I/O block together as the
 //! device the policy works on, and logs its report once a second:
@@ -12,7 +13,7 @@ use hal_avalon::board::{has_board_io, BoardIo};
 use hal_avalon::map::Csr;
 use hal_avalon::RegisterPort;
 use model::display::Layout;
-use model::Light;
+use model::{Light, ROW_BYTES};
 use rt_services::frames::Completed;
 use rt_services::monitor::{Inputs, Monitor, Panel, Refreshes, Screen, Status};
 use rt_services::{FrameSource, Instant};
@@ -105,7 +106,8 @@ impl Display {
 /// counting (the bench's figures are the frames').
 fn port<P: RegisterPort>(ring: &mut Ring<P>) -> Option<&mut P> {
     if ring.engine().primary_kept().is_none() {
-        let rows = ring.engine().fallback().rows().primary()?;
+        // Kept after rows are switched off too (E3 on the displays).
+        let rows = ring.engine().fallback().rows().primary_kept()?;
         return Some(rows.inner().accelerator().port_mut().inner_mut());
     }
     let engine = ring.engine().primary_kept()?;
@@ -159,6 +161,10 @@ impl<P: RegisterPort> Screen for Device<'_, P> {
 
     fn slot_address(&self, slot: usize) -> u32 {
         self.ring.slot_address(slot)
+    }
+
+    fn edit_row(&mut self, slot: usize, y: u16, edit: &mut dyn FnMut(&mut [u8; ROW_BYTES])) {
+        self.ring.edit_row(slot, y, edit)
     }
 }
 

@@ -30,7 +30,10 @@ pub enum FallbackEvent<E> {
 
 /// Rows from `P`, or from `F` where `P` fails.
 pub struct Fallback<P: RowSource, F> {
+    /// Kept after it is switched off: its device may have more than rows
+    /// to offer (the board's LEDs and displays name the fault).
     primary: Option<P>,
+    active: bool,
     fallback: F,
     consecutive: u32,
     total: u32,
@@ -40,16 +43,23 @@ pub struct Fallback<P: RowSource, F> {
 impl<P: RowSource, F: RowSource> Fallback<P, F> {
     /// `primary` first, `fallback` where it fails.
     pub fn new(primary: Option<P>, fallback: F) -> Fallback<P, F> {
-        Fallback { primary, fallback, consecutive: 0, total: 0, event: None }
+        let active = primary.is_some();
+        Fallback { primary, active, fallback, consecutive: 0, total: 0, event: None }
     }
 
     /// Whether the primary source is still in use.
     pub fn primary_active(&self) -> bool {
-        self.primary.is_some()
+        self.active
     }
 
     /// The primary source, while it is in use.
     pub fn primary(&mut self) -> Option<&mut P> {
+        self.primary.as_mut().filter(|_| self.active)
+    }
+
+    /// The primary source, switched off or not (its device may have more
+    /// than rows to offer: board I/O).
+    pub fn primary_kept(&mut self) -> Option<&mut P> {
         self.primary.as_mut()
     }
 
@@ -67,7 +77,7 @@ where
     type Error = F::Error;
 
     fn render_row(&mut self, y: u16, light: &Light, out: &mut [u32; WIDTH]) -> Result<(), F::Error> {
-        if let Some(primary) = &mut self.primary {
+        if let Some(primary) = self.primary.as_mut().filter(|_| self.active) {
             match primary.render_row(y, light, out) {
                 Ok(()) => {
                     self.consecutive = 0;
@@ -77,7 +87,7 @@ where
                     self.total = self.total.saturating_add(1);
                     self.consecutive += 1;
                     self.event = Some(if self.consecutive >= WEDGED_AFTER {
-                        self.primary = None;
+                        self.active = false;
                         FallbackEvent::SwitchedOff { error }
                     } else {
                         FallbackEvent::RowsFailed { error, total: self.total }
@@ -133,6 +143,8 @@ mod tests {
         }
         assert_eq!(rows.take_event(), Some(FallbackEvent::SwitchedOff { error: 102 }));
         assert!(!rows.primary_active());
+        assert!(rows.primary().is_none(), "off for rows");
+        assert!(rows.primary_kept().is_some(), "kept for its board I/O");
         for y in 103..360 {
             rows.render_row(y, &light(), &mut got).unwrap();
         }
