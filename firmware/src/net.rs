@@ -560,6 +560,7 @@ pub fn run<B: Board, P: RegisterPort>(
                 self_test_passed: facts.self_test == "pass",
                 clients: service.active_sessions(),
                 address,
+                name: mdns.as_ref().map_or(host_name.as_str(), |m| m.responder().name()),
                 code,
             };
             d.poll(rt_services::Instant::from_millis(now_us / 1000), frames, requests, &status, &mut log);

@@ -186,6 +186,22 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
         self.in_flight
     }
 
+    /// Change row `y` of the complete frame in `slot` in place (read,
+    /// `edit`, written back through the memory, which keeps the caches
+    /// clean for a DMA reader): for the owner of a frame that nobody else
+    /// reads, before anyone else sees it (the monitor's caption on its own
+    /// attract frames). Nothing happens unless all the frame's rows have
+    /// landed and its owner has not ended it.
+    pub fn edit_row(&mut self, slot: usize, y: u16, edit: &mut dyn FnMut(&mut [u8; ROW_BYTES])) {
+        if y >= ROWS || !matches!(self.slots.get(slot), Some(SlotState::Ready)) {
+            return;
+        }
+        let mut row = [0u8; ROW_BYTES];
+        self.mem.read_row(slot, y, 0, &mut row);
+        edit(&mut row);
+        self.mem.write_row(slot, y, &row);
+    }
+
     /// Bus address of `slot` in the ring's memory.
     pub fn slot_address(&self, slot: usize) -> u32 {
         self.mem.slot_address(slot)
@@ -199,6 +215,12 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> FrameRing<M, E, SLOT
     /// The engine.
     pub fn engine(&mut self) -> &mut E {
         &mut self.engine
+    }
+
+    /// The memory, for tests that look at what a slot holds.
+    #[cfg(test)]
+    pub(crate) fn memory(&mut self) -> &mut M {
+        &mut self.mem
     }
 
     /// Frames completed since the ring was made (wrapping).

@@ -32,6 +32,10 @@
 //!   from right to left once, for the first seconds after the link comes up
 //!   ([`address_text`]); then the frames per second the monitor shows, new
 //!   frames that took effect ([`fps_text`], e.g. ` 60FPS`).
+//! * **Caption** ([`caption`]): the board's name and address on attract
+//!   mode's frames for [`caption::CAPTION_FOR`] after it reaches a new
+//!   address (or takes a new name), bottom left, so that whoever looks at
+//!   the monitor knows where to connect; clients' frames are never touched.
 //! * **LEDs** ([`leds`]): [`LED_LINK`] (LEDR0), [`LED_FPGA`] (LEDR1),
 //!   [`LED_SELF_TEST`] (LEDR2), [`LED_CLIENTS`] (LEDR3), [`LED_ATTRACT`]
 //!   (LEDR4), [`LED_PAUSED`] (LEDR5), [`LED_UNDERRUN`] (LEDR9).
@@ -40,13 +44,15 @@ use core::fmt::{self, Write as _};
 use core::time::Duration;
 
 use model::display::Layout;
-use model::Light;
+use model::{Light, ROW_BYTES};
 
 use crate::frames::{Completed, FrameEngine, FrameMemory, FrameRing, FrameSource, ROWS};
 use crate::time::Instant;
 
+pub mod caption;
 pub mod code;
 
+pub use caption::Caption;
 pub use code::Code;
 
 /// Client requests keep attract mode off this long after the last one.
@@ -144,6 +150,9 @@ pub trait Screen {
     fn unpin(&mut self, slot: usize);
     /// Bus address of `slot`.
     fn slot_address(&self, slot: usize) -> u32;
+    /// Change row `y` of the complete, not yet ended frame in `slot` in
+    /// place ([`FrameRing::edit_row`]).
+    fn edit_row(&mut self, slot: usize, y: u16, edit: &mut dyn FnMut(&mut [u8; ROW_BYTES]));
 }
 
 impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> Screen for FrameRing<M, E, SLOTS> {
@@ -158,6 +167,9 @@ impl<M: FrameMemory, E: FrameEngine<M>, const SLOTS: usize> Screen for FrameRing
     }
     fn slot_address(&self, slot: usize) -> u32 {
         FrameRing::slot_address(self, slot)
+    }
+    fn edit_row(&mut self, slot: usize, y: u16, edit: &mut dyn FnMut(&mut [u8; ROW_BYTES])) {
+        FrameRing::edit_row(self, slot, y, edit)
     }
 }
 
@@ -480,9 +492,10 @@ impl fmt::Write for TextBuf2 {
     }
 }
 
-/// What the firmware knows that the LEDs show.
+/// What the firmware knows that the LEDs, the displays and the caption
+/// show.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Status {
+pub struct Status<'a> {
     /// The Ethernet link is up.
     pub link_up: bool,
     /// The FPGA renders frames (not switched off).
@@ -493,13 +506,15 @@ pub struct Status {
     pub clients: usize,
     /// The board's IPv4 address.
     pub address: [u8; 4],
+    /// The board's host name (mDNS, without `.local`: `raytracer`).
+    pub name: &'a str,
     /// What is wrong: shown on the 7-segment displays after the address.
     pub code: Code,
 }
 
 /// The LED bits for `status`, attract mode `attract`, the orbit `paused`,
 /// an `underrun` seen.
-pub fn leds(status: &Status, attract: bool, paused: bool, underrun: bool) -> u16 {
+pub fn leds(status: &Status<'_>, attract: bool, paused: bool, underrun: bool) -> u16 {
     let bit = |on: bool, b: u16| if on { b } else { 0 };
     bit(status.link_up, LED_LINK)
         | bit(status.fpga, LED_FPGA)
@@ -555,6 +570,8 @@ pub enum Origin {
     Client,
     /// Attract mode.
     Attract,
+    /// Attract mode, with the board's name and address on it.
+    AttractCaptioned,
 }
 
 impl fmt::Display for Origin {
@@ -562,6 +579,7 @@ impl fmt::Display for Origin {
         f.write_str(match self {
             Origin::Client => "a client",
             Origin::Attract => "attract mode",
+            Origin::AttractCaptioned => "attract mode, captioned",
         })
     }
 }
@@ -627,8 +645,8 @@ pub struct Monitor {
     /// Attract mode's frame in progress (its slot), and its light.
     attract_frame: Option<(usize, Light)>,
     /// Attract frames completed, by completion number, newest last (to tell
-    /// them from client frames on screen).
-    attract_done: [Option<u32>; 4],
+    /// them from client frames on screen), and whether each was captioned.
+    attract_done: [Option<(u32, bool)>; 4],
     /// Client requests seen, and when the count last moved.
     requests: u32,
     last_request: Option<Instant>,
@@ -638,6 +656,11 @@ pub struct Monitor {
     link_was_up: bool,
     /// The address last scrolled.
     address_shown: [u8; 4],
+    /// The name and address on attract frames, until `caption_until`.
+    caption: Caption,
+    caption_until: Option<Instant>,
+    /// The name in the caption (a new one draws it again).
+    caption_name: heapless::String<{ caption::NAME_BYTES }>,
     leds: Option<u16>,
     text: Option<Text>,
     next_report: Option<Instant>,
@@ -663,6 +686,9 @@ impl Monitor {
             link_up_at: None,
             link_was_up: false,
             address_shown: [0; 4],
+            caption: Caption::new(),
+            caption_until: None,
+            caption_name: heapless::String::new(),
             leds: None,
             text: None,
             next_report: None,
@@ -689,7 +715,7 @@ impl Monitor {
     /// requests begun so far (wrapping), `status` what the LEDs show.
     /// Attract frames are begun on `dev` as one more [`FrameSource`] user.
     /// Returns a [`Report`] every [`REPORT_EVERY`] once the display runs.
-    pub fn poll<D>(&mut self, now: Instant, dev: &mut D, requests: u32, status: &Status) -> Option<Report>
+    pub fn poll<D>(&mut self, now: Instant, dev: &mut D, requests: u32, status: &Status<'_>) -> Option<Report>
     where
         D: FrameSource<Frame = usize> + Screen + Panel,
     {
@@ -698,11 +724,12 @@ impl Monitor {
             self.last_request = Some(now);
         }
         self.track_address(now, status);
+        self.track_caption(now, status);
 
         let inputs = dev.inputs();
         self.orbit.keys(inputs.pressed);
         self.scanout.set_layout(dev, self.orbit.layout());
-        self.attract_progress(dev);
+        self.attract_progress(now, dev);
         let step = self.scanout.poll(dev);
         let attract = self.attract(now);
         if attract {
@@ -729,7 +756,7 @@ impl Monitor {
     /// run (the FPGA renders rows but cannot reach the frame memory, code
     /// [`Code::RowsOnly`]): the address scrolls, then the fault code
     /// stays; no attract mode.
-    pub fn poll_panel<D: Panel>(&mut self, now: Instant, dev: &mut D, status: &Status) {
+    pub fn poll_panel<D: Panel>(&mut self, now: Instant, dev: &mut D, status: &Status<'_>) {
         self.track_address(now, status);
         let leds = leds(status, false, false, false);
         self.show(now, dev, status, leds, 0);
@@ -738,7 +765,7 @@ impl Monitor {
     /// The address scrolls once the board has one on a link: DHCP (or the
     /// link-local claim) answers after the link comes up, and a new lease
     /// scrolls again.
-    fn track_address(&mut self, now: Instant, status: &Status) {
+    fn track_address(&mut self, now: Instant, status: &Status<'_>) {
         let reachable = status.link_up && status.address != [0; 4];
         if reachable && (!self.link_was_up || status.address != self.address_shown) {
             self.link_up_at = Some(now);
@@ -747,9 +774,32 @@ impl Monitor {
         self.link_was_up = reachable;
     }
 
+    /// The caption is drawn when the board becomes reachable at a new
+    /// address (the moment the address starts to scroll) or takes a new
+    /// name, and stays on attract frames for [`caption::CAPTION_FOR`].
+    fn track_caption(&mut self, now: Instant, status: &Status<'_>) {
+        let renamed = self.caption_name.as_str() != caption::fitting(status.name);
+        if self.link_up_at == Some(now) || (renamed && self.link_up_at.is_some()) {
+            self.caption.draw(status.name, status.address);
+            self.caption_name.clear();
+            // As cut to the line: `NAME_BYTES` hold it.
+            let _ = self.caption_name.push_str(caption::fitting(status.name));
+            self.caption_until = Some(now + caption::CAPTION_FOR);
+        }
+        if self.caption_until.is_some_and(|t| now >= t) {
+            self.caption.clear();
+            self.caption_until = None;
+        }
+    }
+
+    /// Whether attract frames carry the caption now.
+    pub fn captioning(&self) -> bool {
+        self.caption.is_drawn()
+    }
+
     /// Write the LEDs and the text where they changed: the address while
     /// it scrolls, then the fault code, or else the frames per second.
-    fn show<D: Panel>(&mut self, now: Instant, dev: &mut D, status: &Status, leds: u16, fps: u32) {
+    fn show<D: Panel>(&mut self, now: Instant, dev: &mut D, status: &Status<'_>, leds: u16, fps: u32) {
         if self.leds != Some(leds) {
             dev.set_leds(leds);
             self.leds = Some(leds);
@@ -771,7 +821,11 @@ impl Monitor {
     /// The summary at `now`.
     pub fn report(&self, now: Instant) -> Report {
         let on_screen = self.scanout.on_screen().map(|c| {
-            let origin = if self.attract_done.contains(&Some(c.seq)) { Origin::Attract } else { Origin::Client };
+            let origin = match self.attract_done.iter().flatten().find(|(seq, _)| *seq == c.seq) {
+                Some((_, true)) => Origin::AttractCaptioned,
+                Some((_, false)) => Origin::Attract,
+                None => Origin::Client,
+            };
             (c.light, origin)
         });
         Report {
@@ -788,15 +842,24 @@ impl Monitor {
 
     /// Attract mode's frame in progress: rows landed (the ring learns of
     /// completion here); a failed one is dropped.
-    fn attract_progress<D: FrameSource<Frame = usize> + Screen>(&mut self, dev: &mut D) {
+    /// The caption goes onto a frame here, once, before the scan-out can
+    /// see it (the scan-out polls after this in [`Monitor::poll`]).
+    fn attract_progress<D: FrameSource<Frame = usize> + Screen>(&mut self, now: Instant, dev: &mut D) {
         let Some((slot, light)) = self.attract_frame else { return };
         match dev.rows_ready(slot) {
             Ok(rows) if rows < ROWS => {}
             Ok(_) => {
                 if let Some(n) = dev.newest_complete().filter(|n| n.slot == slot && n.light == light) {
-                    if !self.attract_done.contains(&Some(n.seq)) {
+                    if !self.attract_done.iter().flatten().any(|(seq, _)| *seq == n.seq) {
+                        let captioned = self.caption_until.is_some_and(|t| now < t);
+                        if captioned {
+                            let caption = &self.caption;
+                            for y in caption.rows() {
+                                dev.edit_row(slot, y, &mut |row| caption.stamp_row(y, row));
+                            }
+                        }
                         self.attract_done.rotate_left(1);
-                        self.attract_done[self.attract_done.len() - 1] = Some(n.seq);
+                        self.attract_done[self.attract_done.len() - 1] = Some((n.seq, captioned));
                     }
                 }
             }
@@ -943,6 +1006,9 @@ mod tests {
         }
         fn slot_address(&self, slot: usize) -> u32 {
             self.ring.slot_address(slot)
+        }
+        fn edit_row(&mut self, slot: usize, y: u16, edit: &mut dyn FnMut(&mut [u8; ROW_BYTES])) {
+            self.ring.edit_row(slot, y, edit)
         }
     }
 
@@ -1152,8 +1218,15 @@ mod tests {
 
     #[test]
     fn led_bits() {
-        let s =
-            Status { link_up: true, fpga: true, self_test_passed: true, clients: 2, address: [0; 4], code: Code::Ok };
+        let s = Status {
+            link_up: true,
+            fpga: true,
+            self_test_passed: true,
+            clients: 2,
+            address: [0; 4],
+            name: "",
+            code: Code::Ok,
+        };
         assert_eq!(leds(&s, false, false, false), 0b1111);
         assert_eq!(leds(&Status::default(), true, true, true), (1 << 4) | (1 << 5) | (1 << 9));
         let sw = Status { fpga: false, clients: 0, ..s };
@@ -1285,6 +1358,86 @@ mod tests {
         let report = m.report(at(t + 3_001));
         assert_eq!(report.on_screen.map(|(_, o)| o), Some(Origin::Attract));
         assert_eq!(d.ring.free_slots(), 4, "on screen and pending only");
+    }
+
+    /// Rows `rows` of `slot` hold only `byte`.
+    fn plain(d: &mut Dev<'_>, slot: usize, rows: core::ops::Range<u16>, byte: u8) -> bool {
+        let mut row = [0u8; ROW_BYTES];
+        rows.into_iter().all(|y| {
+            d.ring.memory().read_row(slot, y, 0, &mut row);
+            row.iter().all(|b| *b == byte)
+        })
+    }
+
+    /// Every slot's bytes set to `byte`.
+    fn fill(d: &mut Dev<'_>, byte: u8) {
+        for slot in 0..6 {
+            for y in 0..ROWS {
+                d.ring.memory().write_row(slot, y, &[byte; ROW_BYTES]);
+            }
+        }
+    }
+
+    #[test]
+    fn attract_frames_carry_the_name_and_address_for_their_first_seconds_and_clients_frames_never() {
+        let mut mem = vec![0x80u8; 6 * FRAME_BYTES];
+        let mut d = dev(&mut mem);
+        let mut m = Monitor::new();
+        let at = Instant::from_millis;
+        let mut status = Status { link_up: true, address: [192, 168, 1, 57], name: "raytracer", ..Status::default() };
+        let caption_rows = caption::FIRST_ROW..caption::FIRST_ROW + caption::BOX_ROWS as u16;
+        // A refresh per poll, 17 ms apart, from poll `from`.
+        let run = |m: &mut Monitor, d: &mut Dev<'_>, from: u64, polls: u64, requests: u32, status: &Status<'_>| {
+            for t in from..from + polls {
+                d.panel.count += 1;
+                m.poll(at(t * 17), d, requests, status);
+            }
+        };
+        run(&mut m, &mut d, 0, 4, 0, &status);
+        assert!(m.captioning());
+        let on_screen = m.scanout().on_screen().expect("an attract frame is on screen");
+        assert!(!plain(&mut d, on_screen.slot, caption_rows.clone(), 0x80), "the frame on screen carries the caption");
+        let report = m.report(at(4 * 17));
+        assert_eq!(report.on_screen.map(|(_, o)| o), Some(Origin::AttractCaptioned));
+        assert!(report.to_string().ends_with("from attract mode, captioned"), "{report}");
+        assert!(plain(&mut d, on_screen.slot, 0..caption_rows.start, 0x80), "only the caption's rows change");
+        assert!(plain(&mut d, on_screen.slot, caption_rows.end..ROWS, 0x80), "only the caption's rows change");
+        let mut row = [0u8; ROW_BYTES];
+        d.ring.memory().read_row(on_screen.slot, caption_rows.start + 12, 0, &mut row);
+        assert!(row.contains(&0xff) && row.contains(&0x20), "white text on a darkened box");
+
+        // A client's frame in the window is never stamped.
+        fill(&mut d, 0x80);
+        let client = client_frame(&mut d, &light(-3000));
+        run(&mut m, &mut d, 4, 3, 1, &status);
+        assert_eq!(m.scanout().on_screen().map(|c| c.slot), Some(client));
+        assert!(plain(&mut d, client, 0..ROWS, 0x80), "the client's frame is as rendered");
+
+        // Past the window (attract mode back on too): frames as rendered.
+        let start = caption::CAPTION_FOR.as_millis() as u64 / 17 + 1;
+        run(&mut m, &mut d, start, 4, 1, &status);
+        assert!(!m.captioning());
+        assert_eq!(m.report(at(start * 17)).on_screen.map(|(_, o)| o), Some(Origin::Attract));
+        assert!((0..6).all(|s| plain(&mut d, s, 0..ROWS, 0x80)), "no caption after {:?}", caption::CAPTION_FOR);
+
+        // A new address draws it again.
+        status.address = [10, 0, 0, 9];
+        run(&mut m, &mut d, start + 4, 4, 1, &status);
+        assert!(m.captioning());
+        let on_screen = m.scanout().on_screen().expect("an attract frame is on screen");
+        assert!(!plain(&mut d, on_screen.slot, caption_rows, 0x80), "captioned again at a new address");
+
+        // A new name (mDNS found another board by that name) draws it again
+        // for another window; a name longer than the line only once.
+        let before = m.caption_until;
+        let long = "a-board-name-that-is-much-longer-than-the-line-holds-2";
+        status.name = long;
+        run(&mut m, &mut d, start + 8, 1, 1, &status);
+        assert!(m.caption_until > before, "renamed: a new window");
+        assert_eq!(m.caption_name.as_str(), caption::fitting(long));
+        let drawn = m.caption_until;
+        run(&mut m, &mut d, start + 9, 3, 1, &status);
+        assert_eq!(m.caption_until, drawn, "the same long name is not drawn again");
     }
 
     #[test]

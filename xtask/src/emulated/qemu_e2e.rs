@@ -443,8 +443,19 @@ fn t_display(g: &mut Guest) -> Result<()> {
     let first = wait_for_display(g, 0, 60, |l| l.attract && l.shown >= 1)?;
     let skip = display_lines(g).len();
     let later = wait_for_display(g, skip, 60, |l| l.shown > first.shown && l.refreshes > first.refreshes)?;
-    if !later.on_screen.as_deref().is_some_and(|s| s.ends_with("from attract mode")) || first.layout != "full" {
+    let attract = |l: &DisplayLine| {
+        l.on_screen
+            .as_deref()
+            .is_some_and(|s| s.ends_with("from attract mode") || s.ends_with("attract mode, captioned"))
+    };
+    if !attract(&later) || first.layout != "full" {
         return Err(format!("attract mode's frames not on screen at boot: {first:?}, then {later:?}"));
+    }
+    // The board's name and address on the picture for its first seconds
+    // after the address (the log from boot: this check may run later).
+    if !display_lines(g).iter().any(|l| l.on_screen.as_deref().is_some_and(|s| s.ends_with("attract mode, captioned")))
+    {
+        return Err("no captioned attract frame (name and address) went on screen after boot".into());
     }
     let lines = display_lines(g);
     let (a, b) = (&lines[0], &lines[lines.len() - 1]);
@@ -463,7 +474,7 @@ fn t_display(g: &mut Guest) -> Result<()> {
         return Err(format!("attract mode still on right after a client's request: {shown:?}"));
     }
     println!(
-        "qemu e2e: display: attract mode at boot, {} frames shown in {} refreshes ({per_line:.1} a second), a client's frame on screen ... ok",
+        "qemu e2e: display: attract mode at boot (captioned with name and address), {} frames shown in {} refreshes ({per_line:.1} a second), a client's frame on screen ... ok",
         later.shown, later.refreshes
     );
     Ok(())
