@@ -226,7 +226,7 @@ impl RegisterPort for MmioPort {
         #[cfg(target_arch = "arm")]
         {
             const _: () = assert!(LINE_WORDS.is_multiple_of(4));
-            aarch32_cpu::asm::dmb();
+            dmb();
             let src = self.registers().line.as_ptr();
             // SAFETY: `src` is the 480-word line buffer of the block
             // `MmioPort::new` was given (reads have no side effects), `out`
@@ -252,4 +252,20 @@ impl RegisterPort for MmioPort {
             *word = reg.read();
         }
     }
+}
+
+/// A full-system data memory barrier (`dmb sy`, ARM DDI 0406C A8.8.43):
+/// aarch32-cpu's on bare metal. On ARM Linux (hps-linux) that crate does
+/// not build (its `instruction_set` attributes need a target that has both
+/// instruction sets), so the same instruction is written here.
+#[cfg(all(target_arch = "arm", target_os = "none"))]
+fn dmb() {
+    aarch32_cpu::asm::dmb();
+}
+
+/// See the bare-metal `dmb` above.
+#[cfg(all(target_arch = "arm", not(target_os = "none")))]
+fn dmb() {
+    // SAFETY: a barrier: no memory, register or flag is changed.
+    unsafe { core::arch::asm!("dmb sy", options(nostack, preserves_flags)) };
 }

@@ -17,6 +17,7 @@ mod emulated;
 mod fpga;
 mod host;
 mod images;
+mod linux;
 mod suite;
 mod support;
 
@@ -60,6 +61,9 @@ enum Command {
     /// The suite's SD-card test on its own: an image with a stand-in FPGA
     /// image, checked with the project's parsers and with the tools.
     SdcardTest,
+    /// The board's services as a Linux program: hps-linux cross-built for
+    /// the HPS's ARM Linux (one static executable), run under QEMU user mode
+    LinuxTest,
     /// The live viewer end to end under Xvfb (a scripted session).
     LiveTest,
     /// The emulated board behind a lossy link, the kernel's TCP as the
@@ -156,6 +160,7 @@ fn main() -> ExitCode {
         Command::BenchFw(args) => emulated::bench_fw::run(&args),
         Command::Sdcard(args) => images::sdcard::run(&args),
         Command::SdcardTest => images::sdcard::suite_test(),
+        Command::LinuxTest => linux::run(),
         Command::LiveTest => host::live_test::run(),
         Command::LossyBench(args) => emulated::lossy::bench(&args),
         Command::Soak(args) => emulated::soak::run(&args),

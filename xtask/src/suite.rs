@@ -3,7 +3,7 @@
 //! Each step prints a `==>` line; the first failure stops the run with a
 //! non-zero exit.
 //!
-//! May import: `emulated`, `fpga`, `host`, `images`, `support`. The suite
+//! May import: `emulated`, `fpga`, `host`, `images`, `linux`, `support`. The suite
 //! sits above every group: it runs them all, in order.
 
 use crate::support::tools::{
@@ -94,6 +94,9 @@ pub fn run() -> Result<()> {
     let mut doc = cargo(&["doc", "--workspace", "--exclude", "firmware", "--no-deps"]);
     doc.env("RUSTDOCFLAGS", "-D warnings");
     step("rustdoc without warnings", doc)?;
+    // The board's services as a Linux program: the ARM executable, static,
+    // under QEMU user mode.
+    crate::linux::run()?;
     // Firmware: both boards build warning-free, then the QEMU end-to-end
     // tests boot the QEMU board.
     crate::images::firmware::build("de1-soc", &[])?;
