@@ -24,6 +24,12 @@ fn main() {
     println!("cargo::rerun-if-env-changed=PATH");
     println!("cargo::rerun-if-changed=csrc");
     println!("cargo::rerun-if-changed={}", rtl.display());
+    // The Verilated RTL is a host simulation: a cross build (hps-sim's code
+    // in hps-linux for the board's ARM Linux) builds without it, required
+    // or not.
+    if env::var("TARGET").ok() != env::var("HOST").ok() {
+        return;
+    }
     let required = env::var("RT_REQUIRE_RTL").is_ok_and(|v| v == "1");
     // Rerun once Verilator appears (or is upgraded): a path that does not
     // exist makes Cargo rerun the script on every build, which costs only

@@ -46,11 +46,10 @@ pub const FRAME_PORT_SOCKETS: usize = 18;
 pub const DISPLAY_SLOTS: usize = 2;
 
 /// Frames the seed frame server holds at once (its quota).
-pub const SEED_FRAMES: usize = 4;
+pub use rt_services::seed::SEED_FRAMES;
 
-/// Frames the web page's viewers hold at once (their quota): more viewers
-/// take turns, each frame being rendered and sent in about a frame time.
-pub const WEB_FRAMES: usize = 2;
+/// Frames the web page's viewers hold at once (their quota).
+pub use rt_services::web::WEB_FRAMES;
 
 pub use rt_services::web::WEB_VIEWERS;
 

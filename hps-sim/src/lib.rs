@@ -26,6 +26,7 @@
 //! `rt_services::web::WEB_SOCKETS`); one more is closed at once, as the
 //! board refuses it.
 
+pub mod board;
 pub mod rtsp;
 pub mod web;
 
@@ -278,6 +279,12 @@ pub trait Clocks {
     fn clocks(&mut self) -> Option<u64>;
 }
 
+impl Clocks for board::Share {
+    fn clocks(&mut self) -> Option<u64> {
+        None
+    }
+}
+
 impl<M: DmaTarget> Clocks for RowFrames<SimDriver<M>, 1> {
     fn clocks(&mut self) -> Option<u64> {
         None
@@ -310,6 +317,18 @@ pub struct HpsSim {
     rtsp: Option<rtsp::RtspServer>,
     shared: Arc<web::Shared>,
     web: Option<web::WebServer>,
+    /// The one frame supply, for a board started with
+    /// [`start_board`](Self::start_board).
+    board: Option<Arc<board::Board>>,
+}
+
+/// Where a seed connection's frames come from.
+#[derive(Clone)]
+enum Supply {
+    /// A simulated accelerator of its own, as `config` says.
+    Own(Config),
+    /// The board's one ring.
+    Board(Arc<board::Board>),
 }
 
 impl HpsSim {
@@ -338,22 +357,46 @@ impl HpsSim {
         if config.device == Device::Rtl && !rtl_port::available() {
             return Err(io::Error::new(io::ErrorKind::Unsupported, rtl_port::NotBuilt));
         }
+        let shared = web::Shared::new(rt_services::camera::rtsp::RTSP_PORT, config, self_test(config));
+        HpsSim::start_supply(addr, Supply::Own(config), shared, verbose)
+    }
+
+    /// Listen on `addr` and its port + 1 serving every client from `board`
+    /// (one engine, one ring, each service within its quota, as on the
+    /// board): the way `hps-linux` serves. The web page and RTSP, when
+    /// started, draw from it too; `/status` says `facts`.
+    pub fn start_board(
+        addr: SocketAddr,
+        board: Arc<board::Board>,
+        facts: web::Facts,
+        verbose: bool,
+    ) -> io::Result<HpsSim> {
+        let shared = web::Shared::with_board(rt_services::camera::rtsp::RTSP_PORT, board.clone(), facts);
+        HpsSim::start_supply(addr, Supply::Board(board), shared, verbose)
+    }
+
+    fn start_supply(addr: SocketAddr, supply: Supply, shared: web::Shared, verbose: bool) -> io::Result<HpsSim> {
         let (single, persistent) = bind_pair(addr)?;
         let sim = HpsSim {
             frame_addr: single.local_addr()?,
             persistent_addr: persistent.local_addr()?,
             stop: Arc::new(AtomicBool::new(false)),
             rtsp: None,
-            shared: Arc::new(web::Shared::new(rt_services::camera::rtsp::RTSP_PORT, config, self_test(config))),
+            shared: Arc::new(shared),
             web: None,
+            board: match &supply {
+                Supply::Board(b) => Some(b.clone()),
+                Supply::Own(_) => None,
+            },
         };
         let ids = Arc::new(AtomicU64::new(1));
         let cap = ConnectionCap::new(rt_services::seed::SEED_SOCKETS);
         for (listener, mode) in [(single, Mode::Single), (persistent, Mode::Persistent)] {
             let (stop, ids, shared, cap) = (sim.stop.clone(), ids.clone(), sim.shared.clone(), cap.clone());
+            let supply = supply.clone();
             thread::Builder::new()
                 .name(format!("accept {mode:?}"))
-                .spawn(move || accept_loop(listener, mode, config, &stop, &ids, &shared, &cap, verbose))?;
+                .spawn(move || accept_loop(listener, mode, &supply, &stop, &ids, &shared, &cap, verbose))?;
         }
         Ok(sim)
     }
@@ -374,9 +417,13 @@ impl HpsSim {
         self.start_rtsp_with(addr, rtsp::Options { device, verbose, multicast: None, faults: Faults::default() })
     }
 
-    /// Also serve RTSP/RTP on `addr` as `options` say.
+    /// Also serve RTSP/RTP on `addr` as `options` say (from the board, for
+    /// one started with [`start_board`](Self::start_board)).
     pub fn start_rtsp_with(&mut self, addr: SocketAddr, options: rtsp::Options) -> io::Result<SocketAddr> {
-        let server = rtsp::RtspServer::start(addr, options)?;
+        let server = match &self.board {
+            Some(board) => rtsp::RtspServer::start_on(addr, options, board.share(board::Service::Camera))?,
+            None => rtsp::RtspServer::start(addr, options)?,
+        };
         let addr = server.addr();
         self.rtsp = Some(server);
         self.shared.set_rtsp_port(addr.port());
@@ -441,7 +488,7 @@ fn bind_pair(addr: SocketAddr) -> io::Result<(TcpListener, TcpListener)> {
 fn accept_loop(
     listener: TcpListener,
     mode: Mode,
-    config: Config,
+    supply: &Supply,
     stop: &AtomicBool,
     ids: &AtomicU64,
     shared: &Arc<web::Shared>,
@@ -461,11 +508,17 @@ fn accept_loop(
                 };
                 let id = ids.fetch_add(1, Ordering::Relaxed);
                 let shared = shared.clone();
+                let supply = supply.clone();
                 let spawned = thread::Builder::new().name(format!("client {id}")).spawn(move || {
                     let _place = place;
                     // The page's status counts the seed clients.
                     shared.seed_clients.fetch_add(1, Ordering::Relaxed);
-                    serve_connection(stream, mode, config, Log::new(id, verbose));
+                    match supply {
+                        Supply::Own(config) => serve_connection(stream, mode, config, Log::new(id, verbose)),
+                        Supply::Board(board) => {
+                            serve(stream, mode, &mut board.share(board::Service::Seed), Log::new(id, verbose))
+                        }
+                    }
                     shared.seed_clients.fetch_sub(1, Ordering::Relaxed);
                 });
                 if let Err(e) = spawned {
@@ -658,7 +711,10 @@ fn serve<S: FrameSource + Clocks>(mut stream: TcpStream, mode: Mode, frames: &mu
             }
             // The simulated accelerator moves on with every status read:
             // poll again at once.
-            Action::Progress { .. } | Action::Begin { .. } | Action::End { .. } => {}
+            Action::Progress { .. } | Action::End { .. } => {}
+            // No frame to be had yet (the ring or the service's quota is
+            // full: other clients hold them): try again shortly.
+            Action::Begin { .. } => thread::sleep(Duration::from_micros(200)),
             Action::Wait { deadline } => {
                 if input_ended {
                     // Nothing more can arrive; poll again right away.

@@ -37,8 +37,8 @@ use rt_services::camera::rtsp::{
 use rt_services::camera::rtsp::{
     EndReason, Fresh, Group, Position, Profile, SessionId, SetUp, StreamSpec, Streams, Transport,
 };
-use rt_services::camera::sender::{self, Bound, Camera, Dest, Multicast, RtpSink, CAMERA_SLOTS};
-use rt_services::{FrameEngine, FrameMemory, FrameRing, FrameSource, Instant};
+use rt_services::camera::sender::{self, Bound, Camera, Dest, Multicast, RtpSink, SlotSource, CAMERA_SLOTS};
+use rt_services::{FrameRing, FrameSource, Instant};
 
 use crate::{Device, Faults, Log, SharedMemory};
 
@@ -79,6 +79,42 @@ impl RtspServer {
         if options.device == Device::Rtl && !rtl_port::available() {
             return Err(io::Error::new(io::ErrorKind::Unsupported, rtl_port::NotBuilt));
         }
+        RtspServer::spawn(addr, options, move |sockets, options, flag, log| match options.device {
+            Device::Sim => {
+                let mem = SharedMemory::new(CAMERA_SLOTS);
+                let sim = crate::simulated(mem.clone(), options.faults);
+                let engine = Accelerator::new(sim, CountingDelay::default(), PollTimeout::DEFAULT);
+                run(sockets, FrameRing::<_, _, CAMERA_SLOTS>::new(mem, engine), options, flag, log)
+            }
+            Device::Rtl => {
+                let mem = SharedMemory::new(CAMERA_SLOTS);
+                match rtl_port::RtlAccelerator::with_memory(mem.clone()) {
+                    Ok(rtl) => {
+                        let engine = Accelerator::new(rtl, CountingDelay::default(), PollTimeout::DEFAULT);
+                        run(sockets, FrameRing::<_, _, CAMERA_SLOTS>::new(mem, engine), options, flag, log)
+                    }
+                    Err(e) => Err(io::Error::new(io::ErrorKind::Unsupported, e)),
+                }
+            }
+        })
+    }
+
+    /// As [`start`](Self::start), drawing frames from `source` (the
+    /// board's one ring, [`crate::board`]) instead of a ring of its own;
+    /// `options.device` is not used.
+    pub fn start_on<S: SlotSource + Send + 'static>(
+        addr: SocketAddr,
+        options: Options,
+        source: S,
+    ) -> io::Result<RtspServer> {
+        RtspServer::spawn(addr, options, move |sockets, options, flag, log| run(sockets, source, options, flag, log))
+    }
+
+    fn spawn(
+        addr: SocketAddr,
+        options: Options,
+        serve: impl FnOnce(Sockets, Options, &AtomicBool, &mut Log) -> io::Result<()> + Send + 'static,
+    ) -> io::Result<RtspServer> {
         let listener = TcpListener::bind(addr)?;
         listener.set_nonblocking(true)?;
         let addr = listener.local_addr()?;
@@ -101,24 +137,7 @@ impl RtspServer {
                 None => None,
             };
             let sockets = Sockets { listener, rtp, rtcp, group_rtcp };
-            let result = match options.device {
-                Device::Sim => {
-                    let mem = SharedMemory::new(CAMERA_SLOTS);
-                    let sim = crate::simulated(mem.clone(), options.faults);
-                    let engine = Accelerator::new(sim, CountingDelay::default(), PollTimeout::DEFAULT);
-                    run(sockets, FrameRing::new(mem.clone(), engine), mem, options, &flag, &mut log)
-                }
-                Device::Rtl => {
-                    let mem = SharedMemory::new(CAMERA_SLOTS);
-                    match rtl_port::RtlAccelerator::with_memory(mem.clone()) {
-                        Ok(rtl) => {
-                            let engine = Accelerator::new(rtl, CountingDelay::default(), PollTimeout::DEFAULT);
-                            run(sockets, FrameRing::new(mem.clone(), engine), mem, options, &flag, &mut log)
-                        }
-                        Err(e) => Err(io::Error::new(io::ErrorKind::Unsupported, e)),
-                    }
-                }
-            };
+            let result = serve(sockets, options, &flag, &mut log);
             if let Err(e) = result {
                 eprintln!("hps-sim: the RTSP server stopped: {e}");
             }
@@ -241,7 +260,6 @@ struct Sink<'a> {
     rtp: &'a UdpSocket,
     rtcp: &'a UdpSocket,
     clients: &'a mut Vec<Client>,
-    mem: SharedMemory,
     packet: [u8; 4 + rtp::PACKET_BYTES],
     /// Token bucket: packets that may go now, as of `refilled`.
     tokens: u32,
@@ -307,7 +325,10 @@ impl RtpSink for Sink<'_> {
                     if p.emit(&packet, header).is_err() {
                         return k;
                     }
-                    self.mem.read_row(slot, packet.row, 0, &mut row[..ROW_BYTES]);
+                    if source.copy_row(slot, packet.row, 0, &mut row[..ROW_BYTES]) < ROW_BYTES {
+                        // Not in the slot (any more): nothing to send.
+                        continue;
+                    }
                     let to = match *to {
                         Dest::Udp { addr, rtp_port, .. } => SocketAddr::new(addr, rtp_port),
                         Dest::Multicast(g) => SocketAddr::new(IpAddr::V4(g.addr), g.port),
@@ -357,10 +378,9 @@ fn entropy() -> [u8; 48] {
     seed
 }
 
-fn run<E: FrameEngine<SharedMemory>>(
+fn run<S: SlotSource>(
     sockets: Sockets,
-    mut ring: FrameRing<SharedMemory, E, CAMERA_SLOTS>,
-    mem: SharedMemory,
+    mut ring: S,
     options: Options,
     stop: &AtomicBool,
     log: &mut Log,
@@ -475,7 +495,6 @@ fn run<E: FrameEngine<SharedMemory>>(
             rtp: &sockets.rtp,
             rtcp: &sockets.rtcp,
             clients: &mut clients,
-            mem: mem.clone(),
             packet: [0; 4 + rtp::PACKET_BYTES],
             tokens: tokens.0,
             refilled: tokens.1,

@@ -20,17 +20,66 @@ use rt_services::web::status::{BoardStatus, Health, Identity, Viewers};
 use rt_services::web::{WEB_SOCKETS, WEB_VIEWERS};
 use rt_services::{FrameSource, Instant as ProtocolInstant};
 
+use crate::board::{Board, Failed, Service, Share};
 use crate::{
     close_gracefully, frame_ring, spawn_reader, Config, ConnectionCap, Faults, Input, Log, SelfTest, SimFrameRing, Tail,
 };
 
+/// What `/status` says of the board besides the live figures.
+#[derive(Clone, Debug)]
+pub struct Facts {
+    /// Who renders, as the page names it: `simulated`, `fpga`, `software`.
+    pub renderer: String,
+    /// The link, in words.
+    pub link: String,
+    /// How frames are made: `frames`, `rows` or `software`.
+    pub mode: String,
+    /// The version it claims.
+    pub version: String,
+    /// The accelerator's register-map version, if one answers.
+    pub register_map: Option<u16>,
+    /// Its BUILD_ID (0: none recorded).
+    pub fpga_build: Option<u32>,
+    /// The bridges, in words.
+    pub bridges: String,
+    /// The VGA output, in words.
+    pub vga: String,
+    /// Where the address came from.
+    pub address_from: String,
+    /// The boot self-test's outcome.
+    pub self_test: SelfTest,
+}
+
+impl Facts {
+    /// hps-sim's: a simulated board running `config`.
+    pub fn simulated(config: Config, self_test: SelfTest) -> Facts {
+        Facts {
+            renderer: "simulated".into(),
+            link: "loopback".into(),
+            mode: match config.render {
+                crate::RenderMode::Frames => "frames",
+                crate::RenderMode::Rows => "rows",
+            }
+            .into(),
+            version: config.faults.version().into(),
+            register_map: Some(hal_avalon::map::ID_VERSION),
+            fpga_build: Some(0),
+            bridges: "not a board (hps-sim)".into(),
+            vga: "off: not a board (hps-sim)".into(),
+            address_from: "host".into(),
+            self_test,
+        }
+    }
+}
+
 /// What the connections share: the board's figures, and the frames.
 pub struct Shared {
     started: Instant,
-    /// What the board runs, and its boot self-test's outcome.
-    config: Config,
-    self_test: SelfTest,
+    /// What `/status` says of the board.
+    facts: Facts,
     frames: Mutex<WebFrames>,
+    /// The board every service draws from, if one does.
+    board: Option<Arc<Board>>,
     /// Viewers now (the lock also orders handshakes against the cap).
     viewers: Mutex<usize>,
     /// Seed-protocol clients now (the seed listeners count them).
@@ -44,16 +93,23 @@ impl Shared {
     /// Figures from now on; the page's RTSP URLs name `rtsp_port`; the
     /// board runs `config` and its self-test said `self_test`.
     pub fn new(rtsp_port: u16, config: Config, self_test: SelfTest) -> Shared {
+        let source = WebSource::Own { ring: None, faults: config.faults };
+        Shared::with_source(rtsp_port, source, Facts::simulated(config, self_test))
+    }
+
+    /// As [`new`](Self::new), the viewers' frames from `board` (within the
+    /// page's quota there), `/status` saying `facts`.
+    pub fn with_board(rtsp_port: u16, board: Arc<Board>, facts: Facts) -> Shared {
+        let source = WebSource::Board(board.share(Service::Web));
+        Shared { board: Some(board), ..Shared::with_source(rtsp_port, source, facts) }
+    }
+
+    fn with_source(rtsp_port: u16, source: WebSource, facts: Facts) -> Shared {
         Shared {
             started: Instant::now(),
-            config,
-            self_test,
-            frames: Mutex::new(WebFrames {
-                ring: None,
-                faults: config.faults,
-                turns: Turns::new(),
-                taken: [false; WEB_SOCKETS],
-            }),
+            facts,
+            board: None,
+            frames: Mutex::new(WebFrames { source, turns: Turns::new(), taken: [false; WEB_SOCKETS] }),
             viewers: Mutex::new(0),
             seed_clients: AtomicUsize::new(0),
             frames_rendered: AtomicU64::new(0),
@@ -65,6 +121,14 @@ impl Shared {
     /// The camera's port, once it listens.
     pub fn set_rtsp_port(&self, port: u16) {
         self.rtsp_port.store(port, Ordering::Relaxed);
+    }
+
+    /// Frames rendered: by every service of a board, else the page's own.
+    fn frames_rendered(&self) -> u64 {
+        match &self.board {
+            Some(board) => board.frames_begun(),
+            None => self.frames_rendered.load(Ordering::Relaxed),
+        }
     }
 
     fn viewers(&self) -> usize {
@@ -130,16 +194,52 @@ impl Drop for WebServer {
 /// one), whose turn it is to begin a frame, and which turn places
 /// (connection indices) are taken.
 struct WebFrames {
-    ring: Option<SimFrameRing>,
-    faults: Faults,
+    source: WebSource,
     turns: Turns<WEB_SOCKETS>,
     taken: [bool; WEB_SOCKETS],
 }
 
-impl WebFrames {
-    fn ring(&mut self) -> &mut SimFrameRing {
-        let faults = self.faults;
-        self.ring.get_or_insert_with(|| frame_ring(faults))
+/// Where the viewers' frames come from.
+enum WebSource {
+    /// A simulated ring of their own, made when the first frame is begun.
+    Own { ring: Option<Box<SimFrameRing>>, faults: Faults },
+    /// The board's one ring.
+    Board(Share),
+}
+
+impl WebSource {
+    fn begin(&mut self, light: &model::Light) -> Result<Option<usize>, Failed> {
+        match self {
+            WebSource::Own { ring, faults } => {
+                let faults = *faults;
+                ring.get_or_insert_with(|| Box::new(frame_ring(faults))).begin(light).map_err(|e| Failed(e.to_string()))
+            }
+            WebSource::Board(share) => share.begin(light),
+        }
+    }
+
+    fn rows_ready(&mut self, frame: usize) -> Result<u16, Failed> {
+        match self {
+            WebSource::Own { ring: Some(ring), .. } => ring.rows_ready(frame).map_err(|e| Failed(e.to_string())),
+            WebSource::Own { ring: None, .. } => Ok(0),
+            WebSource::Board(share) => share.rows_ready(frame),
+        }
+    }
+
+    fn copy_row(&mut self, frame: usize, y: u16, offset: usize, out: &mut [u8]) -> usize {
+        match self {
+            WebSource::Own { ring: Some(ring), .. } => ring.copy_row(frame, y, offset, out),
+            WebSource::Own { ring: None, .. } => 0,
+            WebSource::Board(share) => share.copy_row(frame, y, offset, out),
+        }
+    }
+
+    fn end(&mut self, frame: usize) {
+        match self {
+            WebSource::Own { ring: Some(ring), .. } => ring.end(frame),
+            WebSource::Own { ring: None, .. } => {}
+            WebSource::Board(share) => share.end(frame),
+        }
     }
 }
 
@@ -152,23 +252,23 @@ fn lock(frames: &Mutex<WebFrames>) -> std::sync::MutexGuard<'_, WebFrames> {
 struct SharedFrames<'a>(&'a Mutex<WebFrames>);
 
 impl FrameSource for SharedFrames<'_> {
-    type Frame = <SimFrameRing as FrameSource>::Frame;
-    type Error = <SimFrameRing as FrameSource>::Error;
+    type Frame = usize;
+    type Error = Failed;
 
-    fn begin(&mut self, light: &model::Light) -> Result<Option<Self::Frame>, Self::Error> {
-        lock(self.0).ring().begin(light)
+    fn begin(&mut self, light: &model::Light) -> Result<Option<usize>, Failed> {
+        lock(self.0).source.begin(light)
     }
 
-    fn rows_ready(&mut self, frame: Self::Frame) -> Result<u16, Self::Error> {
-        lock(self.0).ring().rows_ready(frame)
+    fn rows_ready(&mut self, frame: usize) -> Result<u16, Failed> {
+        lock(self.0).source.rows_ready(frame)
     }
 
-    fn copy_row(&mut self, frame: Self::Frame, y: u16, offset: usize, out: &mut [u8]) -> usize {
-        lock(self.0).ring().copy_row(frame, y, offset, out)
+    fn copy_row(&mut self, frame: usize, y: u16, offset: usize, out: &mut [u8]) -> usize {
+        lock(self.0).source.copy_row(frame, y, offset, out)
     }
 
-    fn end(&mut self, frame: Self::Frame) {
-        lock(self.0).ring().end(frame)
+    fn end(&mut self, frame: usize) {
+        lock(self.0).source.end(frame)
     }
 }
 
@@ -255,11 +355,12 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
         if input_ended && pending.is_empty() {
             connection.receive_eof();
         }
+        let facts = &shared.facts;
         let status_now = BoardStatus {
             uptime_s: shared.started.elapsed().as_secs(),
-            renderer: "simulated",
-            link: "loopback",
-            frames_rendered: shared.frames_rendered.load(Ordering::Relaxed),
+            renderer: &facts.renderer,
+            link: &facts.link,
+            frames_rendered: shared.frames_rendered(),
             frames_sent: shared.frames_sent.load(Ordering::Relaxed),
             viewers: Viewers {
                 web: shared.viewers(),
@@ -269,23 +370,20 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
             },
             rtsp_port: shared.rtsp_port.load(Ordering::Relaxed),
             identity: Identity {
-                version: shared.config.faults.version(),
+                version: &facts.version,
                 name: rt_services::DEFAULT_HOST_NAME,
                 address: None,
-                address_from: "host",
+                address_from: &facts.address_from,
             },
             health: Health {
-                self_test: shared.self_test.result,
-                self_test_detail: &shared.self_test.detail,
-                mode: match shared.config.render {
-                    crate::RenderMode::Frames => "frames",
-                    crate::RenderMode::Rows => "rows",
-                },
-                register_map: Some(hal_avalon::map::ID_VERSION),
-                fpga_build: Some(0),
-                bridges: "not a board (hps-sim)",
-                vga: "off: not a board (hps-sim)",
-                code: if shared.self_test.result == "fail" { "E2" } else { "ok" },
+                self_test: facts.self_test.result,
+                self_test_detail: &facts.self_test.detail,
+                mode: &facts.mode,
+                register_map: facts.register_map,
+                fpga_build: facts.fpga_build,
+                bridges: &facts.bridges,
+                vga: &facts.vga,
+                code: if facts.self_test.result == "fail" { "E2" } else { "ok" },
             },
         };
         let before = connection.frames_sent();

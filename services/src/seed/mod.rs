@@ -12,6 +12,10 @@ pub mod server;
 /// refused. hps-sim serves as many connections at once.
 pub const SEED_SOCKETS: usize = 24;
 
+/// Frames the seed frame server holds at once on the board's frame ring
+/// (its quota), among all its clients; the others wait their turn.
+pub const SEED_FRAMES: usize = 4;
+
 #[cfg(feature = "smoltcp")]
 pub mod service;
 pub mod wire;

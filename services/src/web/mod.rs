@@ -38,3 +38,8 @@ pub const WEB_SOCKETS: usize = 8;
 /// rendered and sent (within the ring's web quota), and a socket; more are
 /// answered 503 and the page retries.
 pub const WEB_VIEWERS: usize = 4;
+
+/// Frames the web page's viewers hold at once on the board's frame ring
+/// (their quota): more viewers take turns, each frame being rendered and
+/// sent in about a frame time.
+pub const WEB_FRAMES: usize = 2;

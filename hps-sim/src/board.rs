@@ -1,0 +1,310 @@
+//! One frame supply for every service, as on the board ([`Board`]): one
+//! engine filling one ring, the seed port's, the page's and the camera's
+//! frames all begun in it, each service within its quota (the firmware's
+//! [`SEED_FRAMES`], [`WEB_FRAMES`], [`CAMERA_SLOTS`]), every call under one
+//! lock. Each user holds a [`Share`], the [`FrameSource`] (and, for the
+//! camera, [`SlotSource`]) its service runs on.
+//!
+//! `hps-linux` serves from a board whose engine is the FPGA behind the
+//! bridge (or the simulated accelerator); `hps-sim` can too
+//! ([`crate::HpsSim::start_board`]).
+
+use std::fmt;
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use model::Light;
+use rt_services::camera::sender::{SlotSource, CAMERA_SLOTS};
+use rt_services::seed::SEED_FRAMES;
+use rt_services::web::WEB_FRAMES;
+use rt_services::FrameSource;
+
+/// Slots of a board's ring: the sum of its users' quotas (no VGA display
+/// under Linux to keep two more, unlike the firmware's `RING_SLOTS`).
+pub const BOARD_SLOTS: usize = SEED_FRAMES + CAMERA_SLOTS + WEB_FRAMES;
+
+/// Which service a [`Share`] serves: its quota.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Service {
+    /// The seed and persistent ports: [`SEED_FRAMES`] among all clients.
+    Seed,
+    /// The web page's viewers: [`WEB_FRAMES`].
+    Web,
+    /// The network camera: [`CAMERA_SLOTS`].
+    Camera,
+}
+
+impl Service {
+    /// Frames the service's users hold at once, all together.
+    pub const fn quota(self) -> usize {
+        match self {
+            Service::Seed => SEED_FRAMES,
+            Service::Web => WEB_FRAMES,
+            Service::Camera => CAMERA_SLOTS,
+        }
+    }
+
+    const fn index(self) -> usize {
+        match self {
+            Service::Seed => 0,
+            Service::Web => 1,
+            Service::Camera => 2,
+        }
+    }
+}
+
+/// Why a frame failed, whatever renders it: the engine's own error, as
+/// text (each engine has its own error type; a board holds any of them).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Failed(pub String);
+
+impl fmt::Display for Failed {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+/// What a board's frames come from: any [`SlotSource`] (a frame ring),
+/// with its errors as text. Implemented for every `SlotSource + Send`; its
+/// methods are named apart from [`FrameSource`]'s, which a [`Share`] also
+/// has.
+pub trait Frames: Send {
+    /// [`FrameSource::begin`].
+    fn begin_frame(&mut self, light: &Light) -> Result<Option<usize>, Failed>;
+    /// [`FrameSource::rows_ready`].
+    fn frame_rows(&mut self, frame: usize) -> Result<u16, Failed>;
+    /// [`FrameSource::copy_row`].
+    fn copy_frame_row(&mut self, frame: usize, y: u16, offset: usize, out: &mut [u8]) -> usize;
+    /// [`FrameSource::end`].
+    fn end_frame(&mut self, frame: usize);
+    /// [`SlotSource::set_held`].
+    fn hold_slots(&mut self, mask: u32);
+}
+
+impl<S: SlotSource + Send> Frames for S {
+    fn begin_frame(&mut self, light: &Light) -> Result<Option<usize>, Failed> {
+        FrameSource::begin(self, light).map_err(|e| Failed(e.to_string()))
+    }
+
+    fn frame_rows(&mut self, frame: usize) -> Result<u16, Failed> {
+        FrameSource::rows_ready(self, frame).map_err(|e| Failed(e.to_string()))
+    }
+
+    fn copy_frame_row(&mut self, frame: usize, y: u16, offset: usize, out: &mut [u8]) -> usize {
+        FrameSource::copy_row(self, frame, y, offset, out)
+    }
+
+    fn end_frame(&mut self, frame: usize) {
+        FrameSource::end(self, frame)
+    }
+
+    fn hold_slots(&mut self, mask: u32) {
+        SlotSource::set_held(self, mask)
+    }
+}
+
+struct Inner {
+    frames: Box<dyn Frames>,
+    /// Frames each service holds now, by [`Service::index`].
+    held: [usize; 3],
+    /// Frames begun so far.
+    begun: u64,
+}
+
+/// The board's one frame supply.
+pub struct Board {
+    inner: Mutex<Inner>,
+    /// What renders, for the log and `/status`.
+    renderer: String,
+}
+
+impl fmt::Debug for Board {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "Board({})", self.renderer)
+    }
+}
+
+impl Board {
+    /// A board whose frames come from `frames` (a ring of at least
+    /// [`BOARD_SLOTS`] slots, so that every service gets its quota),
+    /// described as `renderer` (e.g. `FPGA rows into the ring`).
+    pub fn new(frames: impl Frames + 'static, renderer: impl Into<String>) -> Arc<Board> {
+        Arc::new(Board {
+            inner: Mutex::new(Inner { frames: Box::new(frames), held: [0; 3], begun: 0 }),
+            renderer: renderer.into(),
+        })
+    }
+
+    /// A share of the frames for a user of `service`.
+    pub fn share(self: &Arc<Board>, service: Service) -> Share {
+        Share { board: self.clone(), service }
+    }
+
+    /// What renders.
+    pub fn renderer(&self) -> &str {
+        &self.renderer
+    }
+
+    /// Frames begun so far, by every service.
+    pub fn frames_begun(&self) -> u64 {
+        self.lock().begun
+    }
+
+    /// Frames `service` holds now.
+    pub fn held(&self, service: Service) -> usize {
+        self.lock().held[service.index()]
+    }
+
+    fn lock(&self) -> MutexGuard<'_, Inner> {
+        // A user that panicked left the ring as it was (every call is one
+        // ring operation): go on.
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+/// One user's view of a [`Board`]: its service's quota, every call under
+/// the board's lock.
+#[derive(Clone, Debug)]
+pub struct Share {
+    board: Arc<Board>,
+    service: Service,
+}
+
+impl Share {
+    /// The board it shares.
+    pub fn board(&self) -> &Arc<Board> {
+        &self.board
+    }
+}
+
+impl FrameSource for Share {
+    type Frame = usize;
+    type Error = Failed;
+
+    /// `Ok(None)` while the service holds its quota, or no slot is free.
+    fn begin(&mut self, light: &Light) -> Result<Option<usize>, Failed> {
+        let mut inner = self.board.lock();
+        let i = self.service.index();
+        if inner.held[i] >= self.service.quota() {
+            return Ok(None);
+        }
+        let frame = inner.frames.begin_frame(light)?;
+        if frame.is_some() {
+            inner.held[i] += 1;
+            inner.begun += 1;
+        }
+        Ok(frame)
+    }
+
+    fn rows_ready(&mut self, frame: usize) -> Result<u16, Failed> {
+        self.board.lock().frames.frame_rows(frame)
+    }
+
+    fn copy_row(&mut self, frame: usize, y: u16, offset: usize, out: &mut [u8]) -> usize {
+        self.board.lock().frames.copy_frame_row(frame, y, offset, out)
+    }
+
+    fn end(&mut self, frame: usize) {
+        let mut inner = self.board.lock();
+        let i = self.service.index();
+        inner.held[i] = inner.held[i].saturating_sub(1);
+        inner.frames.end_frame(frame)
+    }
+}
+
+/// The camera's repair windows hold slots through its share (the only
+/// service that does).
+impl SlotSource for Share {
+    fn set_held(&mut self, mask: u32) {
+        self.board.lock().frames.hold_slots(mask)
+    }
+}
+
+/// A board whose engine is hal-avalon's simulated accelerator, its frame
+/// DMA writing a ring of [`BOARD_SLOTS`] in host memory (frame mode), with
+/// `faults`.
+pub fn simulated(faults: crate::Faults) -> Arc<Board> {
+    let mem = crate::SharedMemory::new(BOARD_SLOTS);
+    let sim = crate::simulated(mem.clone(), faults);
+    let engine =
+        hal_avalon::Accelerator::new(sim, hal_avalon::sim::CountingDelay::default(), hal_avalon::PollTimeout::DEFAULT);
+    let ring = rt_services::FrameRing::<_, _, BOARD_SLOTS>::new(mem, engine);
+    Board::new(ring, "simulated accelerator, frame DMA into the ring")
+}
+
+/// A board whose engine renders `rows` one row at a time into a ring of
+/// [`BOARD_SLOTS`] in host memory (the FPGA's row registers, or the
+/// model in software), described as `renderer`.
+pub fn rows_into_ring<R>(rows: R, renderer: &str) -> Arc<Board>
+where
+    R: rt_services::RowSource + Send + 'static,
+    R::Error: Copy + fmt::Display + fmt::Debug + Send,
+{
+    let mem = crate::SharedMemory::new(BOARD_SLOTS);
+    let ring = rt_services::FrameRing::<_, _, BOARD_SLOTS>::new(mem, rt_services::RowEngine::new(rows));
+    Board::new(ring, renderer)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use model::FRAME_BYTES;
+    use rt_services::{FrameRing, RowEngine, SliceMemory, SoftwareRenderer};
+
+    fn light(x: i32) -> Light {
+        Light::from_raw(x, 4096, -2048).unwrap()
+    }
+
+    fn board() -> Arc<Board> {
+        let mem: &'static mut [u8] = Vec::leak(vec![0u8; BOARD_SLOTS * FRAME_BYTES]);
+        let ring = FrameRing::<_, _, BOARD_SLOTS>::new(SliceMemory::new(0, mem), RowEngine::new(SoftwareRenderer));
+        Board::new(ring, "software")
+    }
+
+    #[test]
+    fn each_service_holds_at_most_its_quota_and_the_others_still_get_theirs() {
+        let b = board();
+        let mut seeds: Vec<Share> = (0..6).map(|_| b.share(Service::Seed)).collect();
+        let mut begun = Vec::new();
+        for (i, s) in seeds.iter_mut().enumerate() {
+            if let Some(f) = s.begin(&light(i as i32)).unwrap() {
+                begun.push((i, f));
+            }
+        }
+        assert_eq!(begun.len(), SEED_FRAMES, "the seed clients share their quota");
+        assert_eq!(b.held(Service::Seed), SEED_FRAMES);
+        let mut web = b.share(Service::Web);
+        let w: Vec<usize> = (0..WEB_FRAMES).map(|i| web.begin(&light(100 + i as i32)).unwrap().unwrap()).collect();
+        assert_eq!(web.begin(&light(200)).unwrap(), None, "the page's quota");
+        let mut cam = b.share(Service::Camera);
+        for i in 0..CAMERA_SLOTS {
+            assert!(cam.begin(&light(300 + i as i32)).unwrap().is_some(), "camera frame {i}");
+        }
+        assert_eq!(b.frames_begun(), BOARD_SLOTS as u64);
+        // A seed client ending its frame (one still queued: the one being
+        // rendered frees its slot only when it is done) lets another in.
+        let (i, f) = begun[SEED_FRAMES - 1];
+        seeds[i].end(f);
+        assert!(seeds[5].begin(&light(5)).unwrap().is_some());
+        web.end(w[0]);
+        assert_eq!(b.held(Service::Web), WEB_FRAMES - 1);
+    }
+
+    #[test]
+    fn a_frame_from_a_share_is_the_models() {
+        let b = board();
+        let mut s = b.share(Service::Seed);
+        let l = light(1234);
+        let f = s.begin(&l).unwrap().unwrap();
+        while s.rows_ready(f).unwrap() < rt_services::frames::ROWS {}
+        let mut want = vec![0u8; FRAME_BYTES];
+        model::render_frame_rgb888(&l, (&mut want[..]).try_into().unwrap());
+        let mut row = vec![0u8; model::ROW_BYTES];
+        for y in 0..rt_services::frames::ROWS {
+            assert_eq!(s.copy_row(f, y, 0, &mut row), model::ROW_BYTES);
+            let at = usize::from(y) * model::ROW_BYTES;
+            assert_eq!(row, want[at..at + model::ROW_BYTES], "row {y}");
+        }
+        s.end(f);
+        assert_eq!(b.held(Service::Seed), 0);
+    }
+}
