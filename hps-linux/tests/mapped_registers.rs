@@ -17,112 +17,17 @@
 //! driver (`Accelerator` over `MappedPort`, the bare-metal `MmioPort`)
 //! rendering rows and a whole frame equal to the model's.
 
-use std::path::{Path, PathBuf};
+mod support;
+
+use std::path::PathBuf;
 
 use hal_avalon::conformance::{BoardPins, Device, TestMemory, MEMORY_BASE};
-use hal_avalon::map::{line_word_offset, Csr, LINE_WORDS, LW_BRIDGE_BASE, LW_BRIDGE_SIZE};
+use hal_avalon::map::{Csr, LINE_WORDS, LW_BRIDGE_BASE, LW_BRIDGE_SIZE};
 use hal_avalon::sim::{CountingDelay, SimAccelerator};
-use hal_avalon::{Accelerator, PollTimeout, RegisterPort};
-use hps_linux::window::{MappedPort, Window};
-use memmap2::{MmapOptions, MmapRaw};
+use hal_avalon::{Accelerator, PollTimeout};
+use hps_linux::window::Window;
 use model::{Light, FRAME_BYTES};
-use tempfile::TempDir;
-
-/// What a word holds before a write is expected to land in it.
-const POISON: u32 = 0xA5C3_96E1;
-
-/// STATUS polls a simulated row stays busy for.
-const BUSY_POLLS: u32 = 3;
-
-/// The file standing in for the bridge and the model's view of the window
-/// in it (a second mapping of the same bytes, as a second bus master sees
-/// them).
-struct Bridge {
-    dir: TempDir,
-    view: MmapRaw,
-}
-
-impl Bridge {
-    fn get(&self, offset: usize) -> u32 {
-        let word = offset & !3;
-        assert!(word + 4 <= self.view.len());
-        // SAFETY: in bounds (asserted), 4-byte aligned in a page-aligned
-        // mapping that lives as long as `self`; volatile, since the code
-        // under test writes the same bytes through its own mapping.
-        unsafe { self.view.as_mut_ptr().add(word).cast::<u32>().read_volatile() }
-    }
-
-    fn set(&self, offset: usize, value: u32) {
-        let word = offset & !3;
-        assert!(word + 4 <= self.view.len());
-        // SAFETY: as in `get`.
-        unsafe { self.view.as_mut_ptr().add(word).cast::<u32>().write_volatile(value) }
-    }
-
-    /// The model's read at `offset`, put where the code under test reads.
-    fn answer_read(&self, sim: &mut SimAccelerator<TestMemory>, offset: usize) {
-        self.set(offset, sim.bus_read(offset));
-    }
-
-    /// Poison `offset` before a write the code under test makes there.
-    fn expect_write(&self, offset: usize) {
-        self.set(offset, POISON);
-    }
-
-    /// The value the write landed, handed to the model; `None` if nothing
-    /// landed.
-    fn take_write(&self, sim: &mut SimAccelerator<TestMemory>, offset: usize) -> Option<u32> {
-        let value = self.get(offset);
-        (value != POISON).then(|| {
-            sim.bus_write(offset, value);
-            value
-        })
-    }
-}
-
-/// A /dev/mem stand-in: a sparse file as long as the bridge's physical
-/// address plus its window, the window opened by the code under test.
-fn through_dev_mem() -> (Bridge, Window) {
-    let dir = tempfile::tempdir().expect("temporary directory");
-    let path = dir.path().join("mem");
-    let end = LW_BRIDGE_BASE as u64 + LW_BRIDGE_SIZE as u64;
-    std::fs::File::create(&path).and_then(|f| f.set_len(end)).expect("sparse /dev/mem stand-in");
-    let window = Window::lightweight_bridge(&path).expect("the window through /dev/mem");
-    let view = map_view(&path, LW_BRIDGE_BASE as u64, LW_BRIDGE_SIZE);
-    (Bridge { dir, view }, window)
-}
-
-/// A UIO stand-in: `class/uio0` maps something else, `class/uio3` the
-/// bridge; `dev/uio3` is a file holding the window (map 0 at offset 0).
-/// The code under test finds the device by address and opens it.
-fn through_uio() -> (Bridge, Window) {
-    let dir = tempfile::tempdir().expect("temporary directory");
-    let class = dir.path().join("class");
-    let dev = dir.path().join("dev");
-    for (name, addr, size) in [("uio0", 0xffc0_2000u64, 0x1000usize), ("uio3", LW_BRIDGE_BASE as u64, LW_BRIDGE_SIZE)] {
-        let maps = class.join(name).join("maps/map0");
-        std::fs::create_dir_all(&maps).unwrap();
-        std::fs::write(maps.join("addr"), format!("{addr:#010x}\n")).unwrap();
-        std::fs::write(maps.join("size"), format!("{size:#010x}\n")).unwrap();
-        std::fs::create_dir_all(&dev).unwrap();
-        std::fs::File::create(dev.join(name)).and_then(|f| f.set_len(size as u64)).unwrap();
-    }
-    let device = Window::find_uio(&class, &dev, LW_BRIDGE_BASE as u64).expect("the bridge's UIO device");
-    assert_eq!(device, dev.join("uio3"), "the device whose map 0 is the bridge");
-    let window = Window::uio(&device, &class).expect("the window through UIO");
-    assert_eq!(window.len(), LW_BRIDGE_SIZE, "as big as sysfs says");
-    let view = map_view(&device, 0, LW_BRIDGE_SIZE);
-    (Bridge { dir, view }, window)
-}
-
-fn map_view(path: &Path, offset: u64, len: usize) -> MmapRaw {
-    let file = std::fs::OpenOptions::new().read(true).write(true).open(path).expect("the stand-in file");
-    MmapOptions::new().offset(offset).len(len).map_raw(&file).expect("the model's mapping")
-}
-
-fn simulated() -> SimAccelerator<TestMemory> {
-    SimAccelerator::with_memory(TestMemory::default(), BUSY_POLLS)
-}
+use support::{simulated, through_dev_mem, through_uio, Answered, Bridge};
 
 // ---- The register-semantics suite through `Window` -----------------------------
 
@@ -178,36 +83,6 @@ mod uio {
 }
 
 // ---- The driver through `MappedPort` ---------------------------------------------
-
-/// The driver's port: the bare-metal `MmioPort` on the mapping under test,
-/// each access answered by the model through the file.
-struct Answered {
-    port: MappedPort,
-    bridge: Bridge,
-    sim: SimAccelerator<TestMemory>,
-}
-
-impl RegisterPort for Answered {
-    fn read(&mut self, csr: Csr) -> u32 {
-        self.bridge.answer_read(&mut self.sim, csr.offset());
-        self.port.read(csr)
-    }
-
-    fn write(&mut self, csr: Csr, value: u32) {
-        self.bridge.expect_write(csr.offset());
-        self.port.write(csr, value);
-        // A write the port does not make (a read-only register) reaches
-        // nothing.
-        let _ = self.bridge.take_write(&mut self.sim, csr.offset());
-    }
-
-    fn read_line(&mut self, out: &mut [u32; LINE_WORDS]) {
-        for x in 0..LINE_WORDS {
-            self.bridge.answer_read(&mut self.sim, line_word_offset(x));
-        }
-        self.port.read_line(out)
-    }
-}
 
 fn driver((bridge, window): (Bridge, Window)) -> Accelerator<Answered, CountingDelay> {
     let port = window.into_port().expect("the window holds the registers");

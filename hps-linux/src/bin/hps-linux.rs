@@ -1,25 +1,46 @@
 //! `hps-linux`: the ray tracer board's services as a Linux program on the
 //! DE1-SoC's HPS (docs/linux.md).
 //!
-//!     hps-linux check [--accelerator uio|uio:/dev/uioN|devmem]
+//!     hps-linux [--accelerator uio|uio:/dev/uioN|devmem|sim] [--software-fallback]
+//!         [--listen 0.0.0.0:7878] [--rtsp ADDR] [--http ADDR] [--multicast-group G]
+//!     hps-linux check [--accelerator ...]
 //!
-//! `check` runs the checks the program makes before its first access to
-//! the bridge (the FPGA configured, the lightweight bridge out of reset,
-//! the window mapped, the ray tracer answering with a known register map)
-//! and prints what it saw, or why the accelerator cannot be used (exit
-//! status 1).
+//! Serves the seed protocol on the listen port (the persistent protocol on
+//! the next), RTSP/RTP on `--rtsp` (default: the listen address, port
+//! 8554) and the web page on `--http` when given, every client from one
+//! accelerator and one frame ring, as the bare-metal firmware does. The
+//! flags mean what hps-sim's do.
+//!
+//! `check` runs the checks made before the first access to the bridge and
+//! prints what it saw, or why the accelerator cannot be used (exit 1).
 
+use std::net::{Ipv4Addr, SocketAddr};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{Args as ClapArgs, Parser, Subcommand};
 use hps_linux::preflight::{self, Access, System};
+use hps_linux::serve;
+use hps_sim::rtsp::Options;
+use hps_sim::{Device, Faults, HpsSim};
+use rt_services::camera::sender::Multicast;
 
 #[derive(Parser)]
-#[command(name = "hps-linux", version, about = "The ray tracer board's services under Linux on the DE1-SoC's HPS")]
+#[command(
+    name = "hps-linux",
+    version,
+    about = "The ray tracer board's services under Linux on the DE1-SoC's HPS",
+    long_about = "The ray tracer board's services under Linux on the DE1-SoC's HPS: the seed protocol, \
+                  RTSP/RTP and the web page, every client from one accelerator and one frame ring.\n\n\
+                  Load the FPGA image and enable the bridges first (docs/linux.md); `hps-linux check` \
+                  says whether the accelerator can be used.",
+    args_conflicts_with_subcommands = true
+)]
 struct Args {
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
+    #[command(flatten)]
+    serve: ServeArgs,
 }
 
 #[derive(Subcommand)]
@@ -27,56 +48,184 @@ enum Command {
     /// Check that the accelerator can be used: FPGA configured, bridge out
     /// of reset, window mapped, ray tracer answering; print what was seen.
     Check {
-        /// How the bridge window is mapped: `uio` (the UIO device whose map
-        /// 0 is the lightweight bridge), `uio:/dev/uioN`, or `devmem`
-        /// (/dev/mem at 0xff200000, as root).
-        #[arg(long, default_value = "uio", value_parser = parse_access)]
-        accelerator: Access,
-        /// sysfs (a stand-in in tests).
-        #[arg(long, default_value = "/sys", hide = true)]
-        sysfs: PathBuf,
-        /// Device nodes (a stand-in in tests).
-        #[arg(long, default_value = "/dev", hide = true)]
-        dev: PathBuf,
-        /// Physical memory (a stand-in in tests).
-        #[arg(long, default_value = "/dev/mem", hide = true)]
-        dev_mem: PathBuf,
+        #[command(flatten)]
+        access: AccessArgs,
     },
 }
 
-fn parse_access(s: &str) -> Result<Access, String> {
+#[derive(ClapArgs)]
+struct AccessArgs {
+    /// The accelerator: `uio` (the UIO device whose map 0 is the
+    /// lightweight bridge), `uio:/dev/uioN`, `devmem` (/dev/mem at
+    /// 0xff200000, as root), or `sim` (hal-avalon's simulated one, no board).
+    #[arg(long, default_value = "uio", value_parser = parse_accelerator)]
+    accelerator: Accelerator,
+    /// sysfs (a stand-in in tests).
+    #[arg(long, default_value = "/sys", hide = true)]
+    sysfs: PathBuf,
+    /// Device nodes (a stand-in in tests).
+    #[arg(long, default_value = "/dev", hide = true)]
+    dev: PathBuf,
+    /// Physical memory (a stand-in in tests).
+    #[arg(long, default_value = "/dev/mem", hide = true)]
+    dev_mem: PathBuf,
+}
+
+impl AccessArgs {
+    fn system(&self) -> System {
+        System { sysfs: self.sysfs.clone(), dev: self.dev.clone(), dev_mem: self.dev_mem.clone() }
+    }
+}
+
+#[derive(ClapArgs)]
+struct ServeArgs {
+    #[command(flatten)]
+    access: AccessArgs,
+    /// When the accelerator cannot be used, serve frames rendered in
+    /// software instead of stopping (said in the log and `/status`).
+    #[arg(long)]
+    software_fallback: bool,
+    /// Address of the seed-protocol port; the persistent port is the next one.
+    #[arg(long, default_value_t = SocketAddr::from(([0, 0, 0, 0], rt_services::FRAME_PORT)))]
+    listen: SocketAddr,
+    /// Address of the RTSP server. Default: the listen address with port 8554.
+    #[arg(long)]
+    rtsp: Option<SocketAddr>,
+    /// The first multicast group streams set up with
+    /// `Transport: RTP/AVP;multicast` go to (without one, such a SETUP is
+    /// answered 461).
+    #[arg(long)]
+    multicast_group: Option<Ipv4Addr>,
+    /// The multicast groups' RTP port (RTCP: the next one).
+    #[arg(long, default_value_t = 5006)]
+    multicast_port: u16,
+    /// The multicast packets' time to live (1: they stay on the link).
+    #[arg(long, default_value_t = 1)]
+    multicast_ttl: u8,
+    /// Address of the web page (e.g. 0.0.0.0:80, which needs root or
+    /// CAP_NET_BIND_SERVICE).
+    #[arg(long)]
+    http: Option<SocketAddr>,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+enum Accelerator {
+    Board(Access),
+    Sim,
+}
+
+fn parse_accelerator(s: &str) -> Result<Accelerator, String> {
     match s {
-        "uio" => Ok(Access::Uio(None)),
-        "devmem" => Ok(Access::DevMem),
+        "sim" => Ok(Accelerator::Sim),
+        "uio" => Ok(Accelerator::Board(Access::Uio(None))),
+        "devmem" => Ok(Accelerator::Board(Access::DevMem)),
         _ => match s.strip_prefix("uio:") {
-            Some(path) if !path.is_empty() => Ok(Access::Uio(Some(path.into()))),
-            _ => Err(format!("{s:?}: expected uio, uio:/dev/uioN or devmem")),
+            Some(path) if !path.is_empty() => Ok(Accelerator::Board(Access::Uio(Some(path.into())))),
+            _ => Err(format!("{s:?}: expected uio, uio:/dev/uioN, devmem or sim")),
         },
     }
 }
 
 fn main() -> ExitCode {
-    match Args::parse().command {
-        Command::Check { accelerator, sysfs, dev, dev_mem } => {
-            let sys = System { sysfs, dev, dev_mem };
-            match preflight::open(&sys, &accelerator) {
-                Ok((_, report)) => {
-                    println!("FPGA: {}", report.fpga);
-                    println!("bridge: {}", report.bridge);
-                    println!("window: {}", report.window);
-                    println!("register map: version {}", report.register_map);
-                    match report.build_id {
-                        0 => println!("FPGA build: none recorded"),
-                        id => println!("FPGA build: {id:07x}"),
-                    }
-                    println!("accelerator: ready");
-                    ExitCode::SUCCESS
+    let args = Args::parse();
+    match args.command {
+        Some(Command::Check { access }) => check(&access),
+        None => run(args.serve),
+    }
+}
+
+fn check(access: &AccessArgs) -> ExitCode {
+    let Accelerator::Board(how) = &access.accelerator else {
+        println!("accelerator: simulated, nothing to check");
+        return ExitCode::SUCCESS;
+    };
+    match preflight::open(&access.system(), how) {
+        Ok((_, report)) => {
+            println!("FPGA: {}", report.fpga);
+            println!("bridge: {}", report.bridge);
+            println!("window: {}", report.window);
+            println!("register map: version {}", report.register_map);
+            match report.build_id {
+                0 => println!("FPGA build: none recorded"),
+                id => println!("FPGA build: {id:07x}"),
+            }
+            println!("accelerator: ready");
+            ExitCode::SUCCESS
+        }
+        Err(refusal) => {
+            eprintln!("hps-linux: {refusal}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(args: ServeArgs) -> ExitCode {
+    let (board, facts) = match &args.access.accelerator {
+        Accelerator::Sim => serve::simulated(),
+        Accelerator::Board(how) => {
+            let opened =
+                preflight::open(&args.access.system(), how).map_err(|r| r.to_string()).and_then(|(port, report)| {
+                    eprintln!("hps-linux: FPGA: {}; bridge: {}", report.fpga, report.bridge);
+                    eprintln!(
+                        "hps-linux: {}: register map version {}, FPGA build {:07x}",
+                        report.window, report.register_map, report.build_id
+                    );
+                    serve::fpga(port, &report).map_err(|t| t.detail)
+                });
+            match opened {
+                Ok(b) => b,
+                Err(why) if args.software_fallback => {
+                    eprintln!("hps-linux: {why}");
+                    eprintln!("hps-linux: --software-fallback: rendering in software");
+                    serve::software(&why)
                 }
-                Err(refusal) => {
-                    eprintln!("hps-linux: {refusal}");
-                    ExitCode::FAILURE
+                Err(why) => {
+                    eprintln!("hps-linux: {why}");
+                    eprintln!("hps-linux: (--software-fallback serves frames rendered in software instead)");
+                    return ExitCode::FAILURE;
                 }
             }
         }
+    };
+    eprintln!("hps-linux: {}", facts.self_test.detail);
+    let renderer = board.renderer().to_string();
+    let mut sim = match HpsSim::start_board(args.listen, board, facts, true) {
+        Ok(sim) => sim,
+        Err(e) => {
+            eprintln!("hps-linux: cannot listen on {} and the next port: {e}", args.listen);
+            return ExitCode::FAILURE;
+        }
+    };
+    let multicast =
+        args.multicast_group.map(|group| Multicast { group, base_port: args.multicast_port, ttl: args.multicast_ttl });
+    if multicast.is_some_and(|m| !m.group.is_multicast()) {
+        eprintln!("hps-linux: --multicast-group must be a multicast address (224.0.0.0/4)");
+        return ExitCode::FAILURE;
+    }
+    let rtsp = args.rtsp.unwrap_or(SocketAddr::new(args.listen.ip(), rt_services::camera::rtsp::RTSP_PORT));
+    let options = Options { device: Device::Sim, verbose: true, multicast, faults: Faults::default() };
+    let rtsp = match sim.start_rtsp_with(rtsp, options) {
+        Ok(addr) => addr,
+        Err(e) => {
+            eprintln!("hps-linux: cannot serve RTSP on {rtsp}: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    if let Some(http) = args.http {
+        match sim.start_web(http, true) {
+            Ok(addr) => eprintln!("hps-linux: web page on http://{addr}/"),
+            Err(e) => {
+                eprintln!("hps-linux: cannot serve the web page on {http}: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    eprintln!(
+        "hps-linux: {renderer}; frames on {}, persistent on {}, RTSP on rtsp://{rtsp}/light/3,4,-2 (also /orbit, /live)",
+        sim.frame_addr(),
+        sim.persistent_addr()
+    );
+    loop {
+        std::thread::park();
     }
 }

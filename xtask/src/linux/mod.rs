@@ -1,7 +1,7 @@
 //! The board's services as a Linux program (`hps-linux`, docs/linux.md):
 //! cross-built for the HPS's 32-bit ARM Linux as one static executable
 //! ([`build`]) and run under Debian's QEMU user mode (`cargo xtask
-//! linux-test`, [`run`]).
+//! linux-test`, [`run`]): its checks, and serving ([`user_mode`]).
 //!
 //! The target is `armv7-unknown-linux-gnueabihf` with glibc linked in
 //! (`+crt-static`, `.cargo/config.toml`), linked by Debian's
@@ -12,6 +12,8 @@
 //! (`rustup target add armv7-unknown-linux-musleabihf`: 404).
 //!
 //! May import: `support`.
+
+pub mod user_mode;
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -53,8 +55,9 @@ pub fn build() -> Result<PathBuf> {
 
 /// `cargo xtask linux-test`: the UIO overlay compiles and maps the bridge
 /// window of hal-avalon's map; the ARM executable builds static, and runs
-/// under QEMU user mode: `--version`, and `check` against a stand-in
-/// system printing what the host's build prints.
+/// under QEMU user mode: `--version`, `check` against a stand-in system
+/// printing what the host's build prints, and serving
+/// ([`user_mode::serves`]).
 pub fn run() -> Result<()> {
     ensure_tools()?;
     overlay()?;
@@ -75,7 +78,7 @@ pub fn run() -> Result<()> {
         return Err(format!("hps-linux check under qemu-arm printed\n{arm}\nthe host's build printed\n{host}"));
     }
     println!("linux-test: the ARM executable is static and its check reads the stand-in as the host's does ... ok");
-    Ok(())
+    user_mode::serves(&exe)
 }
 
 /// Compile the overlay with `dtc` and read it back: one `generic-uio` node
