@@ -37,7 +37,7 @@ const MARGIN: usize = 8;
 pub const BOX_ROWS: usize = 2 * GLYPH_H + 2 * PAD;
 /// Characters a line holds inside the box; a longer name is cut.
 pub const LINE_CHARS: usize = (WIDTH - 2 * MARGIN - 2 * PAD) / GLYPH_W;
-/// First row of the box (the box ends [`MARGIN`] rows above the bottom).
+/// First row of the box (the box ends 8 rows above the bottom).
 pub const FIRST_ROW: u16 = (ROWS as usize - MARGIN - BOX_ROWS) as u16;
 
 /// Bytes of the longest name [`fitting`] returns.
