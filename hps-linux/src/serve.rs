@@ -13,7 +13,7 @@
 //! whatever memory is there.
 
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use embedded_hal::delay::DelayNs;
 use hal_avalon::selftest::PLAN;
@@ -25,14 +25,27 @@ use model::{Light, WIDTH};
 
 use crate::preflight::Report;
 
-/// Delays by sleeping (the driver's STATUS polls, 1 us apart, take the
-/// scheduler's shortest sleep instead: a row is about 10 us of the FPGA's).
+/// Delays the driver's STATUS polls: short waits spin (a row is about
+/// 12 us of the FPGA's, and the kernel's shortest sleep is tens of
+/// microseconds: sleeping there would cost more than the row), longer ones
+/// sleep.
 #[derive(Clone, Copy, Debug, Default)]
-pub struct SleepDelay;
+pub struct PollDelay;
 
-impl DelayNs for SleepDelay {
+/// Waits up to this long spin; longer ones sleep.
+const SPIN_UP_TO: Duration = Duration::from_micros(100);
+
+impl DelayNs for PollDelay {
     fn delay_ns(&mut self, ns: u32) {
-        std::thread::sleep(Duration::from_nanos(u64::from(ns)));
+        let wait = Duration::from_nanos(u64::from(ns));
+        if wait > SPIN_UP_TO {
+            std::thread::sleep(wait);
+            return;
+        }
+        let until = Instant::now() + wait;
+        while Instant::now() < until {
+            std::hint::spin_loop();
+        }
     }
 }
 
@@ -78,7 +91,7 @@ pub fn fpga<P>(port: P, report: &Report) -> Result<(Arc<Board>, Facts), SelfTest
 where
     P: RegisterPort + Send + 'static,
 {
-    let mut accel = Accelerator::new(port, SleepDelay, PollTimeout::DEFAULT);
+    let mut accel = Accelerator::new(port, PollDelay, PollTimeout::DEFAULT);
     if let Err(e) = accel.probe() {
         return Err(SelfTest { result: "fail", detail: format!("self-test: FAIL: {e}") });
     }

@@ -31,6 +31,9 @@ const PACKAGES: [&str; 3] = ["gcc-arm-linux-gnueabihf", "libc6-dev-armhf-cross",
 /// The UIO overlay (docs/linux.md).
 const OVERLAY: &str = "hps-linux/dts/raytracer-uio.dtso";
 
+/// The systemd unit.
+const UNIT: &str = "hps-linux/systemd/hps-linux.service";
+
 /// Install what the build and the tests need.
 pub fn ensure_tools() -> Result<()> {
     ensure_rust_target(TARGET)?;
@@ -68,6 +71,8 @@ pub fn run() -> Result<()> {
     if version.trim() != want {
         return Err(format!("qemu-arm hps-linux --version printed {version:?}, expected {want:?}"));
     }
+    let help = output(Command::new("qemu-arm").arg(&exe).arg("--help"))?;
+    unit_flags_exist(&help)?;
     let stand = StandIn::new()?;
     step("build hps-linux for the host", cargo(&["build", "-p", "hps-linux"]))?;
     let host = output(stand.check(&mut Command::new(root().join("target/debug/hps-linux"))))?;
@@ -101,6 +106,24 @@ fn overlay_maps_the_bridge(dts: &str) -> Result<()> {
     for line in ["compatible = \"generic-uio\";", "reg = <0xff200000 0x200000>;", "linux,uio-name = \"raytracer\";"] {
         if !has(line) {
             return Err(format!("{OVERLAY}: no `{line}` in the compiled overlay:\n{dts}"));
+        }
+    }
+    Ok(())
+}
+
+/// Every flag the systemd unit's `ExecStart` gives is one the program's
+/// `--help` lists.
+fn unit_flags_exist(help: &str) -> Result<()> {
+    let path = root().join(UNIT);
+    let unit = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let exec = unit.lines().find_map(|l| l.strip_prefix("ExecStart=")).ok_or(format!("{UNIT}: no ExecStart"))?;
+    let mut words = exec.split_whitespace();
+    if !words.next().is_some_and(|w| w.ends_with("/hps-linux")) {
+        return Err(format!("{UNIT}: ExecStart does not run hps-linux: {exec}"));
+    }
+    for flag in words.filter(|w| w.starts_with("--")) {
+        if !help.split_whitespace().any(|w| w.trim_end_matches(',') == flag) {
+            return Err(format!("{UNIT}: {flag} is not one of hps-linux's flags:\n{help}"));
         }
     }
     Ok(())
@@ -232,6 +255,13 @@ mod tests {
         assert_eq!(overlay_maps_the_bridge(good), Ok(()));
         let wrong = good.replace("0xff200000", "0xc0000000");
         assert!(overlay_maps_the_bridge(&wrong).unwrap_err().contains("reg = <0xff200000 0x200000>"));
+    }
+
+    #[test]
+    fn the_units_flags_are_checked_against_the_help() {
+        let help = "Options:\n  --accelerator <ACCELERATOR>\n  --listen <LISTEN>\n  --http <HTTP>\n";
+        assert_eq!(unit_flags_exist(help), Ok(()));
+        assert!(unit_flags_exist("Options:\n  --listen <LISTEN>\n").unwrap_err().contains("--accelerator"));
     }
 
     #[test]
