@@ -27,6 +27,7 @@
 //! board refuses it.
 
 pub mod board;
+pub mod cli;
 pub mod rtsp;
 pub mod web;
 

@@ -14,16 +14,16 @@
 //! `check` runs the checks made before the first access to the bridge and
 //! prints what it saw, or why the accelerator cannot be used (exit 1).
 
-use std::net::{Ipv4Addr, SocketAddr};
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args as ClapArgs, Parser, Subcommand};
 use hps_linux::preflight::{self, Access, System};
 use hps_linux::serve;
+use hps_sim::cli::ServiceArgs;
 use hps_sim::rtsp::Options;
 use hps_sim::{Device, Faults, HpsSim};
-use rt_services::camera::sender::Multicast;
 
 #[derive(Parser)]
 #[command(
@@ -88,24 +88,8 @@ struct ServeArgs {
     /// Address of the seed-protocol port; the persistent port is the next one.
     #[arg(long, default_value_t = SocketAddr::from(([0, 0, 0, 0], rt_services::FRAME_PORT)))]
     listen: SocketAddr,
-    /// Address of the RTSP server. Default: the listen address with port 8554.
-    #[arg(long)]
-    rtsp: Option<SocketAddr>,
-    /// The first multicast group streams set up with
-    /// `Transport: RTP/AVP;multicast` go to (without one, such a SETUP is
-    /// answered 461).
-    #[arg(long)]
-    multicast_group: Option<Ipv4Addr>,
-    /// The multicast groups' RTP port (RTCP: the next one).
-    #[arg(long, default_value_t = 5006)]
-    multicast_port: u16,
-    /// The multicast packets' time to live (1: they stay on the link).
-    #[arg(long, default_value_t = 1)]
-    multicast_ttl: u8,
-    /// Address of the web page (e.g. 0.0.0.0:80, which needs root or
-    /// CAP_NET_BIND_SERVICE).
-    #[arg(long)]
-    http: Option<SocketAddr>,
+    #[command(flatten)]
+    services: ServiceArgs,
 }
 
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -196,34 +180,23 @@ fn run(args: ServeArgs) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let multicast =
-        args.multicast_group.map(|group| Multicast { group, base_port: args.multicast_port, ttl: args.multicast_ttl });
-    if multicast.is_some_and(|m| !m.group.is_multicast()) {
-        eprintln!("hps-linux: --multicast-group must be a multicast address (224.0.0.0/4)");
-        return ExitCode::FAILURE;
-    }
-    let rtsp = args.rtsp.unwrap_or(SocketAddr::new(args.listen.ip(), rt_services::camera::rtsp::RTSP_PORT));
-    let options = Options { device: Device::Sim, verbose: true, multicast, faults: Faults::default() };
-    let rtsp = match sim.start_rtsp_with(rtsp, options) {
-        Ok(addr) => addr,
+    // The device is the board's (its camera draws from it): not used.
+    let options = Options { device: Device::Sim, verbose: true, multicast: None, faults: Faults::default() };
+    let started = match args.services.start(&mut sim, args.listen, options) {
+        Ok(s) => s,
         Err(e) => {
-            eprintln!("hps-linux: cannot serve RTSP on {rtsp}: {e}");
+            eprintln!("hps-linux: {e}");
             return ExitCode::FAILURE;
         }
     };
-    if let Some(http) = args.http {
-        match sim.start_web(http, true) {
-            Ok(addr) => eprintln!("hps-linux: web page on http://{addr}/"),
-            Err(e) => {
-                eprintln!("hps-linux: cannot serve the web page on {http}: {e}");
-                return ExitCode::FAILURE;
-            }
-        }
+    if let Some(http) = started.http {
+        eprintln!("hps-linux: web page on http://{http}/");
     }
     eprintln!(
-        "hps-linux: {renderer}; frames on {}, persistent on {}, RTSP on rtsp://{rtsp}/light/3,4,-2 (also /orbit, /live)",
+        "hps-linux: {renderer}; frames on {}, persistent on {}, RTSP on rtsp://{}/light/3,4,-2 (also /orbit, /live)",
         sim.frame_addr(),
-        sim.persistent_addr()
+        sim.persistent_addr(),
+        started.rtsp
     );
     loop {
         std::thread::park();
