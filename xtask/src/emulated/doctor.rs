@@ -19,7 +19,7 @@ use std::process::{Command, Stdio};
 use std::time::Instant;
 
 use crate::images::firmware::{self, Guest};
-use crate::support::process::{free_ports, wait_for_port, Guard};
+use crate::support::process::{free_ports, start_server, Guard};
 use crate::support::tools::{cargo, root, step};
 use crate::support::Result;
 
@@ -83,15 +83,12 @@ fn hps_sim(faults: &[&str], tag: &str) -> Result<(Guard, Vec<String>)> {
     let dir = root().join("target/doctor");
     fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let log = dir.join(format!("hps-sim-{tag}.log"));
-    let log_file = fs::File::create(&log).map_err(|e| format!("{}: {e}", log.display()))?;
     let mut cmd = Command::new(root().join("target/release/hps-sim"));
     cmd.args(["--listen", &listen.to_string(), "--rtsp", &rtsp.to_string(), "--http", &http.to_string()]);
     for f in faults {
         cmd.args(["--fault", f]);
     }
-    let child = cmd.stdin(Stdio::null()).stdout(Stdio::null()).stderr(log_file).spawn();
-    let mut sim = Guard(child.map_err(|e| format!("hps-sim: {e}"))?, "hps-sim");
-    wait_for_port(&mut sim, http, &log)?;
+    let sim = start_server(cmd, "hps-sim", &log, http)?;
     let args = vec![
         "127.0.0.1".to_string(),
         "--seed-port".into(),

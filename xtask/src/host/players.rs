@@ -25,7 +25,7 @@ use std::time::{Duration, Instant};
 use model::{Light, FRAME_BYTES, HEIGHT, ROW_BYTES, WIDTH};
 use rt_services::camera::rtsp::StreamSpec;
 
-use crate::support::process::{free_ports, wait_for_port, Guard};
+use crate::support::process::{free_ports, start_server, Guard};
 use crate::support::tools::{cargo, ensure_apt_packages, root, step};
 use crate::support::Result;
 
@@ -59,17 +59,10 @@ pub fn run() -> Result<()> {
     fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let (listen, rtsp) = free_ports()?;
     let log = dir.join("hps-sim.log");
-    let log_file = fs::File::create(&log).map_err(|e| format!("{}: {e}", log.display()))?;
     println!("==> players: hps-sim on {listen}, RTSP on {rtsp} (log {})", log.display());
-    let sim = Command::new(root().join("target/release/hps-sim"))
-        .args(["--listen", &listen.to_string(), "--rtsp", &rtsp.to_string()])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(log_file)
-        .spawn()
-        .map_err(|e| format!("hps-sim: {e}"))?;
-    let mut sim = Guard(sim, "hps-sim");
-    wait_for_port(&mut sim, rtsp, &log)?;
+    let mut cmd = Command::new(root().join("target/release/hps-sim"));
+    cmd.args(["--listen", &listen.to_string(), "--rtsp", &rtsp.to_string()]);
+    let mut sim = start_server(cmd, "hps-sim", &log, rtsp)?;
     check_server("hps-sim", rtsp, &dir)?;
     if let Ok(Some(status)) = sim.0.try_wait() {
         return Err(format!("hps-sim exited during the test ({status}); see {}", log.display()));

@@ -6,11 +6,11 @@
 
 use std::fs;
 use std::net::TcpListener;
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::Instant;
 
 use crate::support::browser::{check_page, ensure_browser, pages_share, PageCheck};
-use crate::support::process::{free_ports, wait_for_port, Guard};
+use crate::support::process::{free_ports, start_server};
 use crate::support::tools::{cargo, root, step};
 use crate::support::Result;
 
@@ -25,17 +25,10 @@ pub fn run() -> Result<()> {
     let http =
         TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).map_err(|e| format!("no free port: {e}"))?;
     let log = dir.join("hps-sim.log");
-    let log_file = fs::File::create(&log).map_err(|e| format!("{}: {e}", log.display()))?;
     println!("==> the web page in Chromium: hps-sim on http://{http}/ (log {})", log.display());
-    let sim = Command::new(root().join("target/release/hps-sim"))
-        .args(["--listen", &listen.to_string(), "--rtsp", &rtsp.to_string(), "--http", &http.to_string()])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(log_file)
-        .spawn()
-        .map_err(|e| format!("hps-sim: {e}"))?;
-    let mut sim = Guard(sim, "hps-sim");
-    wait_for_port(&mut sim, http, &log)?;
+    let mut cmd = Command::new(root().join("target/release/hps-sim"));
+    cmd.args(["--listen", &listen.to_string(), "--rtsp", &rtsp.to_string(), "--http", &http.to_string()]);
+    let mut sim = start_server(cmd, "hps-sim", &log, http)?;
     let check = PageCheck { url: format!("http://{http}"), out: dir.clone(), timeout_s: 60, during: None, play_s: 0 };
     let summary = check_page(&check)?;
     if let Ok(Some(status)) = sim.0.try_wait() {

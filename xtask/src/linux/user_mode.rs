@@ -7,14 +7,14 @@ use std::fs;
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 use model::{render_frame, Light};
 
 use crate::support::browser::{check_page, ensure_browser, PageCheck};
 use crate::support::player::{Kind, Player, PLAYER_PACKAGES};
-use crate::support::process::{free_ports, wait_for_port, Guard};
+use crate::support::process::{free_ports, start_server};
 use crate::support::tools::{ensure_apt_packages, root};
 use crate::support::Result;
 
@@ -36,23 +36,15 @@ pub fn serves(exe: &Path) -> Result<()> {
     let http =
         TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).map_err(|e| format!("no free port: {e}"))?;
     let log = dir.join("hps-linux.log");
-    let log_file = fs::File::create(&log).map_err(|e| format!("{}: {e}", log.display()))?;
     println!(
         "==> hps-linux serving under QEMU user mode: seed {listen}, RTSP {rtsp}, page {http} (log {})",
         log.display()
     );
     let started = Instant::now();
-    let child = Command::new("qemu-arm")
-        .arg(exe)
-        .args(["--accelerator", "sim", "--listen", &listen.to_string(), "--rtsp", &rtsp.to_string()])
-        .args(["--http", &http.to_string()])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(log_file)
-        .spawn()
-        .map_err(|e| format!("qemu-arm: {e}"))?;
-    let mut program = Guard(child, "hps-linux under qemu-arm");
-    wait_for_port(&mut program, http, &log)?;
+    let mut cmd = Command::new("qemu-arm");
+    cmd.arg(exe).args(["--accelerator", "sim", "--listen", &listen.to_string(), "--rtsp", &rtsp.to_string()]);
+    cmd.args(["--http", &http.to_string()]);
+    let mut program = start_server(cmd, "hps-linux under qemu-arm", &log, http)?;
     let light = Light::from_world(LIGHT.0, LIGHT.1, LIGHT.2).map_err(|e| format!("{e:?}"))?;
     let expected = render_frame(&light);
 

@@ -4,7 +4,7 @@
 use std::fs;
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::path::Path;
-use std::process::Child;
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use crate::support::Result;
@@ -37,6 +37,17 @@ pub fn free_ports() -> Result<(SocketAddr, SocketAddr)> {
         return Ok((listen, rtsp));
     }
     Err("no two consecutive free TCP ports on 127.0.0.1".into())
+}
+
+/// Start `cmd`, a server called `name`, its standard error into `log`
+/// (input and output to nowhere), and wait until it accepts connections
+/// on `addr` ([`wait_for_port`]); killed when the guard drops.
+pub fn start_server(mut cmd: Command, name: &'static str, log: &Path, addr: SocketAddr) -> Result<Guard> {
+    let log_file = fs::File::create(log).map_err(|e| format!("{}: {e}", log.display()))?;
+    let child = cmd.stdin(Stdio::null()).stdout(Stdio::null()).stderr(log_file).spawn();
+    let mut server = Guard(child.map_err(|e| format!("{name}: {e}"))?, name);
+    wait_for_port(&mut server, addr, log)?;
+    Ok(server)
 }
 
 /// Wait until hps-sim accepts connections on `addr` (or has exited).
