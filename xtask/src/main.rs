@@ -64,6 +64,9 @@ enum Command {
     /// The board's services as a Linux program: hps-linux cross-built for
     /// the HPS's ARM Linux (one static executable), run under QEMU user mode
     LinuxTest,
+    /// Frames per second of hps-linux on the host (simulated accelerator),
+    /// one and four viewers, beside hps-sim's
+    LinuxBench,
     /// The live viewer end to end under Xvfb (a scripted session).
     LiveTest,
     /// The emulated board behind a lossy link, the kernel's TCP as the
@@ -161,6 +164,7 @@ fn main() -> ExitCode {
         Command::Sdcard(args) => images::sdcard::run(&args),
         Command::SdcardTest => images::sdcard::suite_test(),
         Command::LinuxTest => linux::run(),
+        Command::LinuxBench => linux::bench::run(),
         Command::LiveTest => host::live_test::run(),
         Command::LossyBench(args) => emulated::lossy::bench(&args),
         Command::Soak(args) => emulated::soak::run(&args),

@@ -13,6 +13,7 @@
 //!
 //! May import: `support`.
 
+pub mod bench;
 pub mod user_mode;
 
 use std::path::PathBuf;
