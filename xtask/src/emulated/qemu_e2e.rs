@@ -451,12 +451,10 @@ fn t_display(g: &mut Guest) -> Result<()> {
     if !attract(&later) || first.layout != "full" {
         return Err(format!("attract mode's frames not on screen at boot: {first:?}, then {later:?}"));
     }
-    // The board's name and address on the picture for its first seconds
-    // after the address (the log from boot: this check may run later).
-    if !display_lines(g).iter().any(|l| l.on_screen.as_deref().is_some_and(|s| s.ends_with("attract mode, captioned")))
-    {
-        return Err("no captioned attract frame (name and address) went on screen after boot".into());
-    }
+    // The board's name and address on the picture for its first 30 s
+    // after the address (attract frames take about a second each here).
+    wait_for_display(g, 0, 40, |l| l.on_screen.as_deref().is_some_and(|s| s.ends_with("attract mode, captioned")))
+        .map_err(|e| format!("no captioned attract frame (name and address) went on screen after boot: {e}"))?;
     let lines = display_lines(g);
     let (a, b) = (&lines[0], &lines[lines.len() - 1]);
     let per_line = (b.refreshes - a.refreshes) as f64 / (lines.len() - 1).max(1) as f64;
