@@ -30,7 +30,7 @@
 //!
 //! * **7-segment displays** ([`Text`]): the board's IPv4 address, scrolling
 //!   from right to left once, for the first seconds after the link comes up
-//!   ([`address_text`]); then the frames per second the monitor shows, new
+//!   with its name first ([`name_and_address_text`]); then the frames per second the monitor shows, new
 //!   frames that took effect ([`fps_text`], e.g. ` 60FPS`).
 //! * **Caption** ([`caption`]): the board's name and address on attract
 //!   mode's frames for [`caption::CAPTION_FOR`] after it reaches a new
@@ -457,40 +457,40 @@ pub fn fps_text(fps: u32) -> Text {
 /// right, one character per step, until it has left on the left; `None`
 /// once it has gone (after `len + 6` steps).
 pub fn address_text(addr: [u8; 4], step: u64) -> Option<Text> {
-    let mut line = TextBuf2 { bytes: [b' '; 15 + DIGITS], len: 0 };
-    let _ = write!(line, "{}.{}.{}.{}", addr[0], addr[1], addr[2], addr[3]);
-    let len = line.len as u64;
+    name_and_address_text("", addr, step)
+}
+
+/// The board's name and address as they scroll: `name.local a.b.c.d` (the
+/// address alone without a name), as [`address_text`] scrolls the
+/// address. Letters the displays cannot show (hal-avalon `board::segments`:
+/// g, k, m, q, v, w, x, z among them) pass as blanks.
+pub fn name_and_address_text(name: &str, addr: [u8; 4], step: u64) -> Option<Text> {
+    let mut line = heapless::String::<{ SCROLL_BYTES }>::new();
+    // The name is cut to fit; the address always does.
+    let name = name.get(..name.len().min(SCROLL_BYTES - 24)).unwrap_or("");
+    let _ = match name {
+        "" => write!(line, "{}.{}.{}.{}", addr[0], addr[1], addr[2], addr[3]),
+        _ => write!(line, "{name}.local {}.{}.{}.{}", addr[0], addr[1], addr[2], addr[3]),
+    };
+    let bytes = line.as_bytes();
+    let len = bytes.len() as u64;
     if step >= len + DIGITS as u64 {
         return None;
     }
     let mut text = [b' '; DIGITS];
     for (i, c) in text.iter_mut().enumerate() {
-        // Display i shows character (step + i - 6) of the address.
+        // Display i shows character (step + i - 6) of the line.
         let at = (step + i as u64).checked_sub(DIGITS as u64);
         if let Some(at) = at.filter(|a| *a < len) {
-            *c = line.bytes[at as usize];
+            *c = bytes[at as usize];
         }
     }
     Some(text)
 }
 
-/// A dotted quad's characters (15 at most).
-struct TextBuf2 {
-    bytes: [u8; 15 + DIGITS],
-    len: usize,
-}
-
-impl fmt::Write for TextBuf2 {
-    fn write_str(&mut self, s: &str) -> fmt::Result {
-        for b in s.bytes() {
-            if let Some(slot) = self.bytes.get_mut(self.len) {
-                *slot = b;
-                self.len += 1;
-            }
-        }
-        Ok(())
-    }
-}
+/// Bytes of the longest scrolled line: a 63-byte mDNS label, `.local`, a
+/// space and a dotted quad, with room to spare.
+const SCROLL_BYTES: usize = 96;
 
 /// What the firmware knows that the LEDs, the displays and the caption
 /// show.
@@ -808,7 +808,7 @@ impl Monitor {
             .link_up_at
             .and_then(|t| {
                 let step = now.saturating_duration_since(t).as_millis() / ADDRESS_STEP.as_millis();
-                address_text(status.address, u64::try_from(step).unwrap_or(u64::MAX))
+                name_and_address_text(status.name, status.address, u64::try_from(step).unwrap_or(u64::MAX))
             })
             .or_else(|| status.code.hex_text())
             .unwrap_or_else(|| fps_text(fps));
@@ -1202,6 +1202,19 @@ mod tests {
         assert_eq!(&address_text(a, 13).unwrap(), b".1.200");
         assert_eq!(&address_text(a, 18).unwrap(), b"0     ", "the last character leaving");
         assert_eq!(address_text(a, 19), None, "13 characters + 6: gone");
+        // With a name: `raytracer.local 192.168.1.200`, 29 characters.
+        let at = |step| name_and_address_text("raytracer", a, step);
+        assert_eq!(&at(6).unwrap(), b"raytra");
+        assert_eq!(&at(15).unwrap(), b".local");
+        assert_eq!(&at(21).unwrap(), b" 192.1");
+        assert_eq!(&at(34).unwrap(), b"0     ");
+        assert_eq!(at(35), None, "29 characters + 6: gone");
+        let long = "x".repeat(200);
+        assert_eq!(
+            &name_and_address_text(&long, a, 80).unwrap(),
+            b"ocal 1",
+            "a long name is cut, the address still shown"
+        );
         assert_eq!(address_text([10, 0, 2, 15], 15), None);
     }
 
