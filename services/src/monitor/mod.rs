@@ -653,6 +653,9 @@ pub struct Monitor {
     /// When the board last became reachable at a new address (the link up
     /// and an address it had not shown): the address scrolls from then.
     link_up_at: Option<Instant>,
+    /// The scroll from `link_up_at` has gone by (the text is not made
+    /// again on every poll).
+    scrolled: bool,
     link_was_up: bool,
     /// The address last scrolled.
     address_shown: [u8; 4],
@@ -684,6 +687,7 @@ impl Monitor {
             requests: 0,
             last_request: None,
             link_up_at: None,
+            scrolled: false,
             link_was_up: false,
             address_shown: [0; 4],
             caption: Caption::new(),
@@ -769,6 +773,7 @@ impl Monitor {
         let reachable = status.link_up && status.address != [0; 4];
         if reachable && (!self.link_was_up || status.address != self.address_shown) {
             self.link_up_at = Some(now);
+            self.scrolled = false;
             self.address_shown = status.address;
         }
         self.link_was_up = reachable;
@@ -804,14 +809,12 @@ impl Monitor {
             dev.set_leds(leds);
             self.leds = Some(leds);
         }
-        let text = self
-            .link_up_at
-            .and_then(|t| {
-                let step = now.saturating_duration_since(t).as_millis() / ADDRESS_STEP.as_millis();
-                name_and_address_text(status.name, status.address, u64::try_from(step).unwrap_or(u64::MAX))
-            })
-            .or_else(|| status.code.hex_text())
-            .unwrap_or_else(|| fps_text(fps));
+        let scroll = self.link_up_at.filter(|_| !self.scrolled).and_then(|t| {
+            let step = now.saturating_duration_since(t).as_millis() / ADDRESS_STEP.as_millis();
+            name_and_address_text(status.name, status.address, u64::try_from(step).unwrap_or(u64::MAX))
+        });
+        self.scrolled = self.link_up_at.is_some() && scroll.is_none();
+        let text = scroll.or_else(|| status.code.hex_text()).unwrap_or_else(|| fps_text(fps));
         if self.text != Some(text) {
             dev.set_text(text);
             self.text = Some(text);
