@@ -42,8 +42,9 @@ const FLOOR: f64 = 0.8;
 /// cannot be told from its real ones, so the board honours them up to the
 /// repair budget (a quarter more packets, `REPAIR_SHARE`), which by design
 /// may take up to a fifth of the stream's rate; 80% of what is left.
-/// (80% here failed once at 79% on a fresh machine: the budget alone
-/// leaves no margin under it.)
+/// (80% here failed once at 79% on a fresh machine, the flood's resends
+/// far from the budget: the emulated board's clean phases alone vary by a
+/// fifth on a loaded host, 2.50 to 3.00 frames/s in one run.)
 const FLOOD_FLOOR: f64 = FLOOR / (1.0 + 1.0 / rt_services::camera::sender::REPAIR_SHARE as f64);
 
 /// The board, as the namespace sees it.
