@@ -650,6 +650,11 @@ fn serve<S: FrameSource + Clocks>(mut stream: TcpStream, mode: Mode, frames: &mu
     let peer = stream.peer_addr().map_or_else(|_| "?".into(), |a| a.to_string());
     let _ = fmt::Write::write_fmt(&mut log, format_args!("{mode:?} connection from {peer}\n"));
     let _ = stream.set_nodelay(true);
+    // A client that stops reading must not hold its frames (on a board,
+    // its service's share of the ring) for longer than the protocol's own
+    // stall limit: a write blocked that long fails and the frame is given
+    // back.
+    let _ = stream.set_write_timeout(Some(rt_services::seed::server::SEND_TIMEOUT));
     let input = match stream.try_clone().and_then(spawn_reader) {
         Ok(rx) => rx,
         Err(e) => {
@@ -708,6 +713,8 @@ fn serve<S: FrameSource + Clocks>(mut stream: TcpStream, mode: Mode, frames: &mu
                 let what = if write_failed { "vanished mid-frame; frame aborted" } else { "stopped taking data" };
                 let _ = fmt::Write::write_fmt(&mut log, format_args!("client {what}\n"));
                 session.abandon(frames);
+                // The reader thread's socket is a copy: end it too.
+                let _ = stream.shutdown(Shutdown::Both);
                 return;
             }
             // The simulated accelerator moves on with every status read:
@@ -802,17 +809,19 @@ fn spawn_reader(mut stream: TcpStream) -> io::Result<Receiver<Input>> {
 }
 
 /// Send FIN after the queued bytes, then wait (bounded) for the client to
-/// finish so no unread input turns the close into a reset.
+/// finish so no unread input turns the close into a reset; then shut the
+/// socket, so that the reader thread (which holds a copy of it) ends even
+/// when the client never closes its side.
 fn close_gracefully(stream: &TcpStream, input: &Receiver<Input>, input_ended: bool) {
     let _ = stream.shutdown(Shutdown::Write);
-    if input_ended {
-        return;
-    }
-    let deadline = Instant::now() + LINGER;
-    while let Some(left) = deadline.checked_duration_since(Instant::now()) {
-        match input.recv_timeout(left) {
-            Ok(Input::Bytes(_)) => {}
-            Ok(Input::End) | Err(_) => return,
+    if !input_ended {
+        let deadline = Instant::now() + LINGER;
+        while let Some(left) = deadline.checked_duration_since(Instant::now()) {
+            match input.recv_timeout(left) {
+                Ok(Input::Bytes(_)) => {}
+                Ok(Input::End) | Err(_) => break,
+            }
         }
     }
+    let _ = stream.shutdown(Shutdown::Both);
 }

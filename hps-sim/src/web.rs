@@ -123,7 +123,8 @@ impl Shared {
         self.rtsp_port.store(port, Ordering::Relaxed);
     }
 
-    /// Frames rendered: by every service of a board, else the page's own.
+    /// Frames begun: by every service of a board, else the page's own
+    /// (what `/status` calls `frames_rendered`).
     fn frames_rendered(&self) -> u64 {
         match &self.board {
             Some(board) => board.frames_begun(),
@@ -444,6 +445,8 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
             Action::Write | Action::Send { .. } if write_failed => {
                 let _ = fmt::Write::write_str(&mut log, "web: client went away\n");
                 connection.abandon(&mut frames);
+                // The reader thread's socket is a copy: end it too.
+                let _ = stream.shutdown(std::net::Shutdown::Both);
                 true
             }
             Action::Wait { deadline } if !input_ended => {

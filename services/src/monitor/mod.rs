@@ -784,7 +784,8 @@ impl Monitor {
     /// name, and stays on attract frames for [`caption::CAPTION_FOR`].
     fn track_caption(&mut self, now: Instant, status: &Status<'_>) {
         let renamed = self.caption_name.as_str() != caption::fitting(status.name);
-        if self.link_up_at == Some(now) || (renamed && self.link_up_at.is_some()) {
+        // A rename while the board is unreachable waits for the address.
+        if self.link_up_at == Some(now) || (renamed && self.link_up_at.is_some() && self.link_was_up) {
             self.caption.draw(status.name, status.address);
             self.caption_name.clear();
             // As cut to the line: `NAME_BYTES` hold it.
