@@ -272,13 +272,6 @@ impl fmt::Debug for MappedPort {
     }
 }
 
-impl MappedPort {
-    /// What was mapped, for messages.
-    pub fn describe(&self) -> &str {
-        self.window.describe()
-    }
-}
-
 impl RegisterPort for MappedPort {
     fn read(&mut self, csr: Csr) -> u32 {
         self.port.read(csr)

@@ -78,8 +78,6 @@ pub struct Shared {
     /// What `/status` says of the board.
     facts: Facts,
     frames: Mutex<WebFrames>,
-    /// The board every service draws from, if one does.
-    board: Option<Arc<Board>>,
     /// Viewers now (the lock also orders handshakes against the cap).
     viewers: Mutex<usize>,
     /// Seed-protocol clients now (the seed listeners count them).
@@ -100,15 +98,13 @@ impl Shared {
     /// As [`new`](Self::new), the viewers' frames from `board` (within the
     /// page's quota there), `/status` saying `facts`.
     pub fn with_board(rtsp_port: u16, board: Arc<Board>, facts: Facts) -> Shared {
-        let source = WebSource::Board(board.share(Service::Web));
-        Shared { board: Some(board), ..Shared::with_source(rtsp_port, source, facts) }
+        Shared::with_source(rtsp_port, WebSource::Board(board.share(Service::Web)), facts)
     }
 
     fn with_source(rtsp_port: u16, source: WebSource, facts: Facts) -> Shared {
         Shared {
             started: Instant::now(),
             facts,
-            board: None,
             frames: Mutex::new(WebFrames { source, turns: Turns::new(), taken: [false; WEB_SOCKETS] }),
             viewers: Mutex::new(0),
             seed_clients: AtomicUsize::new(0),
@@ -126,9 +122,9 @@ impl Shared {
     /// Frames begun: by every service of a board, else the page's own
     /// (what `/status` calls `frames_rendered`).
     fn frames_rendered(&self) -> u64 {
-        match &self.board {
-            Some(board) => board.frames_begun(),
-            None => self.frames_rendered.load(Ordering::Relaxed),
+        match &lock(&self.frames).source {
+            WebSource::Board(share) => share.board().frames_begun(),
+            WebSource::Own { .. } => self.frames_rendered.load(Ordering::Relaxed),
         }
     }
 
