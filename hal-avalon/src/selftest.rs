@@ -369,21 +369,7 @@ where
         light: first_light,
         problem: Problem::Driver { row: None, error },
     })?;
-    let mut want = [0u32; WIDTH];
-    let mut got = [0u32; LINE_WORDS];
-    let mut pixels = 0;
-    for &raw in plan.row_lights {
-        let light = light_of(Mode::Row, raw)?;
-        for &row in plan.rows {
-            let fail = |problem| Failure { mode: Mode::Row, light: raw, problem };
-            accel.run_row(row, &light, &mut got).map_err(|error| fail(Problem::Driver { row: Some(row), error }))?;
-            reference_row(reference, row, &light, &mut want);
-            if let Some(x) = (0..WIDTH).find(|&x| got[x] != want[x]) {
-                return Err(fail(Problem::Mismatch { row, x: x as u16, expected: want[x], got: got[x] }));
-            }
-            pixels += WIDTH;
-        }
-    }
+    let mut pixels = check_rows(accel, reference, plan)?;
     if !caps.frames() {
         return Ok(Outcome::Pass { frame: false, pixels });
     }
@@ -490,6 +476,35 @@ where
         }
         delay.delay_ns(plan.frame_wait.poll_interval_ns());
     }
+}
+
+/// The row-mode half of the self-test alone: [`Plan::rows`] at each of
+/// [`Plan::row_lights`] compared with `reference`; the pixels compared, or
+/// the first failure. The frame registers are never touched, so it suits a
+/// host whose frame DMA has nowhere safe to write (hps-linux under Linux).
+/// Call [`Accelerator::probe`] first.
+pub fn check_rows<P, D, R>(accel: &mut Accelerator<P, D>, reference: &mut R, plan: &Plan<'_>) -> Result<usize, Failure>
+where
+    P: RegisterPort,
+    D: DelayNs,
+    R: RowSource<Error = Infallible>,
+{
+    let mut want = [0u32; WIDTH];
+    let mut got = [0u32; LINE_WORDS];
+    let mut pixels = 0;
+    for &raw in plan.row_lights {
+        let light = light_of(Mode::Row, raw)?;
+        for &row in plan.rows {
+            let fail = |problem| Failure { mode: Mode::Row, light: raw, problem };
+            accel.run_row(row, &light, &mut got).map_err(|error| fail(Problem::Driver { row: Some(row), error }))?;
+            reference_row(reference, row, &light, &mut want);
+            if let Some(x) = (0..WIDTH).find(|&x| got[x] != want[x]) {
+                return Err(fail(Problem::Mismatch { row, x: x as u16, expected: want[x], got: got[x] }));
+            }
+            pixels += WIDTH;
+        }
+    }
+    Ok(pixels)
 }
 
 fn reference_row<R: RowSource<Error = Infallible>>(reference: &mut R, y: u16, light: &Light, out: &mut [u32; WIDTH]) {

@@ -16,12 +16,12 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use embedded_hal::delay::DelayNs;
-use hal_avalon::selftest::PLAN;
+use hal_avalon::selftest::{self, Outcome, SelfTestReport, PLAN};
 use hal_avalon::{Accelerator, PollTimeout, RegisterPort};
 use hps_sim::board::{self, Board};
 use hps_sim::web::Facts;
 use hps_sim::SelfTest;
-use model::{Light, WIDTH};
+use rt_services::SoftwareRenderer;
 
 use crate::preflight::Report;
 
@@ -49,37 +49,22 @@ impl DelayNs for PollDelay {
     }
 }
 
-/// The FPGA's rows, compared with the model's, at start: the rows and
-/// lights of the firmware's boot self-test (hal-avalon `selftest::PLAN`),
-/// row mode only (its frame half would start the frame DMA).
+/// The FPGA's rows, compared with the model's, at start: the row half of
+/// the firmware's boot self-test (hal-avalon `selftest::check_rows` with
+/// its `PLAN`); its frame half would start the frame DMA.
 pub fn row_self_test<P: RegisterPort, D: DelayNs>(accel: &mut Accelerator<P, D>) -> SelfTest {
-    let (mut got, mut want) = ([0u32; WIDTH], [0u32; WIDTH]);
-    let mut checked = 0;
-    for raw in PLAN.row_lights {
-        let Ok(light) = Light::from_raw(raw[0], raw[1], raw[2]) else { continue };
-        for &y in PLAN.rows {
-            if let Err(e) = accel.run_row(y, &light, &mut got) {
-                return SelfTest { result: "fail", detail: format!("self-test: FAIL: row {y}: {e}") };
-            }
-            model::render_row(y, &light, &mut want);
-            if let Some(x) = (0..WIDTH).find(|&x| got[x] != want[x]) {
-                return SelfTest {
-                    result: "fail",
-                    detail: format!(
-                        "self-test: FAIL: row {y}, x {x}: {:#08x}, the model's {:#08x}",
-                        got[x] & 0xff_ffff,
-                        want[x]
-                    ),
-                };
-            }
-            checked += 1;
+    match selftest::check_rows(accel, &mut SoftwareRenderer, &PLAN) {
+        Ok(pixels) => SelfTest {
+            result: "pass",
+            detail: format!(
+                "self-test: pass: {} rows, {pixels} pixels equal the model's (row mode; frame mode not used under Linux)",
+                PLAN.rows.len() * PLAN.row_lights.len()
+            ),
+        },
+        Err(failure) => {
+            let report = SelfTestReport { plan: &PLAN, outcome: Outcome::Fail(failure), abort_unconfirmed: false };
+            SelfTest { result: "fail", detail: report.to_string() }
         }
-    }
-    SelfTest {
-        result: "pass",
-        detail: format!(
-            "self-test: pass: {checked} rows equal the model's (row mode; frame mode not used under Linux)"
-        ),
     }
 }
 
