@@ -63,7 +63,12 @@ enum Command {
     SdcardTest,
     /// The board's services as a Linux program: hps-linux cross-built for
     /// the HPS's ARM Linux (one static executable), run under QEMU user mode
+    /// and on Debian's ARM kernel in QEMU's virt machine
     LinuxTest,
+    /// hps-linux on a real ARM Linux kernel alone: Debian's armmp kernel in
+    /// QEMU's virt machine, from an initramfs built here; the three
+    /// services checked, the time to the first frame printed
+    LinuxBoot,
     /// Frames per second of hps-linux on the host (simulated accelerator),
     /// one and four viewers, beside hps-sim's
     LinuxBench,
@@ -164,6 +169,9 @@ fn main() -> ExitCode {
         Command::Sdcard(args) => images::sdcard::run(&args),
         Command::SdcardTest => images::sdcard::suite_test(),
         Command::LinuxTest => linux::run(),
+        Command::LinuxBoot => {
+            linux::ensure_tools().and_then(|()| linux::build()).and_then(|exe| linux::system::run(&exe))
+        }
         Command::LinuxBench => linux::bench::run(),
         Command::LiveTest => host::live_test::run(),
         Command::LossyBench(args) => emulated::lossy::bench(&args),

@@ -1,7 +1,8 @@
 //! The board's services as a Linux program (`hps-linux`, docs/linux.md):
 //! cross-built for the HPS's 32-bit ARM Linux as one static executable
 //! ([`build`]) and run under Debian's QEMU user mode (`cargo xtask
-//! linux-test`, [`run`]): its checks, and serving ([`user_mode`]).
+//! linux-test`, [`run`]): its checks, and serving ([`user_mode`]); and
+//! booted on Debian's ARM kernel in QEMU's `virt` machine ([`system`]).
 //!
 //! The target is `armv7-unknown-linux-gnueabihf` with glibc linked in
 //! (`+crt-static`, `.cargo/config.toml`), linked by Debian's
@@ -14,6 +15,8 @@
 //! May import: `support`.
 
 pub mod bench;
+mod cpio;
+pub mod system;
 pub mod user_mode;
 
 use std::path::PathBuf;
@@ -61,7 +64,8 @@ pub fn build() -> Result<PathBuf> {
 /// window of hal-avalon's map; the ARM executable builds static, and runs
 /// under QEMU user mode: `--version`, `check` against a stand-in system
 /// printing what the host's build prints, and serving
-/// ([`user_mode::serves`]).
+/// ([`user_mode::serves`]); then on a real ARM kernel in QEMU's system
+/// emulator ([`system::run`]).
 pub fn run() -> Result<()> {
     ensure_tools()?;
     overlay()?;
@@ -84,7 +88,8 @@ pub fn run() -> Result<()> {
         return Err(format!("hps-linux check under qemu-arm printed\n{arm}\nthe host's build printed\n{host}"));
     }
     println!("linux-test: the ARM executable is static and its check reads the stand-in as the host's does ... ok");
-    user_mode::serves(&exe)
+    user_mode::serves(&exe)?;
+    system::run(&exe)
 }
 
 /// Compile the overlay with `dtc` and read it back: one `generic-uio` node

@@ -28,8 +28,7 @@ const FPS: u32 = 2;
 
 /// Run the checks on `exe` (the ARM build).
 pub fn serves(exe: &Path) -> Result<()> {
-    ensure_apt_packages(&PLAYER_PACKAGES, None)?;
-    ensure_browser()?;
+    ensure_checkers()?;
     let dir = root().join("target/linux-test/serve");
     fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let (listen, rtsp) = free_ports()?;
@@ -45,6 +44,35 @@ pub fn serves(exe: &Path) -> Result<()> {
     cmd.arg(exe).args(["--accelerator", "sim", "--listen", &listen.to_string(), "--rtsp", &rtsp.to_string()]);
     cmd.args(["--http", &http.to_string()]);
     let mut program = start_server(cmd, "hps-linux under qemu-arm", &log, http)?;
+    check_services(Served { seed: listen, rtsp, http }, &dir, started)?;
+    if let Ok(Some(status)) = program.0.try_wait() {
+        return Err(format!("hps-linux exited during the test ({status}); see {}", log.display()));
+    }
+    println!("linux-test: served under QEMU user mode ... ok ({:.1} s)", started.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// Install what [`check_services`] runs: the players and the browser.
+pub fn ensure_checkers() -> Result<()> {
+    ensure_apt_packages(&PLAYER_PACKAGES, None)?;
+    ensure_browser()
+}
+
+/// Where a test reaches the program's three services.
+#[derive(Clone, Copy, Debug)]
+pub struct Served {
+    pub seed: SocketAddr,
+    pub rtsp: SocketAddr,
+    pub http: SocketAddr,
+}
+
+/// The checks of every way the ARM program runs (QEMU's user mode here,
+/// a real kernel in [`super::system`]): a seed-port frame, FFmpeg's RTSP
+/// frames and the page in Chromium, each the model's, and `/status`
+/// saying what serves; `started` is when the program was started. Output
+/// of the players and the browser goes under `dir`.
+pub fn check_services(at: Served, dir: &Path, started: Instant) -> Result<()> {
+    let Served { seed: listen, rtsp, http } = at;
     let light = Light::from_world(LIGHT.0, LIGHT.1, LIGHT.2).map_err(|e| format!("{e:?}"))?;
     let expected = render_frame(&light);
 
@@ -77,15 +105,11 @@ pub fn serves(exe: &Path) -> Result<()> {
             return Err(format!("/status lacks {field}: {status}"));
         }
     }
-    if let Ok(Some(status)) = program.0.try_wait() {
-        return Err(format!("hps-linux exited during the test ({status}); see {}", log.display()));
-    }
-    println!("linux-test: served under QEMU user mode ... ok ({:.1} s)", started.elapsed().as_secs_f64());
     Ok(())
 }
 
 /// One frame over the seed protocol at [`RAW`].
-fn seed_frame(addr: SocketAddr) -> Result<Vec<u8>> {
+pub fn seed_frame(addr: SocketAddr) -> Result<Vec<u8>> {
     let io = |e: std::io::Error| format!("seed port {addr}: {e}");
     let mut s = TcpStream::connect(addr).map_err(io)?;
     s.set_read_timeout(Some(Duration::from_secs(60))).map_err(io)?;
