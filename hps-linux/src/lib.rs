@@ -7,11 +7,14 @@
 //! * [`preflight`]: the FPGA configured, the bridge out of reset, the ray
 //!   tracer answering with a known register map, before the first access;
 //!   each refusal names its cause.
+//! * [`frame_memory`]: the contiguous buffer frame mode would need, or
+//!   why there is none (rows are rendered either way for now).
 //! * [`serve`]: the board the services draw from (hps-sim's
 //!   [`Board`](hps_sim::board::Board): one engine, one ring, every service
 //!   within its quota): the FPGA's rows, the simulated accelerator, or
 //!   software when told to.
 
+pub mod frame_memory;
 pub mod preflight;
 pub mod serve;
 pub mod window;

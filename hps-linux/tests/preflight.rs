@@ -178,6 +178,8 @@ fn check_prints_what_it_saw_and_refuses_with_status_1() {
     {
         assert!(stdout.lines().any(|l| l == line), "{line:?} in {stdout}");
     }
+    let no_buffer = "frame memory: frame mode without contiguous memory: no u-dma-buf buffer";
+    assert!(stdout.lines().any(|l| l.starts_with(no_buffer)), "{no_buffer:?} in {stdout}");
     s.poke(RSTMGR_BASE as u64 + 0x1c, 0x2);
     let out = check_command(&s).output().unwrap();
     assert_eq!(out.status.code(), Some(1));
@@ -216,5 +218,45 @@ fn without_root_dev_mem_is_refused_with_what_to_do() {
     assert!(
         stderr.contains("permission denied opening") && stderr.contains("needs root (sudo), or use UIO"),
         "{stderr}"
+    );
+}
+
+// ---- Frame memory ----------------------------------------------------------------
+
+/// A u-dma-buf buffer in the stand-in sysfs: `phys_addr` and `size` as the
+/// module prints them.
+fn dma_buffer(s: &Stand, name: &str, phys_addr: u64, size: u64) {
+    let dir = s.sys.sysfs.join("class/u-dma-buf").join(name);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("phys_addr"), format!("{phys_addr:#018x}\n")).unwrap();
+    std::fs::write(dir.join("size"), format!("{size}\n")).unwrap();
+}
+
+#[test]
+fn frame_mode_without_contiguous_memory_says_what_is_missing() {
+    use hps_linux::frame_memory::{find, NoFrameMemory};
+    let s = stand();
+    let ring = (hps_sim::board::BOARD_SLOTS * model::FRAME_BYTES) as u64;
+    let none = find(&s.sys.sysfs, &s.sys.dev, ring).unwrap_err();
+    assert!(matches!(none, NoFrameMemory::NoBuffer { .. }));
+    let text = none.to_string();
+    assert!(text.starts_with("frame mode without contiguous memory: no u-dma-buf buffer"), "{text}");
+    assert!(text.ends_with("rendering rows over the lightweight bridge"), "{text}");
+    // One too small, one above the SDRAM the port reaches: each said.
+    dma_buffer(&s, "udmabuf0", 0x3f00_0000, 1 << 20);
+    dma_buffer(&s, "udmabuf1", 0x4000_0000, 16 << 20);
+    let text = find(&s.sys.sysfs, &s.sys.dev, ring).unwrap_err().to_string();
+    assert!(text.contains("udmabuf0 (1048576 bytes at 0x3f000000): smaller than the ring's 7257600 bytes"), "{text}");
+    assert!(text.contains("udmabuf1") && text.contains("past the SDRAM"), "{text}");
+    // A fitting one is found, with its device node.
+    dma_buffer(&s, "udmabuf2", 0x3e00_0000, 8 << 20);
+    let found = find(&s.sys.sysfs, &s.sys.dev, ring).unwrap();
+    assert_eq!((found.phys_addr, found.size), (0x3e00_0000, 8 << 20));
+    assert_eq!(found.device, s.sys.dev.join("udmabuf2"));
+    let out = check_command(&s).output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("frame memory: ") && stdout.contains("udmabuf2 holds 8388608 bytes at 0x3e000000"),
+        "{stdout}"
     );
 }

@@ -19,6 +19,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args as ClapArgs, Parser, Subcommand};
+use hps_linux::frame_memory;
 use hps_linux::preflight::{self, Access, System};
 use hps_linux::serve;
 use hps_sim::cli::ServiceArgs;
@@ -133,6 +134,7 @@ fn check(access: &AccessArgs) -> ExitCode {
                 0 => println!("FPGA build: none recorded"),
                 id => println!("FPGA build: {id:07x}"),
             }
+            println!("frame memory: {}", frame_memory_line(&access.system()));
             println!("accelerator: ready");
             ExitCode::SUCCESS
         }
@@ -140,6 +142,21 @@ fn check(access: &AccessArgs) -> ExitCode {
             eprintln!("hps-linux: {refusal}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// What frame mode would have to work with: the refusal, or the buffer
+/// found (frame mode itself is not built yet: rows either way).
+fn frame_memory_line(system: &System) -> String {
+    let ring = (hps_sim::board::BOARD_SLOTS * model::FRAME_BYTES) as u64;
+    match frame_memory::find(&system.sysfs, &system.dev, ring) {
+        Err(why) => why.to_string(),
+        Ok(b) => format!(
+            "{} holds {} bytes at {:#x}, enough for the ring; frame mode is not built yet: rendering rows over the lightweight bridge",
+            b.device.display(),
+            b.size,
+            b.phys_addr
+        ),
     }
 }
 
@@ -154,6 +171,7 @@ fn run(args: ServeArgs) -> ExitCode {
                         "hps-linux: {}: register map version {}, FPGA build {:07x}",
                         report.window, report.register_map, report.build_id
                     );
+                    eprintln!("hps-linux: {}", frame_memory_line(&args.access.system()));
                     serve::fpga(port, &report).map_err(|t| t.detail)
                 });
             match opened {
