@@ -2,9 +2,11 @@
 //! considered ([`find`]): a buffer the kernel set aside, physically
 //! contiguous, that the FPGA-to-SDRAM port can reach, large enough for
 //! the board's ring. Under Linux that comes from the u-dma-buf module
-//! (ikwzm/udmabuf, README "Device Files": `/dev/udmabufN`, its
-//! `phys_addr` and `size` in `/sys/class/u-dma-buf/udmabufN/`; a
-//! `reserved-memory` region given to it as its `memory-region` works the
+//! (ikwzm/udmabuf: `/dev/udmabufN`, its `phys_addr` and `size` in
+//! `/sys/class/u-dma-buf/udmabufN/`, README "Device file"; `u-dma-buf.c`
+//! prints `phys_addr` as `%pad`, 0x and 8 hex digits for the A9's 32-bit
+//! DMA addresses, and `size` as `%zu`; a `reserved-memory` region given
+//! to it as its `memory-region` works the
 //! same). Without one the program renders rows over the lightweight
 //! bridge and says why ([`NoFrameMemory`]): a frame DMA started at an
 //! address the kernel did not set aside would write over whatever memory
@@ -55,7 +57,7 @@ impl fmt::Display for NoFrameMemory {
         match self {
             NoFrameMemory::NoBuffer { class } => write!(
                 f,
-                "no u-dma-buf buffer ({} is empty or absent); the frame DMA needs one the kernel set aside",
+                "no u-dma-buf buffer ({} is empty or absent; the older udmabuf driver's class is not read); the frame DMA needs one the kernel set aside",
                 class.display()
             )?,
             NoFrameMemory::Unfit(why) => write!(f, "{}", why.join("; "))?,

@@ -224,11 +224,11 @@ fn without_root_dev_mem_is_refused_with_what_to_do() {
 // ---- Frame memory ----------------------------------------------------------------
 
 /// A u-dma-buf buffer in the stand-in sysfs: `phys_addr` and `size` as the
-/// module prints them.
+/// module prints them on the A9 (`%pad` of a 32-bit address, `%zu`).
 fn dma_buffer(s: &Stand, name: &str, phys_addr: u64, size: u64) {
     let dir = s.sys.sysfs.join("class/u-dma-buf").join(name);
     std::fs::create_dir_all(&dir).unwrap();
-    std::fs::write(dir.join("phys_addr"), format!("{phys_addr:#018x}\n")).unwrap();
+    std::fs::write(dir.join("phys_addr"), format!("{phys_addr:#010x}\n")).unwrap();
     std::fs::write(dir.join("size"), format!("{size}\n")).unwrap();
 }
 

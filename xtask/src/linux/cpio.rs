@@ -16,6 +16,7 @@ const HEADER: usize = 110;
 const TRAILER: &str = "TRAILER!!!";
 
 /// File type bits of `mode` (inode(7)).
+const S_IFMT: u32 = 0o170000;
 const S_IFDIR: u32 = 0o040000;
 const S_IFREG: u32 = 0o100000;
 const S_IFCHR: u32 = 0o020000;
@@ -45,7 +46,6 @@ impl Writer {
 
     /// The archive, with its trailer.
     pub fn finish(mut self) -> Vec<u8> {
-        self.next_inode = 0;
         self.entry(TRAILER, 0, (0, 0), &[]);
         self.bytes
     }
@@ -53,7 +53,7 @@ impl Writer {
     fn entry(&mut self, path: &str, mode: u32, (rdev_major, rdev_minor): (u32, u32), data: &[u8]) {
         let name = path.trim_start_matches('/');
         self.next_inode += 1;
-        let nlink = if mode & S_IFDIR != 0 { 2 } else { 1 };
+        let nlink = if mode & S_IFMT == S_IFDIR { 2 } else { 1 };
         let fields = [
             self.next_inode,
             mode,
@@ -99,7 +99,7 @@ pub struct Entry<'a> {
 impl Entry<'_> {
     /// A regular file.
     pub fn is_file(&self) -> bool {
-        self.mode & 0o170000 == S_IFREG
+        self.mode & S_IFMT == S_IFREG
     }
 }
 

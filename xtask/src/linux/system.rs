@@ -8,8 +8,9 @@
 //! time from QEMU's start to the first frame is printed.
 //!
 //! The kernel and its modules come from Debian's `debian-installer-12-
-//! netboot-armhf` package (architecture `all`, so any host's apt fetches
-//! it): its `vmlinuz`, and the modules in its `initrd.gz`. The armmp
+//! netboot-armhf` package (architecture `all`: an amd64 bookworm host's
+//! apt fetches it from bookworm's `main`): its `vmlinuz`, and the modules
+//! in its `initrd.gz`. The armmp
 //! kernel builds PL011, devtmpfs and initramfs in, and virtio-pci and
 //! virtio-net as modules; the test gives QEMU's `virt` machine a
 //! virtio-net-pci card (QEMU `docs/system/arm/virt.rst`: PCIe, virtio).
@@ -70,9 +71,14 @@ pub fn run(exe: &Path) -> Result<()> {
         &format!("build the test's init for {TARGET} (release, static)"),
         cargo(&["build", "--release", "-p", "hps-linux-test-init", "--target", TARGET]),
     )?;
-    let init = root().join("target").join(TARGET).join("release/init");
+    let init_path = root().join("target").join(TARGET).join("release/init");
+    let init = read(&init_path)?;
+    // A dynamic /init finds no loader in the initramfs, and the kernel
+    // says only "No working init found" (RUSTFLAGS overrides the
+    // configuration's +crt-static).
+    super::static_arm_executable(&init).map_err(|e| format!("{}: {e}", init_path.display()))?;
     let initramfs = dir.join("initramfs.cpio");
-    let archive = initramfs_archive(&read(&init)?, &read(exe)?, &modules);
+    let archive = initramfs_archive(&init, &read(exe)?, &modules);
     fs::write(&initramfs, archive).map_err(|e| format!("{}: {e}", initramfs.display()))?;
 
     let (seed, rtsp) = free_ports()?;
@@ -90,7 +96,10 @@ pub fn run(exe: &Path) -> Result<()> {
         "linux-test: QEMU start to the first frame on the seed port: {:.1} s (kernel boot, modules, hps-linux)",
         started.elapsed().as_secs_f64()
     );
-    check_services(Served { seed, rtsp, http }, &dir, started)?;
+    check_services(Served { seed, rtsp, http }, &dir, started).map_err(|e| match qemu.0.try_wait() {
+        Ok(Some(status)) => format!("{e}\nQEMU had exited ({status}):\n{}", tail(&console)),
+        _ => format!("{e}\nconsole (QEMU still running):\n{}", tail(&console)),
+    })?;
     if let Ok(Some(status)) = qemu.0.try_wait() {
         return Err(format!("QEMU exited during the test ({status}):\n{}", tail(&console)));
     }
@@ -140,6 +149,10 @@ fn installer(dir: &Path) -> Result<(PathBuf, Vec<Module>)> {
 /// when the package lists name a version the archive no longer has); the
 /// `.deb`'s path.
 fn download(dir: &Path) -> Result<PathBuf> {
+    // Only the one fetched now is left to find.
+    for old in debs(dir) {
+        fs::remove_file(&old).map_err(|e| format!("{}: {e}", old.display()))?;
+    }
     let fetch = || {
         let mut c = apt_get(&["download", "-q", INSTALLER]);
         c.current_dir(dir);
@@ -147,14 +160,28 @@ fn download(dir: &Path) -> Result<PathBuf> {
     };
     if fetch().is_err() {
         step("apt-get update", apt_get(&["update", "-q"]))?;
-        fetch()?;
+        fetch().map_err(|e| {
+            format!("{e}\n(the package is in Debian 12 bookworm's main: is bookworm in apt's sources?)")
+        })?;
     }
+    debs(dir).into_iter().next().ok_or(format!("apt-get download left no {INSTALLER}*.deb in {}", dir.display()))
+}
+
+/// The installer packages in `dir`.
+fn debs(dir: &Path) -> Vec<PathBuf> {
     fs::read_dir(dir)
-        .map_err(|e| format!("{}: {e}", dir.display()))?
-        .flatten()
-        .map(|e| e.path())
-        .find(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with(INSTALLER)))
-        .ok_or(format!("apt-get download left no {INSTALLER}*.deb in {}", dir.display()))
+        .map(|d| {
+            d.flatten()
+                .map(|e| e.path())
+                .filter(|p| {
+                    p.file_name().is_some_and(|n| {
+                        let n = n.to_string_lossy();
+                        n.starts_with(INSTALLER) && n.ends_with(".deb")
+                    })
+                })
+                .collect()
+        })
+        .unwrap_or_default()
 }
 
 /// The initramfs: the console node the kernel opens for init, the mount
