@@ -249,53 +249,74 @@ fn laggard(lan: &Lan, rtsp: SocketAddr) -> Result<()> {
         thread::sleep(during);
         Ok((count() - before) as f64 / start.elapsed().as_secs_f64())
     };
-    let alone_before = rate(phase)?;
+    // The first frames of a stream come while QEMU's guest and the
+    // players warm up: not counted.
+    rate(Duration::from_secs(5))?;
     // The laggard: plays inside its connection, with a small receive
     // buffer, and never reads.
-    let laggard = lan.on_host(1, move || {
-        let c = socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).map_err(|e| e.to_string())?;
-        c.set_recv_buffer_size(4096).map_err(|e| e.to_string())?;
-        c.connect_timeout(&rtsp.into(), Duration::from_secs(5)).map_err(|e| e.to_string())?;
-        let mut c: TcpStream = c.into();
-        c.set_read_timeout(Some(Duration::from_secs(5))).map_err(|e| e.to_string())?;
-        let url = format!("rtsp://{BOARD}:8554{PATH}");
-        let setup = format!(
-            "SETUP {url}/trackID=0 RTSP/1.0\r\nCSeq: 1\r\nTransport: RTP/AVP/TCP;unicast;interleaved=0-1\r\n\r\n"
+    let start_laggard = || {
+        lan.on_host(1, move || {
+            let c =
+                socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).map_err(|e| e.to_string())?;
+            c.set_recv_buffer_size(4096).map_err(|e| e.to_string())?;
+            c.connect_timeout(&rtsp.into(), Duration::from_secs(5)).map_err(|e| e.to_string())?;
+            let mut c: TcpStream = c.into();
+            c.set_read_timeout(Some(Duration::from_secs(5))).map_err(|e| e.to_string())?;
+            let url = format!("rtsp://{BOARD}:8554{PATH}");
+            let setup = format!(
+                "SETUP {url}/trackID=0 RTSP/1.0\r\nCSeq: 1\r\nTransport: RTP/AVP/TCP;unicast;interleaved=0-1\r\n\r\n"
+            );
+            c.write_all(setup.as_bytes()).map_err(|e| e.to_string())?;
+            let mut head = Vec::new();
+            let mut b = [0u8; 1];
+            while !head.ends_with(b"\r\n\r\n") {
+                c.read_exact(&mut b).map_err(|e| format!("the laggard's SETUP: {e}"))?;
+                head.push(b[0]);
+            }
+            let text = String::from_utf8_lossy(&head).into_owned();
+            let session = text
+                .lines()
+                .find_map(|l| l.strip_prefix("Session: "))
+                .and_then(|s| s.split(';').next())
+                .ok_or(format!("the laggard's SETUP: {text:?}"))?
+                .to_string();
+            c.write_all(format!("PLAY {url} RTSP/1.0\r\nCSeq: 2\r\nSession: {session}\r\n\r\n").as_bytes())
+                .map_err(|e| e.to_string())?;
+            Ok(c)
+        })
+    };
+    // Rates under QEMU on a loaded machine swing by a third between
+    // phases of the same conditions (seen: 2.40 then 3.30 frames/s alone),
+    // so a miss is measured once more; a laggard that holds the stream
+    // (the defect: one frame per 3 s, or 2 frames/s of 30) misses both.
+    let mut attempt = 1;
+    loop {
+        let alone_before = rate(phase)?;
+        let laggard = start_laggard()?;
+        let with_laggard = rate(phase)?;
+        drop(laggard);
+        let alone_after = rate(phase)?;
+        let alone = (alone_before + alone_after) / 2.0;
+        println!(
+            "per-host: a UDP viewer: {alone_before:.2} frames/s alone, {with_laggard:.2} beside a never-reading interleaved viewer \
+             of its stream ({:.0}%), {alone_after:.2} alone again",
+            100.0 * with_laggard / alone
         );
-        c.write_all(setup.as_bytes()).map_err(|e| e.to_string())?;
-        let mut head = Vec::new();
-        let mut b = [0u8; 1];
-        while !head.ends_with(b"\r\n\r\n") {
-            c.read_exact(&mut b).map_err(|e| format!("the laggard's SETUP: {e}"))?;
-            head.push(b[0]);
+        if with_laggard >= 0.9 * alone {
+            break;
         }
-        let text = String::from_utf8_lossy(&head).into_owned();
-        let session = text
-            .lines()
-            .find_map(|l| l.strip_prefix("Session: "))
-            .and_then(|s| s.split(';').next())
-            .ok_or(format!("the laggard's SETUP: {text:?}"))?
-            .to_string();
-        c.write_all(format!("PLAY {url} RTSP/1.0\r\nCSeq: 2\r\nSession: {session}\r\n\r\n").as_bytes())
-            .map_err(|e| e.to_string())?;
-        Ok(c)
-    })?;
-    let with_laggard = rate(phase)?;
-    drop(laggard);
-    let alone_after = rate(phase)?;
+        if attempt == 2 {
+            stop.store(true, Ordering::Relaxed);
+            let _ = viewer.join();
+            return Err(format!(
+                "a never-reading viewer held a UDP viewer of its stream to {with_laggard:.2} frames/s (alone {alone:.2}), twice"
+            ));
+        }
+        println!("per-host: under 90% of the rate alone: measuring once more");
+        attempt += 1;
+    }
     stop.store(true, Ordering::Relaxed);
     viewer.join().map_err(|_| "the viewer's thread panicked".to_string())??;
-    let alone = (alone_before + alone_after) / 2.0;
-    println!(
-        "per-host: a UDP viewer: {alone_before:.2} frames/s alone, {with_laggard:.2} beside a never-reading interleaved viewer \
-         of its stream ({:.0}%), {alone_after:.2} alone again",
-        100.0 * with_laggard / alone
-    );
-    if with_laggard < 0.9 * alone {
-        return Err(format!(
-            "a never-reading viewer held a UDP viewer of its stream to {with_laggard:.2} frames/s (alone {alone:.2})"
-        ));
-    }
     Ok(())
 }
 
