@@ -234,10 +234,9 @@ fn dma_buffer(s: &Stand, name: &str, phys_addr: u64, size: u64) {
 
 #[test]
 fn frame_mode_without_contiguous_memory_says_what_is_missing() {
-    use hps_linux::frame_memory::{find, NoFrameMemory};
+    use hps_linux::frame_memory::{find, NoFrameMemory, RING_BYTES};
     let s = stand();
-    let ring = (hps_sim::board::BOARD_SLOTS * model::FRAME_BYTES) as u64;
-    let none = find(&s.sys.sysfs, &s.sys.dev, ring).unwrap_err();
+    let none = find(&s.sys.sysfs, &s.sys.dev, RING_BYTES).unwrap_err();
     assert!(matches!(none, NoFrameMemory::NoBuffer { .. }));
     let text = none.to_string();
     assert!(text.starts_with("frame mode without contiguous memory: no u-dma-buf buffer"), "{text}");
@@ -245,12 +244,12 @@ fn frame_mode_without_contiguous_memory_says_what_is_missing() {
     // One too small, one above the SDRAM the port reaches: each said.
     dma_buffer(&s, "udmabuf0", 0x3f00_0000, 1 << 20);
     dma_buffer(&s, "udmabuf1", 0x4000_0000, 16 << 20);
-    let text = find(&s.sys.sysfs, &s.sys.dev, ring).unwrap_err().to_string();
+    let text = find(&s.sys.sysfs, &s.sys.dev, RING_BYTES).unwrap_err().to_string();
     assert!(text.contains("udmabuf0 (1048576 bytes at 0x3f000000): smaller than the ring's 7257600 bytes"), "{text}");
     assert!(text.contains("udmabuf1") && text.contains("past the SDRAM"), "{text}");
     // A fitting one is found, with its device node.
     dma_buffer(&s, "udmabuf2", 0x3e00_0000, 8 << 20);
-    let found = find(&s.sys.sysfs, &s.sys.dev, ring).unwrap();
+    let found = find(&s.sys.sysfs, &s.sys.dev, RING_BYTES).unwrap();
     assert_eq!((found.phys_addr, found.size), (0x3e00_0000, 8 << 20));
     assert_eq!(found.device, s.sys.dev.join("udmabuf2"));
     let out = check_command(&s).output().unwrap();

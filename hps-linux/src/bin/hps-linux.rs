@@ -148,8 +148,7 @@ fn check(access: &AccessArgs) -> ExitCode {
 /// What frame mode would have to work with: the refusal, or the buffer
 /// found (frame mode itself is not built yet: rows either way).
 fn frame_memory_line(system: &System) -> String {
-    let ring = (hps_sim::board::BOARD_SLOTS * model::FRAME_BYTES) as u64;
-    match frame_memory::find(&system.sysfs, &system.dev, ring) {
+    match frame_memory::find(&system.sysfs, &system.dev, frame_memory::RING_BYTES) {
         Err(why) => why.to_string(),
         Ok(b) => format!(
             "{} holds {} bytes at {:#x}, enough for the ring; frame mode is not built yet: rendering rows over the lightweight bridge",

@@ -16,7 +16,7 @@
 //! virtio-net-pci card (QEMU `docs/system/arm/virt.rst`: PCIe, virtio).
 
 use std::fs;
-use std::net::{SocketAddr, TcpListener};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -24,7 +24,7 @@ use std::time::{Duration, Instant};
 use super::cpio;
 use super::user_mode::{check_services, ensure_checkers, seed_frame, Served};
 use super::TARGET;
-use crate::support::process::{free_ports, Guard};
+use crate::support::process::Guard;
 use crate::support::tools::{apt_get, cargo, ensure_qemu, root, step};
 use crate::support::Result;
 
@@ -81,9 +81,7 @@ pub fn run(exe: &Path) -> Result<()> {
     let archive = initramfs_archive(&init, &read(exe)?, &modules);
     fs::write(&initramfs, archive).map_err(|e| format!("{}: {e}", initramfs.display()))?;
 
-    let (seed, rtsp) = free_ports()?;
-    let http =
-        TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).map_err(|e| format!("no free port: {e}"))?;
+    let Served { seed, rtsp, http } = Served::free()?;
     let console = dir.join("console.log");
     println!(
         "==> hps-linux on Debian's armmp kernel in QEMU virt: seed {seed}, RTSP {rtsp}, page {http} (console {})",

@@ -31,9 +31,7 @@ pub fn serves(exe: &Path) -> Result<()> {
     ensure_checkers()?;
     let dir = root().join("target/linux-test/serve");
     fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    let (listen, rtsp) = free_ports()?;
-    let http =
-        TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).map_err(|e| format!("no free port: {e}"))?;
+    let Served { seed: listen, rtsp, http } = Served::free()?;
     let log = dir.join("hps-linux.log");
     println!(
         "==> hps-linux serving under QEMU user mode: seed {listen}, RTSP {rtsp}, page {http} (log {})",
@@ -64,6 +62,17 @@ pub struct Served {
     pub seed: SocketAddr,
     pub rtsp: SocketAddr,
     pub http: SocketAddr,
+}
+
+impl Served {
+    /// Free loopback ports for the three (the seed port's next one free
+    /// too, for the persistent port).
+    pub fn free() -> Result<Served> {
+        let (seed, rtsp) = free_ports()?;
+        let http =
+            TcpListener::bind("127.0.0.1:0").and_then(|l| l.local_addr()).map_err(|e| format!("no free port: {e}"))?;
+        Ok(Served { seed, rtsp, http })
+    }
 }
 
 /// The checks of every way the ARM program runs (QEMU's user mode here,
