@@ -15,9 +15,9 @@ use std::time::{Duration, Instant};
 
 use model::Light;
 use rt_services::camera::receiver::{Quality, ReceivedFrame, Receiver, ReceiverConfig, ReceiverCounts, MAX_NACK_BYTES};
-use rt_services::camera::rtcp;
-use rt_services::camera::rtp::PACKET_BYTES;
 use rt_services::camera::rtsp::RTSP_PORT;
+use rt_services::camera::wire::rtcp;
+use rt_services::camera::wire::rtp::PACKET_BYTES;
 
 /// How long the server may take to answer a request.
 const ANSWER_TIMEOUT: Duration = Duration::from_secs(10);
@@ -860,8 +860,8 @@ mod tests {
     /// out repaired and whole.
     #[test]
     fn a_stream_repairs_a_dropped_row_over_udp() {
-        use rt_services::camera::rtcp::NackRequests;
-        use rt_services::camera::rtp::Packetiser;
+        use rt_services::camera::packetiser::Packetiser;
+        use rt_services::camera::wire::rtcp::NackRequests;
         let camera_rtp = UdpSocket::bind("127.0.0.1:0").unwrap();
         let camera_rtcp = UdpSocket::bind("127.0.0.1:0").unwrap();
         let rtcp_port = camera_rtcp.local_addr().unwrap().port();

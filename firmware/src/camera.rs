@@ -15,8 +15,9 @@ use dwmac::{DmaSync, Dwmac, SplitSeq};
 use embedded_hal::delay::DelayNs;
 use model::ROW_BYTES;
 use rt_services::camera::frame_header::{HeaderTemplate, HEADER_PAD, HEADER_WORDS};
-use rt_services::camera::rtp::{Packetiser, RowPacket};
+use rt_services::camera::packetiser::Packetiser;
 use rt_services::camera::service::RowTransmitter;
+use rt_services::camera::wire::rtp::RowPacket;
 
 use crate::limits::RING_SLOTS;
 

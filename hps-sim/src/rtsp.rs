@@ -28,9 +28,9 @@ use std::time::{Duration, Instant as StdInstant, SystemTime, UNIX_EPOCH};
 use hal_avalon::sim::CountingDelay;
 use hal_avalon::{Accelerator, PollTimeout};
 use model::{Light, ROW_BYTES};
+use rt_services::camera::frame_header::FRAME_HEADER_BYTES;
+use rt_services::camera::packetiser::Packetiser;
 use rt_services::camera::random::SessionRng;
-use rt_services::camera::rtcp::ntp_timestamp;
-use rt_services::camera::rtp::{self, Packetiser, RowPacket};
 use rt_services::camera::rtsp::{
     self, ConnId, Connection, Server, CONNECTIONS, CONNECTIONS_PER_ADDRESS, MAX_RESPONSE_BYTES, MAX_SESSIONS,
 };
@@ -38,6 +38,8 @@ use rt_services::camera::rtsp::{
     EndReason, Fresh, Group, Position, Profile, SessionId, SetUp, StreamSpec, Streams, Transport,
 };
 use rt_services::camera::sender::{self, Bound, Camera, Dest, Multicast, RtpSink, SlotSource, CAMERA_SLOTS};
+use rt_services::camera::wire::rtcp::ntp_timestamp;
+use rt_services::camera::wire::rtp::{self, RowPacket};
 use rt_services::{FrameRing, FrameSource, Instant};
 
 use crate::{Device, Faults, Log, SharedMemory};
@@ -244,7 +246,7 @@ impl Client {
 /// The time one row packet takes on the board's Gigabit link: 1,502 bytes
 /// of frame plus preamble, start delimiter, FCS and inter-packet gap
 /// (8 + 4 + 12 bytes), at 1 bit per ns.
-pub const PACKET_TIME: Duration = Duration::from_nanos((rtp::FRAME_HEADER_BYTES + ROW_BYTES + 24) as u64 * 8);
+pub const PACKET_TIME: Duration = Duration::from_nanos((FRAME_HEADER_BYTES + ROW_BYTES + 24) as u64 * 8);
 
 /// Packets the sink sends back to back before pacing sets in (the board's
 /// transmit ring).

@@ -23,8 +23,7 @@ use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 
 use model::Light;
 use proptest::prelude::*;
-use rt_services::camera::rtcp::{ntp_timestamp, sender_report_lsr, write_receiver_report, SenderReport};
-use rt_services::camera::rtp::{Packetiser, RowPacket, HEADER_BYTES};
+use rt_services::camera::packetiser::Packetiser;
 use rt_services::camera::rtsp::{
     Client, ConnId, EndReason, Fps, Fresh, Profile, SessionId, Stream as Kind, StreamSpec, Streams, Transport,
 };
@@ -32,6 +31,8 @@ use rt_services::camera::sender::{
     self, Bound, Camera, Dest, Multicast, RtpSink, CAMERA_SLOTS, MIN_ROUND_TRIP, REPAIR_BURST, REPAIR_SHARE,
     SLOTS_PER_STREAM,
 };
+use rt_services::camera::wire::rtcp::{ntp_timestamp, sender_report_lsr, write_receiver_report, SenderReport};
+use rt_services::camera::wire::rtp::{RowPacket, HEADER_BYTES};
 use rt_services::{FrameSource, Instant};
 
 const CLIENTS: [IpAddr; 2] = [IpAddr::V4(Ipv4Addr::new(10, 0, 0, 1)), IpAddr::V4(Ipv4Addr::new(10, 0, 0, 2))];

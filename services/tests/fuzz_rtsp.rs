@@ -27,13 +27,14 @@ use std::net::{IpAddr, Ipv4Addr};
 
 use model::Light;
 use proptest::prelude::*;
-use rt_services::camera::rtp::{Packetiser, RowPacket};
+use rt_services::camera::packetiser::Packetiser;
 use rt_services::camera::rtsp::{
     Client, Config, ConnId, Connection, EndReason, Fresh, Group, Position, Profile, Random, Server, SessionId, SetUp,
     State, Status, StreamSpec, Streams, Transport, MAX_REQUEST_BYTES, MAX_RESPONSE_BYTES, MAX_SESSIONS,
     REQUEST_DEADLINE, SERVER_RTP_PORT, SESSION_TIMEOUT,
 };
 use rt_services::camera::sender::{self, Bound, Camera, Dest, Multicast, RtpSink, CAMERA_SLOTS};
+use rt_services::camera::wire::rtp::RowPacket;
 use rt_services::{FrameSource, Instant};
 
 const PEERS: [IpAddr; 3] = [

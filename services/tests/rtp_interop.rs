@@ -5,9 +5,11 @@
 use std::net::{Ipv4Addr, SocketAddrV4};
 
 use model::ROW_BYTES;
+use rt_services::camera::frame_header::FRAME_HEADER_BYTES;
 use rt_services::camera::frame_header::{self, Endpoints, HeaderTemplate, UdpChecksum};
-use rt_services::camera::rtcp::{self, write_sdes_cname, NackRequests, SenderReport};
-use rt_services::camera::rtp::{Packetiser, RowPacket, FRAME_HEADER_BYTES};
+use rt_services::camera::packetiser::Packetiser;
+use rt_services::camera::wire::rtcp::{self, write_sdes_cname, NackRequests};
+use rt_services::camera::wire::rtp::RowPacket;
 use rtcp_types::prelude::*;
 use smoltcp::phy::ChecksumCapabilities;
 use smoltcp::wire::{
@@ -169,7 +171,7 @@ fn rtcp_types_reads_the_sender_report_and_cname() {
         session.next_packet(f, y).unwrap();
     }
     let ntp = rtcp::ntp_timestamp(std::time::Duration::new(1_700_000_000, 250_000_000));
-    let sr = SenderReport::now(&session, ntp, 90_000);
+    let sr = session.sender_report(ntp, 90_000);
     let mut buf = [0u8; 64];
     let n = sr.write(&mut buf).unwrap();
     let n = n + write_sdes_cname(session.ssrc(), b"rt@de1-soc", &mut buf[n..]).unwrap();

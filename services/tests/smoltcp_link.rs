@@ -7,8 +7,10 @@ use std::collections::VecDeque;
 use std::rc::Rc;
 
 use model::{render_frame, Light, FRAME_BYTES};
-use rt_services::camera::rtp;
+use rt_services::camera::frame_header::FRAME_HEADER_BYTES;
+use rt_services::camera::packetiser::Packetiser;
 use rt_services::camera::service::RowTransmitter;
+use rt_services::camera::wire::rtp::RowPacket;
 use rt_services::seed::service::{FrameService, SocketBuffers};
 use rt_services::{
     encode_raw_request, encode_request, FrameRing, FrameSource, RowEngine, RowFrames, SliceMemory, SoftwareRenderer,
@@ -402,15 +404,15 @@ fn frames_stay_byte_exact_over_a_lossy_link() {
 /// slot and the row.
 #[derive(Default)]
 struct Recorder {
-    sent: Vec<([u8; rtp::FRAME_HEADER_BYTES], usize, u16)>,
+    sent: Vec<([u8; FRAME_HEADER_BYTES], usize, u16)>,
 }
 
 impl RowTransmitter for Recorder {
     fn send_run(
         &mut self,
         template: &mut rt_services::camera::frame_header::HeaderTemplate,
-        session: &rtp::Packetiser,
-        first: &rtp::RowPacket,
+        session: &Packetiser,
+        first: &RowPacket,
         count: u16,
         slot: usize,
     ) -> u16 {

@@ -2,18 +2,32 @@
 //! and RFC 4175 headers ([`FRAME_HEADER_BYTES`]), made for the board's
 //! zero-copy transmit path: the first buffer of a descriptor holds this
 //! header, the second the row in the frame ring. The RTP part is the
-//! [`rtp::Packetiser`](super::rtp::Packetiser)'s; the rest is written once per destination
+//! [`Packetiser`](super::packetiser::Packetiser)'s; the rest is written once per destination
 //! (`HeaderTemplate`, feature `smoltcp`) and patched per packet.
 
+use super::wire::rtp::{HEADER_BYTES, PACKET_BYTES};
 #[cfg(feature = "smoltcp")]
-use super::rtp::ETHERNET_HEADER_BYTES;
-use super::rtp::FRAME_HEADER_BYTES;
-#[cfg(doc)]
-use super::rtp::IPV4_TOTAL_LENGTH;
-#[cfg(feature = "smoltcp")]
-use super::rtp::{front, BufferTooShort, Packetiser, RowPacket, IPV4_HEADER_BYTES, UDP_HEADER_BYTES, UDP_LENGTH};
+use super::{
+    packetiser::Packetiser,
+    wire::rtp::{front, BufferTooShort, RowPacket},
+};
 #[cfg(feature = "smoltcp")]
 use model::ROW_BYTES;
+
+/// Bytes of an Ethernet II header (destination, source, EtherType).
+pub const ETHERNET_HEADER_BYTES: usize = 14;
+/// Bytes of an IPv4 header without options (RFC 791 section 3.1).
+pub const IPV4_HEADER_BYTES: usize = 20;
+/// Bytes of a UDP header (RFC 768).
+pub const UDP_HEADER_BYTES: usize = 8;
+
+/// The IPv4 total length of a packet: 20 + 8 + 1,460 = 1,488.
+pub const IPV4_TOTAL_LENGTH: u16 = (IPV4_HEADER_BYTES + UDP_HEADER_BYTES + PACKET_BYTES) as u16;
+/// The UDP length of a packet: 8 + 1,460 = 1,468.
+pub const UDP_LENGTH: u16 = (UDP_HEADER_BYTES + PACKET_BYTES) as u16;
+
+/// Bytes of every header in front of a row on the wire: 14 + 20 + 8 + 20 = 62.
+pub const FRAME_HEADER_BYTES: usize = ETHERNET_HEADER_BYTES + IPV4_HEADER_BYTES + UDP_HEADER_BYTES + HEADER_BYTES;
 
 /// Where a stream goes: both ends' MAC and IPv4 addresses and UDP ports.
 #[cfg(feature = "smoltcp")]
@@ -214,5 +228,15 @@ impl HeaderTemplate {
         let out = front(out, FRAME_HEADER_BYTES)?;
         out.copy_from_slice(&self.words(session, packet).bytes());
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_sizes_add_up() {
+        assert_eq!((IPV4_TOTAL_LENGTH, UDP_LENGTH, FRAME_HEADER_BYTES), (1_488, 1_468, 62));
     }
 }

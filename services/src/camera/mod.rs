@@ -4,11 +4,14 @@
 //! Formats apart from behaviour, as smoltcp keeps `wire` apart from its
 //! sockets:
 //!
-//! * [`rtp`]: the RTP packet of one row (RFC 3550, RFC 4175) and its
-//!   numbering ([`rtp::Packetiser`]).
+//! * [`wire`]: the formats, with no state: [`wire::rtp`], the RTP packet
+//!   of one row (RFC 3550, RFC 4175) and the interleaved head (RFC 2326
+//!   section 10.12); [`wire::rtcp`], sender reports, SDES, BYE, receiver
+//!   reports and the receivers' generic NACKs (RFC 4585).
+//! * [`packetiser`]: one RTP session's numbering, stamps and counts.
+//! * [`report_timer`]: when a stream's sender reports go out.
 //! * [`frame_header`]: the whole 62-byte header the board's zero-copy path
 //!   puts in front of a row (Ethernet, IPv4, UDP, RTP).
-//! * [`rtcp`]: sender reports, SDES, the receivers' generic NACKs (RFC 4585).
 //! * [`repair`]: which slot and row each recent packet came from, so a
 //!   NACKed packet can be sent again unchanged.
 //! * [`rtsp`]: the sans-IO RTSP/1.0 server (RFC 2326): stream URLs,
@@ -22,11 +25,11 @@
 //! * [`receiver`]: the client's end: datagrams to whole frames, NACKs out.
 
 pub mod frame_header;
+pub mod packetiser;
 pub mod random;
 pub mod receiver;
 pub mod repair;
-pub mod rtcp;
-pub mod rtp;
+pub mod report_timer;
 pub mod rtsp;
 pub mod sdp;
 pub mod sender;
@@ -35,3 +38,4 @@ pub mod service;
 #[cfg(feature = "smoltcp")]
 pub mod snoop;
 pub mod url;
+pub mod wire;

@@ -42,8 +42,8 @@ use core::time::Duration;
 
 use model::{FRAME_BYTES, ROW_BYTES};
 
-use crate::camera::rtcp::{FMT_GENERIC_NACK, RTCP_RTPFB};
-use crate::camera::rtp::{BufferTooShort, HEADER_BYTES, PACKET_BYTES, PAYLOAD_TYPE};
+use crate::camera::wire::rtcp::{FMT_GENERIC_NACK, RTCP_RTPFB};
+use crate::camera::wire::rtp::{BufferTooShort, HEADER_BYTES, PACKET_BYTES, PAYLOAD_TYPE};
 use crate::frames::ROWS;
 use crate::time::Instant;
 
@@ -659,8 +659,9 @@ fn put_entry(out: &mut [u8; MAX_NACK_BYTES], at: usize, (pid, blp): (u32, u16)) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::rtcp::NackRequests;
-    use crate::camera::rtp::{Packetiser, RowPacket};
+    use crate::camera::packetiser::Packetiser;
+    use crate::camera::wire::rtcp::NackRequests;
+    use crate::camera::wire::rtp::RowPacket;
 
     const SSRC: u32 = 0x1234_5678;
     const OURS: u32 = 0xc11e_0001;

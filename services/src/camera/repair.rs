@@ -3,7 +3,7 @@
 
 use core::time::Duration;
 
-use super::rtp::RowPacket;
+use super::wire::rtp::RowPacket;
 use crate::time::Instant;
 
 /// Packets a [`FrameRepairWindow`] keeps at most: two frames of 360 rows
@@ -22,7 +22,7 @@ pub const MAX_SLOTS: usize = 32;
 /// its row still is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Repair {
-    /// The packet's header fields, for [`Packetiser::emit`](super::rtp::Packetiser::emit).
+    /// The packet's header fields, for [`Packetiser::emit`](super::packetiser::Packetiser::emit).
     pub packet: RowPacket,
     /// The frame slot holding its row.
     pub slot: usize,
@@ -105,7 +105,7 @@ const RUNS: usize = 32;
 
 /// Retransmission bookkeeping (RFC 4585 section 3.1's "repair"): for each
 /// of the last `N` packets sent, its header fields and the frame slot and
-/// row its bytes are in, so a NACKed packet ([`NackRequests`](super::rtcp::NackRequests)) is sent
+/// row its bytes are in, so a NACKed packet ([`NackRequests`](super::wire::rtcp::NackRequests)) is sent
 /// again exactly as it was (same SSRC, payload type, sequence number and
 /// timestamp: RFC 4585 leaves the repair to the sender, and a plain resend
 /// is what a jitter buffer without RFC 4588 takes), its row read from the
@@ -341,8 +341,8 @@ impl<const N: usize> RepairWindow<N> {
     }
 
     /// The packet numbered `seq` (an extended sequence number, as
-    /// [`NackRequests`](super::rtcp::NackRequests) yields them), if still in the window: resend it
-    /// with [`Packetiser::emit`](super::rtp::Packetiser::emit) and its row from the slot.
+    /// [`NackRequests`](super::wire::rtcp::NackRequests) yields them), if still in the window: resend it
+    /// with [`Packetiser::emit`](super::packetiser::Packetiser::emit) and its row from the slot.
     pub fn lookup(&self, seq: u32) -> Option<Repair> {
         if Self::before(seq, self.oldest) || !Self::before(seq, self.next) {
             return None;
@@ -410,6 +410,10 @@ impl<const N: usize> Default for ResendLog<N> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::camera::packetiser::Packetiser;
+    use crate::camera::wire::rtcp::tests::nack;
+    use crate::camera::wire::rtcp::NackRequests;
+    use crate::camera::wire::rtp::HEADER_BYTES;
     use crate::frames::ROWS;
 
     fn row(seq: u32, y: u16) -> RowPacket {
@@ -699,5 +703,35 @@ mod tests {
         assert!(!log.may_resend(7, Instant::from_millis(39), rtt));
         assert!(log.may_resend(7, Instant::from_millis(40), rtt));
         assert!(log.may_resend(7 + REPAIR_ENTRIES as u32, Instant::from_millis(1), rtt), "another packet");
+    }
+
+    #[test]
+    fn a_nack_is_answered_with_the_original_packet() {
+        let mut p = Packetiser::new(0x1234_5678, 0x0001_0203, 0xa000_0000);
+        let mut w = FrameRepairWindow::new(Duration::from_secs(1));
+        let mut sent = vec![];
+        for slot in [0, 1] {
+            let f = p.begin_frame(u64::from(slot as u32) * 3_000);
+            for y in 0..ROWS {
+                let mut h = [0u8; HEADER_BYTES];
+                let packet = p.write_header(f, y, &mut h).unwrap();
+                w.record(Instant::from_millis(0), slot, packet).unwrap();
+                sent.push(h);
+            }
+        }
+        let highest = p.highest_seq().unwrap();
+        let lost = [5usize, 6, 359, 360, 500];
+        let pid = |i: usize| (0x0001_0203 + i as u32) as u16;
+        let d = nack(9, p.ssrc(), &[(pid(5), 0b1), (pid(359), 0b1), (pid(500), 0)]);
+        let resent: Vec<(usize, [u8; HEADER_BYTES])> = NackRequests::new(&d, p.ssrc(), Some(highest))
+            .filter_map(|seq| w.lookup(seq))
+            .map(|r| {
+                let mut h = [0u8; HEADER_BYTES];
+                p.emit(&r.packet, &mut h).unwrap();
+                (r.slot, h)
+            })
+            .collect();
+        let expected: Vec<_> = lost.iter().map(|&i| (i / 360, sent[i])).collect();
+        assert_eq!(resent, expected);
     }
 }

@@ -61,23 +61,24 @@
 //!
 //! [`Position`]: crate::camera::rtsp::Position
 //! [`ResendLog`]: crate::camera::repair::ResendLog
-//! [`MAX_NACKED_PER_DATAGRAM`]: crate::camera::rtcp::MAX_NACKED_PER_DATAGRAM
+//! [`MAX_NACKED_PER_DATAGRAM`]: crate::camera::wire::rtcp::MAX_NACKED_PER_DATAGRAM
 
 use core::net::{IpAddr, Ipv4Addr, SocketAddr};
 use core::time::Duration;
 
 use model::Light;
 
+use crate::camera::packetiser::{self, Packetiser};
 use crate::camera::repair::{FrameRepairWindow, FrameResendLog};
-use crate::camera::rtcp::{
-    self, round_trip, write_bye, write_sdes_cname, NackRequests, ReportTimer, SenderReport, BYE_BYTES,
-    SENDER_REPORT_BYTES,
-};
-use crate::camera::rtp::{self, FrameStamp, Packetiser, RowPacket};
+use crate::camera::report_timer::ReportTimer;
 use crate::camera::rtsp::{
     Client, ConnId, EndReason, Fresh, Group, Position, Profile, SessionId, SetUp, Status, Stream as Light_, StreamSpec,
     Streams, Transport, MAX_SESSIONS,
 };
+use crate::camera::wire::rtcp::{
+    self, round_trip, write_bye, write_sdes_cname, NackRequests, SenderReport, BYE_BYTES, SENDER_REPORT_BYTES,
+};
+use crate::camera::wire::rtp::{FrameStamp, RowPacket};
 use crate::frames::{FrameSource, ROWS};
 use crate::time::Instant;
 
@@ -428,7 +429,7 @@ impl Media {
 
     fn media_ticks(&self, now: Instant) -> u64 {
         if self.running {
-            self.media_at_resume + rtp::ticks(now).saturating_sub(rtp::ticks(self.resumed_at))
+            self.media_at_resume + packetiser::ticks(now).saturating_sub(packetiser::ticks(self.resumed_at))
         } else {
             self.media_at_resume
         }
@@ -923,7 +924,7 @@ impl<const N: usize> Camera<N> {
             if let Some(o) = self.outputs[m.output].take() {
                 self.output_changes = self.output_changes.wrapping_add(1);
                 if let (true, Some(m)) = (bye, self.media[media].as_ref()) {
-                    let last = SenderReport::now(&m.packetiser, 0, m.media_ticks(now));
+                    let last = m.packetiser.sender_report(0, m.media_ticks(now));
                     let _ = self.byes.push_back((o.dest, last));
                 }
             }
@@ -1087,7 +1088,7 @@ impl<const N: usize> Camera<N> {
     /// Do what is due at `now`: goodbyes, reports, repairs, frames begun,
     /// rows that landed sent, silent clients ended, repair packets expired.
     /// `wall` is the sender reports' clock (NTP format,
-    /// [`rtcp::ntp_timestamp`]). Returns whether anything was sent or
+    /// [`ntp_timestamp`](crate::camera::wire::rtcp::ntp_timestamp)). Returns whether anything was sent or
     /// begun (poll again at once if so).
     pub fn poll<S: SlotSource, K: RtpSink>(&mut self, now: Instant, wall: u64, source: &mut S, sink: &mut K) -> bool {
         let mut progress = false;
@@ -1169,7 +1170,7 @@ impl<const N: usize> Camera<N> {
         if o.cursor == Cursor::Paused || !o.reports.poll(now) {
             return false;
         }
-        let sr = SenderReport::now(&m.packetiser, wall, m.media_ticks(now));
+        let sr = m.packetiser.sender_report(wall, m.media_ticks(now));
         let n = sr.write(&mut self.rtcp).unwrap_or(0);
         let k = write_sdes_cname(m.packetiser.ssrc(), cname.as_bytes(), &mut self.rtcp[n..]).unwrap_or(0);
         let _ = sink.send_rtcp(&o.dest, &self.rtcp[..n + k]);

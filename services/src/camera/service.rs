@@ -34,13 +34,14 @@ use smoltcp::time::Instant;
 use smoltcp::wire::{EthernetAddress, IpEndpoint};
 
 use super::frame_header::{Endpoints, HeaderTemplate, UdpChecksum, UNICAST_TTL};
+use super::packetiser::Packetiser;
 use super::random::SessionRng;
-use super::rtp::{Packetiser, RowPacket, HEADER_BYTES};
 use super::rtsp::{
     self, ConnId, Connection, Server, CONNECTIONS, CONNECTIONS_PER_ADDRESS, MAX_RESPONSE_BYTES, MAX_SESSIONS, RTSP_PORT,
 };
 use super::sender::{Bound, Camera, Dest, RtpSink, SlotSource};
 pub use super::snoop::{Snooped, Unreachable, PEERS, UNREACHABLE_NOTES};
+use super::wire::rtp::{interleaved_head, RowPacket, HEADER_BYTES};
 use crate::frames::FrameSource;
 pub use crate::snoop::{Snoop, SnoopRx};
 use crate::tcp::Handshake;
@@ -317,7 +318,8 @@ impl<'c> CameraService<'c> {
         // The sender reports' clock: time since start (the board has no
         // other; receivers use it to pair RTP and NTP times, and the
         // round trip is measured on it).
-        let wall = super::rtcp::ntp_timestamp(core::time::Duration::from_micros(now.total_micros().max(0) as u64));
+        let wall =
+            super::wire::rtcp::ntp_timestamp(core::time::Duration::from_micros(now.total_micros().max(0) as u64));
         for i in 0..RTSP_SOCKETS {
             self.serve_socket(i, now_ms, wall, sockets, source, entropy, log);
         }
@@ -689,8 +691,7 @@ impl<T: RowTransmitter> RtpSink for Sink<'_, '_, T> {
             let Some(handle) = self.connection(conn) else { return count };
             let socket = self.sockets.get_mut::<tcp::Socket>(handle);
             let mut packet = [0u8; INTERLEAVED_BYTES];
-            packet[..4]
-                .copy_from_slice(&super::rtp::interleaved_head(rtp_channel, (HEADER_BYTES + model::ROW_BYTES) as u16));
+            packet[..4].copy_from_slice(&interleaved_head(rtp_channel, (HEADER_BYTES + model::ROW_BYTES) as u16));
             for k in 0..count {
                 if socket.send_capacity() - socket.send_queue() < INTERLEAVED_BYTES {
                     return k;
@@ -740,7 +741,7 @@ impl<T: RowTransmitter> RtpSink for Sink<'_, '_, T> {
                 if socket.send_capacity() - socket.send_queue() < 4 + datagram.len() {
                     return false;
                 }
-                let head = super::rtp::interleaved_head(rtcp_channel, datagram.len() as u16);
+                let head = interleaved_head(rtcp_channel, datagram.len() as u16);
                 socket.send_slice(&head).is_ok() && socket.send_slice(datagram).is_ok()
             }
             Dest::Udp { addr: IpAddr::V6(_), .. } => false,

@@ -532,8 +532,8 @@ impl Stream {
         }
         if self.last_report.elapsed() >= Duration::from_millis(2_500) {
             self.last_report = Instant::now();
-            let mut rr = [0u8; rt_services::camera::rtcp::RECEIVER_REPORT_BYTES];
-            if rt_services::camera::rtcp::write_receiver_report(0x0bad_cafe, self.ssrc, 0, 0, &mut rr).is_ok() {
+            let mut rr = [0u8; rt_services::camera::wire::rtcp::RECEIVER_REPORT_BYTES];
+            if rt_services::camera::wire::rtcp::write_receiver_report(0x0bad_cafe, self.ssrc, 0, 0, &mut rr).is_ok() {
                 self.rtcp.send_to(&rr, self.server_rtcp).map_err(|e| format!("RR: {e}"))?;
             }
         }

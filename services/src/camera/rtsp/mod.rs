@@ -635,7 +635,7 @@ impl<const N: usize> Server<N> {
     /// by address too), or a multicast session's member, whose reports may
     /// come from any port.
     pub fn rtcp_received(&mut self, now: Instant, from: IpAddr, port: u16, datagram: &[u8]) -> Option<SessionId> {
-        if !crate::camera::rtcp::valid_compound(datagram) {
+        if !crate::camera::wire::rtcp::valid_compound(datagram) {
             return None;
         }
         let exact = |s: &Session| {

@@ -1,5 +1,6 @@
 use super::*;
 use crate::camera::rtsp::{Fps, Stream as Kind};
+use crate::camera::wire::rtp;
 use crate::frames::{FrameEngine, FrameMemory, FrameRing};
 use model::{FRAME_BYTES, ROW_BYTES};
 use std::cell::{Cell, RefCell};

@@ -1,10 +1,11 @@
-//! RTCP for the camera (RFC 3550 section 6, RFC 4585): sender reports,
-//! an SDES CNAME, when to send them, and the receivers' generic NACKs.
+//! RTCP packets for the camera (RFC 3550 section 6, RFC 4585): sender
+//! reports, an SDES CNAME, BYE, receiver reports, and the receivers' generic
+//! NACKs. Formats only; when to send a report is
+//! [`ReportTimer`](crate::camera::report_timer::ReportTimer)'s.
 
 use core::time::Duration;
 
-use super::rtp::{front, BufferTooShort, Packetiser};
-use crate::time::Instant;
+use super::rtp::{front, BufferTooShort};
 
 /// RTCP packet type of a sender report (RFC 3550 section 6.4.1).
 pub const RTCP_SR: u8 = 200;
@@ -21,12 +22,6 @@ pub const FMT_GENERIC_NACK: u8 = 1;
 /// Bytes of a sender report without report blocks (RFC 3550 section
 /// 6.4.1): header 4, SSRC 4, sender info 20.
 pub const SENDER_REPORT_BYTES: usize = 28;
-
-/// The interval between RTCP reports: RFC 3550 section 6.2's recommended
-/// minimum of 5 seconds. One unicast sender has no one to synchronise with
-/// by accident, so the interval is not randomised (section 6.3.1 draws it
-/// from `[0.5, 1.5]` times this to keep many participants apart).
-pub const REPORT_INTERVAL: Duration = Duration::from_secs(5);
 
 /// Seconds from the NTP era 0 origin (1900-01-01) to the Unix epoch.
 const NTP_UNIX_OFFSET: u64 = 2_208_988_800;
@@ -68,21 +63,6 @@ pub struct SenderReport {
 }
 
 impl SenderReport {
-    /// A sender report of `session` for now (RFC 3550 section 6.4.1):
-    /// `ntp` the wall clock in NTP format ([`ntp_timestamp`]), `ticks` the
-    /// same instant on the 90 kHz clock frames are stamped with (so the
-    /// report's RTP timestamp lines up with the frames'), and the packets
-    /// and payload octets numbered so far.
-    pub const fn now(session: &Packetiser, ntp: u64, ticks: u64) -> SenderReport {
-        SenderReport {
-            ssrc: session.ssrc(),
-            ntp_timestamp: ntp,
-            rtp_timestamp: session.timestamp_at(ticks),
-            packet_count: session.packet_count(),
-            octet_count: session.octet_count(),
-        }
-    }
-
     /// Write the report, [`SENDER_REPORT_BYTES`] bytes, into the front of
     /// `out`; returns the bytes written. An RTCP compound packet begins
     /// with it (RFC 3550 section 6.1); [`write_sdes_cname`] writes the
@@ -229,37 +209,6 @@ pub fn sender_report_lsr(datagram: &[u8], ssrc: u32) -> Option<u32> {
         }
     }
     None
-}
-
-/// When to send the next RTCP report: the first [`REPORT_INTERVAL`] / 2
-/// after the stream starts (RFC 3550 section 6.2: "the initial delay ...
-/// MAY be set to half the minimum interval"), then every
-/// [`REPORT_INTERVAL`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ReportTimer {
-    next: Instant,
-}
-
-impl ReportTimer {
-    /// A timer for a stream starting at `start`.
-    pub fn new(start: Instant) -> ReportTimer {
-        ReportTimer { next: start + REPORT_INTERVAL / 2 }
-    }
-
-    /// When the next report is due (a deadline for the caller's wait).
-    pub const fn deadline(&self) -> Instant {
-        self.next
-    }
-
-    /// Whether a report is due at `now`; when it is, the next one is
-    /// scheduled [`REPORT_INTERVAL`] from `now`.
-    pub fn poll(&mut self, now: Instant) -> bool {
-        if now < self.next {
-            return false;
-        }
-        self.next = now + REPORT_INTERVAL;
-        true
-    }
 }
 
 /// The extended sequence numbers a receiver reports lost in the generic
@@ -421,36 +370,20 @@ impl Iterator for NackRequests<'_> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
-    use crate::camera::repair::FrameRepairWindow;
-    use crate::camera::rtp::{ticks, HEADER_BYTES};
-    use crate::frames::ROWS;
-
-    fn session() -> Packetiser {
-        Packetiser::new(0x1234_5678, 0x0001_0203, 0xa000_0000)
-    }
 
     #[test]
-    fn a_sender_report_counts_new_packets_and_lines_up_the_clocks() {
-        let mut p = session();
-        let f = p.begin_frame(ticks(Instant::from_millis(2_000)));
-        for y in 0..ROWS {
-            p.write_header(f, y, &mut [0; 20]).unwrap();
-        }
+    fn a_sender_report_is_byte_exact() {
         let ntp = ntp_timestamp(Duration::new(1_700_000_000, 500_000_000));
         assert_eq!(ntp, (1_700_000_000 + 2_208_988_800) << 32 | 0x8000_0000);
-        let sr = SenderReport::now(&p, ntp, ticks(Instant::from_millis(2_500)));
-        assert_eq!(
-            sr,
-            SenderReport {
-                ssrc: 0x1234_5678,
-                ntp_timestamp: ntp,
-                rtp_timestamp: 0xa000_0000 + 225_000,
-                packet_count: 360,
-                octet_count: 360 * 1_448,
-            }
-        );
+        let sr = SenderReport {
+            ssrc: 0x1234_5678,
+            ntp_timestamp: ntp,
+            rtp_timestamp: 0xa000_0000 + 225_000,
+            packet_count: 360,
+            octet_count: 360 * 1_448,
+        };
         let mut out = [0u8; 32];
         assert_eq!(sr.write(&mut out), Ok(28));
         #[rustfmt::skip]
@@ -479,19 +412,9 @@ mod tests {
         assert_eq!(write_sdes_cname(1, &[b'x'; 300], &mut [0; 300]), Ok(sdes_cname_bytes(255)));
     }
 
-    #[test]
-    fn reports_go_out_half_an_interval_in_then_every_interval() {
-        let mut t = ReportTimer::new(Instant::from_millis(1_000));
-        assert_eq!(t.deadline(), Instant::from_millis(3_500));
-        assert!(!t.poll(Instant::from_millis(3_499)));
-        assert!(t.poll(Instant::from_millis(3_600)));
-        assert_eq!(t.deadline(), Instant::from_millis(8_600));
-        assert!(!t.poll(Instant::from_millis(8_000)));
-    }
-
     /// An RTCP generic NACK (RFC 4585 section 6.2.1) from `sender` about
     /// `media`, with FCI entries `(pid, blp)`.
-    fn nack(sender: u32, media: u32, entries: &[(u16, u16)]) -> Vec<u8> {
+    pub(crate) fn nack(sender: u32, media: u32, entries: &[(u16, u16)]) -> Vec<u8> {
         let words = 2 + entries.len();
         let mut v = vec![0x81, 205];
         v.extend_from_slice(&(words as u16).to_be_bytes());
@@ -650,42 +573,13 @@ mod tests {
     }
 
     #[test]
-    fn a_nack_is_answered_with_the_original_packet() {
-        let mut p = session();
-        let mut w = FrameRepairWindow::new(Duration::from_secs(1));
-        let mut sent = vec![];
-        for slot in [0, 1] {
-            let f = p.begin_frame(u64::from(slot as u32) * 3_000);
-            for y in 0..ROWS {
-                let mut h = [0u8; HEADER_BYTES];
-                let packet = p.write_header(f, y, &mut h).unwrap();
-                w.record(Instant::from_millis(0), slot, packet).unwrap();
-                sent.push(h);
-            }
-        }
-        let highest = p.highest_seq().unwrap();
-        let lost = [5usize, 6, 359, 360, 500];
-        let pid = |i: usize| (0x0001_0203 + i as u32) as u16;
-        let d = nack(9, p.ssrc(), &[(pid(5), 0b1), (pid(359), 0b1), (pid(500), 0)]);
-        let resent: Vec<(usize, [u8; HEADER_BYTES])> = NackRequests::new(&d, p.ssrc(), Some(highest))
-            .filter_map(|seq| w.lookup(seq))
-            .map(|r| {
-                let mut h = [0u8; HEADER_BYTES];
-                p.emit(&r.packet, &mut h).unwrap();
-                (r.slot, h)
-            })
-            .collect();
-        let expected: Vec<_> = lost.iter().map(|&i| (i / 360, sent[i])).collect();
-        assert_eq!(resent, expected);
-    }
-
-    #[test]
     fn a_receiver_report_echoing_the_sender_report_gives_the_round_trip() {
-        let p = Packetiser::new(0x1234_5678, 0, 0);
         // An SR at wall time 10 s, answered 30 ms later, arriving 50 ms after it went.
         let ntp = ntp_timestamp(Duration::from_secs(10));
         let mut sr = [0u8; SENDER_REPORT_BYTES];
-        SenderReport::now(&p, ntp, 0).write(&mut sr).unwrap();
+        let report =
+            SenderReport { ssrc: 0x1234_5678, ntp_timestamp: ntp, rtp_timestamp: 0, packet_count: 0, octet_count: 0 };
+        report.write(&mut sr).unwrap();
         let lsr = sender_report_lsr(&sr, 0x1234_5678).unwrap();
         assert_eq!(sender_report_lsr(&sr, 7), None, "another source's");
         let mut rr = [0u8; RECEIVER_REPORT_BYTES];

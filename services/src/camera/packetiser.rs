@@ -1,197 +1,27 @@
-//! Frames as an RTP stream: uncompressed video per RFC 4175, one row a
-//! packet, with RTCP sender reports and NACK-driven retransmission.
-//!
-//! Like the rest of the crate this is sans-IO: it writes headers into the
-//! caller's buffers and parses the caller's datagrams; it sends nothing,
-//! allocates nothing and knows no clock but the times it is handed.
-//!
-//! # A packet
-//!
-//! Each 480-pixel row of a frame is one RTP packet (RFC 3550 section 5.1,
-//! RFC 4175 section 4):
-//!
-//! | bytes | field |
-//! |---|---|
-//! | 0 | V = 2, P = 0, X = 0, CC = 0 (`0x80`) |
-//! | 1 | M (the frame's last row) and PT ([`PAYLOAD_TYPE`], 96) |
-//! | 2..4 | sequence number: the low 16 bits of the extended counter |
-//! | 4..8 | timestamp, 90 kHz ([`CLOCK_RATE`]); one per frame |
-//! | 8..12 | SSRC |
-//! | 12..14 | RFC 4175 extended sequence number: the high 16 bits |
-//! | 14..16 | line header: Length = 1,440 octets |
-//! | 16..18 | F = 0, Line No = the row |
-//! | 18..20 | C = 0 (no further line), Offset = 0 pixels |
-//! | 20..1460 | the row, 480 RGB888 pixels ([`ROW_BYTES`]) |
-//!
-//! GStreamer's `rtpvrawdepay` and FFmpeg's `rtpdec_rfc4175.c` read the
-//! payload this way (`sampling=RGB, depth=8, width=480, height=360`).
-//! With Ethernet (14), IPv4 (20) and UDP (8) headers a packet's headers are
-//! [`FRAME_HEADER_BYTES`] = 62 bytes, which the board's zero-copy transmit
-//! path puts in one buffer ([`frame_header`](super::frame_header)) and the
-//! row, straight from the frame ring, in a second.
-//!
-//! # The parts
-//!
-//! * [`Packetiser`]: one RTP session's sender state: SSRC, payload type,
-//!   the extended sequence counter, frame timestamps, and the packet and
-//!   octet counts for [`SenderReport`](super::rtcp::SenderReport)s. It writes the 20 RTP + RFC 4175
-//!   header bytes of a row ([`Packetiser::write_header`]).
-//! * [`frame_header`](super::frame_header): the 62-byte Ethernet + IPv4 +
-//!   UDP + RTP + RFC 4175 header of a row, for the zero-copy path.
-//! * RTCP (RFC 3550 section 6): [`SenderReport`](super::rtcp::SenderReport), an SDES CNAME
-//!   ([`write_sdes_cname`](super::rtcp::write_sdes_cname)), when to send them ([`ReportTimer`](super::rtcp::ReportTimer)), and the
-//!   receiver's generic NACKs (RFC 4585 section 6.2.1) read out of any
-//!   compound packet by [`NackRequests`](super::rtcp::NackRequests).
-//! * [`RepairWindow`](super::repair::RepairWindow): which frame slot and row each recent packet came
-//!   from, so a NACKed packet can be sent again unchanged (same SSRC, PT,
-//!   sequence number and timestamp) from the frame ring, and which ring
-//!   slots must therefore stay out of reuse.
+//! The sender side of one RTP session: the state that numbers and stamps a
+//! stream's row packets (RFC 3550 section 5.1) and counts them for its
+//! sender reports. The packets' format is [`wire::rtp`](super::wire::rtp).
 
-use model::ROW_BYTES;
-
+use super::wire::rtcp::SenderReport;
+use super::wire::rtp::{
+    write_row_header, BufferTooShort, FrameStamp, PacketError, RowPacket, CLOCK_RATE, HEADER_BYTES, PAYLOAD_BYTES,
+    PAYLOAD_TYPE,
+};
 use crate::frames::ROWS;
 use crate::time::Instant;
-
-/// The dynamic RTP payload type the stream uses (RFC 3551 section 6: 96 to
-/// 127 are dynamic; the session description maps it to `raw/90000`).
-pub const PAYLOAD_TYPE: u8 = 96;
-
-/// The RTP clock of uncompressed video: 90 kHz (RFC 4175 section 6.1,
-/// "rate": 90000).
-pub const CLOCK_RATE: u32 = 90_000;
-
-/// Bytes of the fixed RTP header without CSRCs (RFC 3550 section 5.1).
-pub const RTP_HEADER_BYTES: usize = 12;
-
-/// Bytes of the RFC 4175 payload header for one line: the extended
-/// sequence number (2) and one line header (6) (RFC 4175 section 4.3).
-pub const PAYLOAD_HEADER_BYTES: usize = 8;
-
-/// Bytes of RTP and RFC 4175 headers in front of a row: 12 + 2 + 6.
-pub const HEADER_BYTES: usize = RTP_HEADER_BYTES + PAYLOAD_HEADER_BYTES;
-
-/// Bytes of RTP payload per packet: the RFC 4175 payload header and the row
-/// (what a [`SenderReport`](super::rtcp::SenderReport)'s octet count adds up, RFC 3550 section 6.4.1).
-pub const PAYLOAD_BYTES: usize = PAYLOAD_HEADER_BYTES + ROW_BYTES;
-
-/// Bytes of a whole RTP packet (the UDP payload): 20 + 1,440 = 1,460.
-pub const PACKET_BYTES: usize = HEADER_BYTES + ROW_BYTES;
-
-/// Bytes of an Ethernet II header (destination, source, EtherType).
-pub const ETHERNET_HEADER_BYTES: usize = 14;
-/// Bytes of an IPv4 header without options (RFC 791 section 3.1).
-pub const IPV4_HEADER_BYTES: usize = 20;
-/// Bytes of a UDP header (RFC 768).
-pub const UDP_HEADER_BYTES: usize = 8;
-
-/// The IPv4 total length of a packet: 20 + 8 + 1,460 = 1,488.
-pub const IPV4_TOTAL_LENGTH: u16 = (IPV4_HEADER_BYTES + UDP_HEADER_BYTES + PACKET_BYTES) as u16;
-/// The UDP length of a packet: 8 + 1,460 = 1,468.
-pub const UDP_LENGTH: u16 = (UDP_HEADER_BYTES + PACKET_BYTES) as u16;
-
-/// Bytes of every header in front of a row on the wire: 14 + 20 + 8 + 20 = 62.
-pub const FRAME_HEADER_BYTES: usize = ETHERNET_HEADER_BYTES + IPV4_HEADER_BYTES + UDP_HEADER_BYTES + HEADER_BYTES;
-
-/// The 4 bytes in front of an RTP or RTCP packet sent inside an RTSP
-/// connection (RFC 2326 section 10.12): `$`, the channel, the packet's
-/// length (big-endian). Every interleaved sender writes it with this.
-pub const fn interleaved_head(channel: u8, len: u16) -> [u8; 4] {
-    let [hi, lo] = len.to_be_bytes();
-    [b'$', channel, hi, lo]
-}
 
 /// RTP timestamp ticks in a millisecond of the crate's [`Instant`].
 const TICKS_PER_MILLI: u64 = CLOCK_RATE as u64 / 1_000;
 
 /// 90 kHz ticks since the clock's origin at `t` (what
-/// [`Packetiser::begin_frame`] and [`SenderReport::now`](super::rtcp::SenderReport::now) take).
+/// [`Packetiser::begin_frame`] and [`Packetiser::sender_report`] take).
 pub const fn ticks(t: Instant) -> u64 {
     t.millis().saturating_mul(TICKS_PER_MILLI)
 }
 
-/// The caller's buffer is shorter than what is to be written into it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct BufferTooShort {
-    /// Bytes needed.
-    pub needed: usize,
-}
-
-impl core::fmt::Display for BufferTooShort {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        write!(f, "buffer too short: {} bytes needed", self.needed)
-    }
-}
-
-/// The first `n` bytes of `out`, or how many were needed.
-pub(crate) fn front(out: &mut [u8], n: usize) -> Result<&mut [u8], BufferTooShort> {
-    out.get_mut(..n).ok_or(BufferTooShort { needed: n })
-}
-
-// ---- RTP data packets --------------------------------------------------------------
-
-/// The timestamp of one frame's packets (RFC 3550 section 5.1: "the
-/// sampling instant of the first octet in the RTP data packet"; RFC 4175
-/// section 4.1: every packet of a frame carries the frame's timestamp).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct FrameStamp {
-    /// The 32-bit RTP timestamp, offset by the session's random origin.
-    pub timestamp: u32,
-}
-
-/// What identifies one row's packet: enough to write its headers again,
-/// byte for byte, when it is retransmitted.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct RowPacket {
-    /// The extended (32-bit) sequence number: the RTP header carries the
-    /// low 16 bits, the RFC 4175 payload header the high 16.
-    pub seq: u32,
-    /// The frame's RTP timestamp.
-    pub timestamp: u32,
-    /// The row, `0..360`; the last row carries the marker bit.
-    pub row: u16,
-}
-
-impl RowPacket {
-    /// Whether the packet carries the marker bit: it holds the frame's last
-    /// row (RFC 4175 section 4.1, "M bit").
-    pub const fn marker(&self) -> bool {
-        self.row == ROWS - 1
-    }
-
-    /// The packet `k` after this one in a run of consecutive rows of the
-    /// same frame: sequence number and row `k` on.
-    pub const fn nth(&self, k: u16) -> RowPacket {
-        RowPacket { seq: self.seq.wrapping_add(k as u32), timestamp: self.timestamp, row: self.row.wrapping_add(k) }
-    }
-}
-
-/// Why a row cannot be packetised.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum PacketError {
-    /// The buffer cannot hold the headers.
-    BufferTooShort(BufferTooShort),
-    /// The row is not `0..360`.
-    BadRow(u16),
-}
-
-impl core::fmt::Display for PacketError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            PacketError::BufferTooShort(e) => e.fmt(f),
-            PacketError::BadRow(y) => write!(f, "row {y} is not in 0..{ROWS}"),
-        }
-    }
-}
-
-impl From<BufferTooShort> for PacketError {
-    fn from(e: BufferTooShort) -> PacketError {
-        PacketError::BufferTooShort(e)
-    }
-}
-
 /// The sender side of one RTP session (RFC 3550 section 5.1 and 6.4.1):
 /// one SSRC, one payload type, the extended sequence counter, the frame
-/// timestamps, and the counts a [`SenderReport`](super::rtcp::SenderReport) carries.
+/// timestamps, and the counts a [`SenderReport`] carries.
 ///
 /// RFC 3550 asks for random initial values of the sequence number and of
 /// the timestamp (section 5.1) and a random SSRC (section 8.1); the crate
@@ -248,7 +78,7 @@ impl Packetiser {
     }
 
     /// The extended sequence number of the newest packet numbered so far
-    /// (what a NACK's 16-bit PID is resolved against, [`NackRequests`](super::rtcp::NackRequests)), or
+    /// (what a NACK's 16-bit PID is resolved against, [`NackRequests`](super::wire::rtcp::NackRequests)), or
     /// `None` before the first.
     pub const fn highest_seq(&self) -> Option<u32> {
         if self.sent_any {
@@ -336,20 +166,7 @@ impl Packetiser {
     /// numbered or counted: this writes a new packet's header after
     /// [`next_packet`](Self::next_packet), and a retransmitted one's again.
     pub fn emit(&self, packet: &RowPacket, out: &mut [u8]) -> Result<(), BufferTooShort> {
-        let out = front(out, HEADER_BYTES)?;
-        let marker = if packet.marker() { 0x80 } else { 0 };
-        out[0] = 2 << 6; // V = 2, P = 0, X = 0, CC = 0
-        out[1] = marker | self.payload_type;
-        out[2..4].copy_from_slice(&(packet.seq as u16).to_be_bytes());
-        out[4..8].copy_from_slice(&packet.timestamp.to_be_bytes());
-        out[8..12].copy_from_slice(&self.ssrc.to_be_bytes());
-        // RFC 4175 section 4.3: Extended Sequence Number, then one line
-        // header: Length (octets), F + Line No, C + Offset (pixels).
-        out[12..14].copy_from_slice(&((packet.seq >> 16) as u16).to_be_bytes());
-        out[14..16].copy_from_slice(&(ROW_BYTES as u16).to_be_bytes());
-        out[16..18].copy_from_slice(&(packet.row & 0x7fff).to_be_bytes());
-        out[18..20].copy_from_slice(&0u16.to_be_bytes());
-        Ok(())
+        write_row_header(self.ssrc, self.payload_type, packet, out)
     }
 
     /// Number row `row` of `frame` and write its 20 header bytes into the
@@ -362,6 +179,21 @@ impl Packetiser {
         let packet = self.next_packet(frame, row)?;
         self.emit(&packet, out)?;
         Ok(packet)
+    }
+
+    /// A sender report of this session for now (RFC 3550 section 6.4.1):
+    /// `ntp` the wall clock in NTP format ([`ntp_timestamp`](super::wire::rtcp::ntp_timestamp)),
+    /// `ticks` the same instant on the 90 kHz clock frames are stamped with
+    /// (so the report's RTP timestamp lines up with the frames'), and the
+    /// packets and payload octets numbered so far.
+    pub const fn sender_report(&self, ntp: u64, ticks: u64) -> SenderReport {
+        SenderReport {
+            ssrc: self.ssrc,
+            ntp_timestamp: ntp,
+            rtp_timestamp: self.timestamp_at(ticks),
+            packet_count: self.packets,
+            octet_count: self.octets,
+        }
     }
 
     /// Packets numbered so far (new packets only: retransmissions reuse
@@ -386,9 +218,7 @@ mod tests {
     }
 
     #[test]
-    fn the_sizes_add_up() {
-        assert_eq!((HEADER_BYTES, PACKET_BYTES, FRAME_HEADER_BYTES), (20, 1_460, 62));
-        assert_eq!((IPV4_TOTAL_LENGTH, UDP_LENGTH), (1_488, 1_468));
+    fn a_second_is_90000_ticks() {
         assert_eq!(ticks(Instant::from_millis(1_000)), 90_000);
     }
 
@@ -488,5 +318,27 @@ mod tests {
         let mut again = [0u8; HEADER_BYTES];
         p.emit(&packet, &mut again).unwrap();
         assert_eq!(again, first);
+    }
+
+    #[test]
+    fn a_sender_report_counts_new_packets_and_lines_up_the_clocks() {
+        let mut p = session();
+        let f = p.begin_frame(ticks(Instant::from_millis(2_000)));
+        for y in 0..ROWS {
+            p.write_header(f, y, &mut [0; 20]).unwrap();
+        }
+        let ntp = 0x0123_4567_89ab_cdef;
+        assert_eq!(
+            p.sender_report(ntp, ticks(Instant::from_millis(2_500))),
+            SenderReport {
+                ssrc: 0x1234_5678,
+                ntp_timestamp: ntp,
+                rtp_timestamp: 0xa000_0000 + 225_000,
+                packet_count: 360,
+                octet_count: 360 * 1_448,
+            }
+        );
+        p.emit(&RowPacket { seq: 1, timestamp: 0, row: 0 }, &mut [0; 20]).unwrap();
+        assert_eq!(p.sender_report(ntp, 0).packet_count, 360, "a resend is not counted again");
     }
 }
