@@ -14,6 +14,21 @@ pub const RTP_CLOCK_HZ: u32 = 90_000;
 /// The RTP payload type announced (a dynamic one, RFC 3551 section 6).
 pub const PAYLOAD_TYPE: u8 = 96;
 
+/// The payload type the description announces for RFC 4588 retransmission
+/// (`a=rtpmap:97 rtx/90000`, `a=fmtp:97 apt=96`), under RTP/AVPF only.
+///
+/// The camera never sends it: it answers a NACK with the original packet
+/// (same SSRC, sequence number and payload type 96). The announcement is
+/// what GStreamer's rtspsrc needs to ask for repairs at all: its
+/// `add_retransmission` (gst/rtsp/gstrtspsrc.c, 1.22) turns the jitter
+/// buffer's retransmission requests on only when the SETUP answer's profile
+/// is AVPF and the description maps an `rtx` payload type to the media's
+/// with `apt`; without it rtspsrc sends no NACK, unicast or multicast. Its
+/// `rtprtxreceive` passes packets of payload type 96 through, and the jitter
+/// buffer takes a resent original as the late packet it is. FFmpeg reads
+/// the `m=` line's first format only and ignores the other's attributes.
+pub const RTX_PAYLOAD_TYPE: u8 = 97;
+
 /// The RTP profile a client asked for (RFC 3551 AVP, or RFC 4585 AVPF with
 /// early feedback: the NACKs the camera answers).
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -84,7 +99,11 @@ pub fn write(out: &mut impl Write, d: &Description<'_>) -> fmt::Result {
             0
         }
     };
-    write!(out, "t=0 0\r\nm=video {port} {} {PAYLOAD_TYPE}\r\n", d.profile.name())?;
+    write!(out, "t=0 0\r\nm=video {port} {} {PAYLOAD_TYPE}", d.profile.name())?;
+    if d.profile == Profile::Avpf {
+        write!(out, " {RTX_PAYLOAD_TYPE}")?;
+    }
+    out.write_str("\r\n")?;
     write!(out, "a=rtpmap:{PAYLOAD_TYPE} raw/{RTP_CLOCK_HZ}\r\n")?;
     // RFC 4175 section 6.1 spells the colorimetry values BT601-5, BT709-2
     // and SMPTE240M; the model's colours are BT.709's.
@@ -95,6 +114,10 @@ pub fn write(out: &mut impl Write, d: &Description<'_>) -> fmt::Result {
     out.write_str("\r\n")?;
     if d.profile == Profile::Avpf {
         write!(out, "a=rtcp-fb:{PAYLOAD_TYPE} nack\r\na=rtcp-rsize\r\n")?;
+        write!(
+            out,
+            "a=rtpmap:{RTX_PAYLOAD_TYPE} rtx/{RTP_CLOCK_HZ}\r\na=fmtp:{RTX_PAYLOAD_TYPE} apt={PAYLOAD_TYPE}\r\n"
+        )?;
     }
     write!(out, "a=control:{}\r\n", ControlUrl(d.control))
 }
@@ -127,8 +150,13 @@ mod tests {
              a=control:rtsp://192.168.1.200:8554/light/3/4/-2\r\n"
         );
         let avpf = text(&Description { profile: Profile::Avpf, fps: Fps::Max, ..d });
-        assert!(avpf.contains("m=video 0 RTP/AVPF 96\r\n"), "{avpf}");
-        assert!(avpf.contains("colorimetry=BT709-2\r\na=rtcp-fb:96 nack\r\na=rtcp-rsize\r\n"), "{avpf}");
+        assert!(avpf.contains("m=video 0 RTP/AVPF 96 97\r\n"), "{avpf}");
+        assert!(
+            avpf.contains(
+                "colorimetry=BT709-2\r\na=rtcp-fb:96 nack\r\na=rtcp-rsize\r\na=rtpmap:97 rtx/90000\r\na=fmtp:97 apt=96\r\n"
+            ),
+            "the rtx format GStreamer needs before it asks for repairs: {avpf}"
+        );
     }
 
     #[test]

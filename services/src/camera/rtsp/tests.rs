@@ -209,11 +209,13 @@ fn describe_answers_the_sdp_exactly() {
                s=raytracer\r\n\
                c=IN IP4 0.0.0.0\r\n\
                t=0 0\r\n\
-               m=video 0 RTP/AVPF 96\r\n\
+               m=video 0 RTP/AVPF 96 97\r\n\
                a=rtpmap:96 raw/90000\r\n\
                a=fmtp:96 sampling=RGB; width=480; height=360; depth=8; colorimetry=BT709-2; exactframerate=30\r\n\
                a=rtcp-fb:96 nack\r\n\
                a=rtcp-rsize\r\n\
+               a=rtpmap:97 rtx/90000\r\n\
+               a=fmtp:97 apt=96\r\n\
                a=control:rtsp://192.168.1.10:8554/light/3/4/-2\r\n";
     let want = format!(
         "RTSP/1.0 200 OK\r\nCSeq: 2\r\nContent-Base: {URL}/\r\nContent-Type: application/sdp\r\n\
@@ -227,7 +229,7 @@ fn describe_answers_the_sdp_exactly() {
     assert!(a.text.contains("; exactframerate=60\r\n"));
     // A multicast URL names the group the sender gives.
     let a = Rig::new().ask(&request("DESCRIBE", "rtsp://h/orbit?multicast", 2, ""));
-    assert!(a.text.contains("c=IN IP4 239.255.42.1/1\r\nt=0 0\r\nm=video 5006 RTP/AVPF 96\r\n"), "{}", a.text);
+    assert!(a.text.contains("c=IN IP4 239.255.42.1/1\r\nt=0 0\r\nm=video 5006 RTP/AVPF 96 97\r\n"), "{}", a.text);
 }
 
 #[test]
