@@ -9,16 +9,20 @@
 //! peer that acknowledges nothing for that long is reset) and turns Nagle
 //! off (the services write whole answers and rows; Nagle would hold a
 //! frame's last partial segment back for an acknowledgement), and each
-//! service watches its sockets' handshakes with [`Handshake`]: one still
-//! unfinished after [`HANDSHAKE_LIMIT`] is dropped and the socket listens
-//! again, so SYNs that are never completed hold a socket seconds, not for
-//! ever (smoltcp alone would keep retransmitting its SYN-ACK until
-//! [`TIMEOUT`]).
+//! service keeps its sockets between connections with a [`Listener`]:
+//! listening again once closed, TIME-WAIT dropped at once, and a handshake
+//! still unfinished after [`REQUEST_LIMIT`] dropped, so SYNs that are
+//! never completed hold a socket seconds, not for ever (smoltcp alone
+//! would keep retransmitting its SYN-ACK until [`TIMEOUT`]).
 
+use core::fmt::Write;
+
+use smoltcp::iface::{SocketHandle, SocketSet};
 use smoltcp::socket::tcp;
 use smoltcp::time::Duration;
+use smoltcp::wire::IpEndpoint;
 
-use crate::time::Instant;
+use crate::time::{Instant, REQUEST_LIMIT};
 
 /// Keep-alive probes on an idle connection (a viewer between frames, a
 /// seed client waiting for its render): a peer that is gone stops
@@ -29,13 +33,6 @@ pub const KEEP_ALIVE: Duration = Duration::from_secs(10);
 /// a SYN-ACK) for this long is reset by smoltcp.
 pub const TIMEOUT: Duration = Duration::from_secs(30);
 
-/// A handshake (SYN received, SYN-ACK sent) not finished within this is
-/// dropped: a client on any network answers a SYN-ACK within a few round
-/// trips, and smoltcp retransmits it three times in this span
-/// ([`crate::time::REQUEST_LIMIT`], the services' one limit on unfinished
-/// work).
-pub const HANDSHAKE_LIMIT: core::time::Duration = crate::time::REQUEST_LIMIT;
-
 /// Set the services' policy on `socket` (module docs).
 pub fn configure(socket: &mut tcp::Socket<'_>) {
     socket.set_keep_alive(Some(KEEP_ALIVE));
@@ -43,34 +40,85 @@ pub fn configure(socket: &mut tcp::Socket<'_>) {
     socket.set_nagle_enabled(false);
 }
 
-/// Watches one socket's handshake (module docs).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Handshake {
+/// One service socket's upkeep between connections, the same for every
+/// service (module docs): the port it listens on, and its handshake
+/// watched. Each poll a service calls [`reclaim`](Self::reclaim), then
+/// [`accept`](Self::accept) while the socket holds no connection of its.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Listener {
+    /// What the log calls the socket (`seed[2]`, `web[0]`, `rtsp`).
+    name: &'static str,
+    index: Option<usize>,
+    port: u16,
+    /// When the handshake in progress began, if one is.
     since: Option<Instant>,
 }
 
-impl Handshake {
-    /// No handshake seen.
-    pub const fn new() -> Handshake {
-        Handshake { since: None }
+impl Listener {
+    /// A socket listening on `port`, named in the log as `name`, or
+    /// `name[index]` when there are several alike.
+    pub const fn new(name: &'static str, index: Option<usize>, port: u16) -> Listener {
+        Listener { name, index, port, since: None }
     }
 
-    /// Look at `socket` at `now` (every poll): a handshake unfinished for
-    /// [`HANDSHAKE_LIMIT`] is dropped (the socket aborted, to be listened
-    /// on again by its service). Returns whether it was.
-    pub fn check(&mut self, socket: &mut tcp::Socket<'_>, now: Instant) -> bool {
+    /// The port it listens on.
+    pub const fn port(&self) -> u16 {
+        self.port
+    }
+
+    /// Take back at `now` what no client will finish (every poll): a
+    /// socket in TIME-WAIT (our FIN was acknowledged and the client's
+    /// received; smoltcp would refuse clients on it for 10 s, its
+    /// `CLOSE_DELAY`), and a handshake unfinished for [`REQUEST_LIMIT`].
+    /// Returns whether a handshake was dropped.
+    pub fn reclaim(&mut self, socket: &mut tcp::Socket<'_>, now: Instant, log: &mut impl Write) -> bool {
+        if socket.state() == tcp::State::TimeWait {
+            socket.abort();
+        }
         if socket.state() != tcp::State::SynReceived {
             self.since = None;
             return false;
         }
         let since = *self.since.get_or_insert(now);
-        if now < since + HANDSHAKE_LIMIT {
+        if now < since + REQUEST_LIMIT {
             return false;
         }
         socket.abort();
         self.since = None;
+        let _ = writeln!(log, "{self} a handshake never finished; socket taken back");
         true
     }
+
+    /// For a socket that holds no connection of the service's: listen
+    /// again if it is closed; return the client when one is connected and
+    /// has something to be read (Established, or CloseWait: a client that
+    /// sent its request and its FIN at once still gets its answer).
+    pub fn accept(&self, socket: &mut tcp::Socket<'_>, log: &mut impl Write) -> Option<IpEndpoint> {
+        if !socket.is_open() {
+            if let Err(e) = socket.listen(self.port) {
+                let _ = writeln!(log, "{self} listen on {} failed: {e:?}", self.port);
+            }
+            return None;
+        }
+        if matches!(socket.state(), tcp::State::Established | tcp::State::CloseWait) {
+            return socket.remote_endpoint();
+        }
+        None
+    }
+}
+
+impl core::fmt::Display for Listener {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self.index {
+            Some(i) => write!(f, "{}[{i}]", self.name),
+            None => f.write_str(self.name),
+        }
+    }
+}
+
+/// How many of `handles`' sockets in `sockets` are listening for a client.
+pub fn listening(sockets: &SocketSet<'_>, handles: impl Iterator<Item = SocketHandle>) -> usize {
+    handles.filter(|&h| sockets.get::<tcp::Socket>(h).state() == tcp::State::Listen).count()
 }
 
 /// The buffers of one TCP socket: `TX` bytes to transmit, `RX` to receive.

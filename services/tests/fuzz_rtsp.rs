@@ -31,10 +31,11 @@ use rt_services::camera::packetiser::Packetiser;
 use rt_services::camera::rtsp::{
     Client, Config, ConnId, Connection, EndReason, Fresh, Group, Position, Profile, Random, Server, SessionId, SetUp,
     State, Status, StreamSpec, Streams, Transport, MAX_REQUEST_BYTES, MAX_RESPONSE_BYTES, MAX_SESSIONS,
-    REQUEST_DEADLINE, SERVER_RTP_PORT, SESSION_TIMEOUT,
+    SERVER_RTP_PORT, SESSION_TIMEOUT,
 };
 use rt_services::camera::sender::{self, Bound, Camera, Dest, Multicast, RtpSink, CAMERA_SLOTS};
 use rt_services::camera::wire::rtp::RowPacket;
+use rt_services::time::REQUEST_LIMIT;
 use rt_services::{FrameSource, Instant};
 
 const PEERS: [IpAddr; 3] = [
@@ -254,7 +255,7 @@ fn piece() -> impl Strategy<Value = Piece> {
         1 => (0usize..PEERS.len(), prop_oneof![Just(6000u16), Just(6002u16), any::<u16>()], 0usize..4).prop_map(|(p, port, s)| Piece::Unreachable(p, port, s)),
         1 => (0usize..PEERS.len()).prop_map(Piece::Close),
         3 => (1u8..20).prop_map(Piece::Send),
-        2 => prop_oneof![0u64..5_000, Just(REQUEST_DEADLINE.as_millis() as u64), Just(SESSION_TIMEOUT.as_millis() as u64 + 1_000)].prop_map(Piece::Wait),
+        2 => prop_oneof![0u64..5_000, Just(REQUEST_LIMIT.as_millis() as u64), Just(SESSION_TIMEOUT.as_millis() as u64 + 1_000)].prop_map(Piece::Wait),
     ]
 }
 
@@ -600,7 +601,7 @@ fn run(c: &Case) -> Result<(), TestCaseError> {
         }
         // Half a request is never kept past its deadline.
         if !conns[conn].is_idle() && !conns[conn].is_closed() {
-            let late = Instant::from_millis(now + REQUEST_DEADLINE.as_millis() as u64);
+            let late = Instant::from_millis(now + REQUEST_LIMIT.as_millis() as u64);
             prop_assert!(server.connection_expired(&conns[conn], late));
         }
     }

@@ -698,10 +698,10 @@ fn a_request_sent_with_its_fin_is_still_answered() {
 /// WiFi mid-connect, a scanner) take every socket, and smoltcp alone would
 /// keep them in SYN-RECEIVED, resending its SYN-ACK, for its timeout or
 /// for ever: the services' policy (`rt_services::tcp`) drops each after
-/// `HANDSHAKE_LIMIT`, and a client arriving then is served.
+/// `REQUEST_LIMIT`, and a client arriving then is served.
 #[test]
 fn handshakes_never_finished_hold_the_sockets_seconds_not_for_ever() {
-    use rt_services::tcp::HANDSHAKE_LIMIT;
+    use rt_services::time::REQUEST_LIMIT;
     let (mut server_dev, mut client_dev) = cable_with(Faults::default(), 0);
     let mut server_if = interface(&mut server_dev, 1);
     let mut client_if = interface(&mut client_dev, 2);
@@ -713,7 +713,7 @@ fn handshakes_never_finished_hold_the_sockets_seconds_not_for_ever() {
     let mut ghosts = SocketSet::new(vec![]);
     let mut clients = SocketSet::new(vec![]);
     let ports = [FRAME_PORT, FRAME_PORT, PERSISTENT_PORT, PERSISTENT_PORT];
-    let limit = HANDSHAKE_LIMIT.as_millis() as u64;
+    let limit = REQUEST_LIMIT.as_millis() as u64;
     let light = Light::from_world(3.0, 4.0, -2.0).unwrap();
     let mut visitor = None;
     let mut received = Vec::new();

@@ -44,7 +44,7 @@ pub use super::snoop::{Snooped, Unreachable, PEERS, UNREACHABLE_NOTES};
 use super::wire::rtp::{interleaved_head, RowPacket, HEADER_BYTES};
 use crate::frames::FrameSource;
 pub use crate::snoop::{Snoop, SnoopRx};
-use crate::tcp::Handshake;
+use crate::tcp::{self as service_tcp, Listener};
 use crate::time;
 
 /// TCP sockets listening for RTSP: one per session's player and two
@@ -138,7 +138,7 @@ impl Default for CameraBuffers {
 struct RtspSocket {
     handle: SocketHandle,
     conn: Option<Connection>,
-    handshake: Handshake,
+    listener: Listener,
 }
 
 /// A UDP or multicast output's 62-byte header template, made when its
@@ -224,7 +224,7 @@ impl<'c> CameraService<'c> {
         let tcp_sockets = rtsp.each_mut().map(|b| RtspSocket {
             handle: sockets.add(b.socket()),
             conn: None,
-            handshake: Handshake::new(),
+            listener: Listener::new("rtsp:", None, RTSP_PORT),
         });
         let mut rtcp = udp::Socket::new(
             udp::PacketBuffer::new(&mut rtcp_meta[..], &mut rtcp_rx[..]),
@@ -294,7 +294,7 @@ impl<'c> CameraService<'c> {
 
     /// RTSP sockets listening for a connection.
     pub fn listening(&self, sockets: &SocketSet<'_>) -> usize {
-        self.sockets.iter().filter(|s| sockets.get::<tcp::Socket>(s.handle).state() == tcp::State::Listen).count()
+        service_tcp::listening(sockets, self.sockets.iter().map(|s| s.handle))
     }
 
     /// Serve once: RTSP connections (requests, deadlines), session
@@ -398,29 +398,15 @@ impl<'c> CameraService<'c> {
         log: &mut impl Write,
     ) {
         let socket = sockets.get_mut::<tcp::Socket>(self.sockets[i].handle);
-        if socket.state() == tcp::State::TimeWait {
-            socket.abort();
-        }
-        if self.sockets[i].handshake.check(socket, now) {
-            let _ = writeln!(log, "rtsp: a handshake never finished; socket taken back");
-        }
+        self.sockets[i].listener.reclaim(socket, now, log);
         if !socket.is_open() {
             if let Some(conn) = self.sockets[i].conn.take() {
                 self.closed(conn.id(), now, wall, source, log);
             }
-            if let Err(e) = socket.listen(RTSP_PORT) {
-                let _ = writeln!(log, "rtsp: listen failed: {e:?}");
-            }
-            return;
         }
+        let client = self.sockets[i].listener.accept(socket, log);
         if self.sockets[i].conn.is_none() {
-            // Established, or already closed by a client that sent its
-            // bytes and its FIN at once (CloseWait): either way a
-            // connection to read, answer and close.
-            if !matches!(socket.state(), tcp::State::Established | tcp::State::CloseWait) {
-                return;
-            }
-            let Some(peer) = socket.remote_endpoint() else { return };
+            let Some(peer) = client else { return };
             let open = self.sockets.iter().filter_map(|s| s.conn.as_ref()).map(Connection::peer);
             if !rtsp::admits(open, IpAddr::from(peer.addr)) {
                 let _ =

@@ -27,7 +27,7 @@
 //!   is reached, with zero bytes of its frame ([`Closed::BadLight`]); frames
 //!   of earlier requests are complete.
 //! * A request cut short by end of stream is dropped ([`Closed::ShortRequest`]).
-//! * A partial request idle for [`REQUEST_TIMEOUT`] is dropped
+//! * A partial request idle for [`REQUEST_LIMIT`] is dropped
 //!   ([`Closed::RequestTimeout`]), and so is a seed-port client that sends
 //!   nothing for as long after connecting.
 //! * A client vanishing mid-frame is the adapter's to notice (the socket
@@ -42,11 +42,7 @@ use crate::frames::{FrameSource, ROWS};
 use crate::seed::wire::{decode_request, REQUEST_BYTES};
 #[cfg(doc)]
 use crate::seed::wire::{FRAME_PORT, PERSISTENT_PORT};
-use crate::time::Instant;
-
-/// How long a partially received request may sit idle before it is dropped
-/// ([`crate::time::REQUEST_LIMIT`], the same for every service).
-pub const REQUEST_TIMEOUT: Duration = crate::time::REQUEST_LIMIT;
+use crate::time::{Instant, REQUEST_LIMIT};
 
 /// How long a frame may go without a byte leaving before the session gives
 /// up on the client (it stopped reading; its socket is needed by others).
@@ -83,7 +79,7 @@ pub enum Closed {
         received: u8,
     },
     /// A partial request (or, on the seed port, no request at all) sat idle
-    /// for [`REQUEST_TIMEOUT`].
+    /// for [`REQUEST_LIMIT`].
     RequestTimeout {
         /// Bytes of the incomplete request.
         received: u8,
@@ -114,7 +110,7 @@ impl core::fmt::Display for Closed {
                 write!(f, "request cut short by end of stream ({received} of 12 bytes)")
             }
             Closed::RequestTimeout { received } => {
-                write!(f, "partial request idle for {} ms ({received} of 12 bytes)", REQUEST_TIMEOUT.as_millis())
+                write!(f, "partial request idle for {} ms ({received} of 12 bytes)", REQUEST_LIMIT.as_millis())
             }
             Closed::NoRequest => f.write_str("client closed without a request"),
             Closed::Stalled { row } => {
@@ -337,7 +333,7 @@ impl<F: Copy> Session<F> {
         // A partial request, or a seed-port client that has sent nothing yet
         // (it would hold a socket that another client could use).
         if received > 0 || (self.mode == Mode::Single && self.requests_seen == 0) {
-            let deadline = self.partial_since + REQUEST_TIMEOUT;
+            let deadline = self.partial_since + REQUEST_LIMIT;
             if now >= deadline {
                 let reason = Closed::RequestTimeout { received };
                 self.closed = Some(reason);

@@ -16,7 +16,7 @@ use smoltcp::time::Instant;
 use crate::frames::FrameSource;
 use crate::seed::server::{drive, Action, Closed, Mode, Session};
 use crate::seed::wire::{FRAME_PORT, PERSISTENT_PORT};
-use crate::tcp::Handshake;
+use crate::tcp::{self as service_tcp, Listener};
 use crate::time;
 
 /// Receive buffer of one socket: room for 42 pipelined requests.
@@ -36,16 +36,7 @@ struct Slot<F> {
     handle: SocketHandle,
     mode: Mode,
     session: Option<Session<F>>,
-    handshake: Handshake,
-}
-
-impl<F> Slot<F> {
-    fn port(&self) -> u16 {
-        match self.mode {
-            Mode::Single => FRAME_PORT,
-            Mode::Persistent => PERSISTENT_PORT,
-        }
-    }
+    listener: Listener,
 }
 
 /// The frame server bound to `N` smoltcp TCP sockets, serving frames whose
@@ -65,9 +56,11 @@ impl<F: Copy, const N: usize> FrameService<F, N> {
         let mut i = 0;
         let slots = buffers.each_mut().map(|b| {
             let socket = b.socket();
-            let mode = if i < frame_port { Mode::Single } else { Mode::Persistent };
+            let (mode, port) =
+                if i < frame_port { (Mode::Single, FRAME_PORT) } else { (Mode::Persistent, PERSISTENT_PORT) };
+            let listener = Listener::new("seed", Some(i), port);
             i += 1;
-            Slot { handle: sockets.add(socket), mode, session: None, handshake: Handshake::new() }
+            Slot { handle: sockets.add(socket), mode, session: None, listener }
         });
         FrameService { slots, quiet: false }
     }
@@ -84,7 +77,7 @@ impl<F: Copy, const N: usize> FrameService<F, N> {
 
     /// Sockets listening for a client, of `N`.
     pub fn listening(&self, sockets: &SocketSet<'_>) -> usize {
-        self.slots.iter().filter(|s| sockets.get::<tcp::Socket>(s.handle).state() == tcp::State::Listen).count()
+        service_tcp::listening(sockets, self.slots.iter().map(|s| s.handle))
     }
 
     /// Number of sessions currently open.
@@ -122,26 +115,9 @@ fn serve_slot<S: FrameSource>(
     log: &mut impl Write,
 ) {
     let Some(session) = &mut slot.session else {
-        // A finished connection's socket would wait in TIME-WAIT for 10 s
-        // (smoltcp's CLOSE_DELAY) before it listens again, refusing clients
-        // meanwhile: our FIN has been acknowledged and the client's received,
-        // so drop that state at once.
-        if socket.state() == tcp::State::TimeWait {
-            socket.abort();
-        }
-        if slot.handshake.check(socket, now) {
-            let _ = writeln!(log, "seed[{index}] a handshake never finished; socket taken back");
-        }
-        if !socket.is_open() {
-            if let Err(e) = socket.listen(slot.port()) {
-                let _ = writeln!(log, "[{index}] listen on {} failed: {e:?}", slot.port());
-            }
-        } else if matches!(socket.state(), tcp::State::Established | tcp::State::CloseWait) {
-            // CloseWait: a client that sent its request and its FIN at
-            // once; it still reads the frame.
-            if let Some(peer) = socket.remote_endpoint() {
-                let _ = writeln!(log, "[{index}] port {}: client {peer}", slot.port());
-            }
+        slot.listener.reclaim(socket, now, log);
+        if let Some(peer) = slot.listener.accept(socket, log) {
+            let _ = writeln!(log, "[{index}] port {}: client {peer}", slot.listener.port());
             slot.session = Some(Session::new(slot.mode, now));
         }
         return;

@@ -14,7 +14,7 @@
 //!
 //! # Bad input and deadlines
 //!
-//! * A head not complete within [`HEAD_TIMEOUT`]: 408 and close.
+//! * A head not complete within [`REQUEST_LIMIT`]: 408 and close.
 //! * Heads beyond the caps of [`super::http`]: 414, 431; other
 //!   methods 405; a body 413; anything else unparsable 400; no place for a
 //!   viewer 503.
@@ -40,11 +40,7 @@ use super::status::{BoardStatus, LogTail};
 use super::websocket::{self, CloseCode, Opcode, CONTROL_PAYLOAD, MAX_HEAD};
 use crate::frames::{FrameSource, ROWS};
 use crate::seed::wire::{decode_request, REQUEST_BYTES};
-use crate::time::Instant;
-
-/// How long a request head may take to arrive ([`crate::time::REQUEST_LIMIT`],
-/// the same for every service).
-pub const HEAD_TIMEOUT: Duration = crate::time::REQUEST_LIMIT;
+use crate::time::{Instant, REQUEST_LIMIT};
 
 /// How long output may wait for the client to take a byte.
 /// Also how long a frame may wait for its rows: far beyond any render time,
@@ -489,7 +485,7 @@ impl<F: Copy> Connection<F> {
                 if self.eof {
                     return self.close(Closed::ClientLeft);
                 }
-                let deadline = self.since + HEAD_TIMEOUT;
+                let deadline = self.since + REQUEST_LIMIT;
                 if now >= deadline {
                     self.respond(now, Status::RequestTimeout, &[]);
                     return Action::Write;
@@ -1161,8 +1157,8 @@ mod tests {
     fn a_head_that_does_not_come_in_time_is_answered_408() {
         let mut p = Peer::new();
         p.send(b"GET / HTTP/1.1\r\n");
-        assert_eq!(p.step(), Action::Wait { deadline: Some(Instant::ZERO + HEAD_TIMEOUT) });
-        p.now = Instant::ZERO + HEAD_TIMEOUT;
+        assert_eq!(p.step(), Action::Wait { deadline: Some(Instant::ZERO + REQUEST_LIMIT) });
+        p.now = Instant::ZERO + REQUEST_LIMIT;
         assert!(matches!(p.step(), Action::Close(_)));
         assert!(p.text().starts_with("HTTP/1.1 408 "));
     }

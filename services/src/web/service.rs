@@ -19,7 +19,7 @@ use super::server::{drive, Action, Connection, Context, Turns};
 use super::status::{BoardStatus, LogTail};
 use super::{WEB_PORT, WEB_VIEWERS};
 use crate::frames::FrameSource;
-use crate::tcp::Handshake;
+use crate::tcp::{self as service_tcp, Listener};
 use crate::time;
 
 /// Receive buffer of one socket: a whole request head.
@@ -43,7 +43,7 @@ struct Slot<F> {
     connection: Option<Connection<F>>,
     /// When the last connection was closed, while its socket finishes.
     closing_since: Option<time::Instant>,
-    handshake: Handshake,
+    listener: Listener,
 }
 
 /// The page on `N` smoltcp TCP sockets, serving frames whose handles are
@@ -59,9 +59,12 @@ pub struct WebService<F, const N: usize> {
 impl<F: Copy, const N: usize> WebService<F, N> {
     /// Add `N` TCP sockets, listening on [`WEB_PORT`], to `sockets`.
     pub fn new<'a>(sockets: &mut SocketSet<'a>, buffers: &'a mut [SocketBuffers; N]) -> Self {
+        let mut i = 0;
         let slots = buffers.each_mut().map(|b| {
             let socket = b.socket();
-            Slot { handle: sockets.add(socket), connection: None, closing_since: None, handshake: Handshake::new() }
+            let listener = Listener::new("web", Some(i), WEB_PORT);
+            i += 1;
+            Slot { handle: sockets.add(socket), connection: None, closing_since: None, listener }
         });
         WebService { slots, frames_sent: 0, turns: Turns::new(), quiet: false }
     }
@@ -76,7 +79,7 @@ impl<F: Copy, const N: usize> WebService<F, N> {
 
     /// Sockets listening, of `N`.
     pub fn listening(&self, sockets: &SocketSet<'_>) -> usize {
-        self.slots.iter().filter(|s| sockets.get::<tcp::Socket>(s.handle).state() == tcp::State::Listen).count()
+        service_tcp::listening(sockets, self.slots.iter().map(|s| s.handle))
     }
 
     /// Open connections.
@@ -137,13 +140,7 @@ fn serve_slot<S: FrameSource>(
     log: &mut impl Write,
 ) -> u32 {
     let Some(connection) = &mut slot.connection else {
-        // TIME-WAIT would refuse clients for 10 s: our FIN was acknowledged.
-        if socket.state() == tcp::State::TimeWait {
-            socket.abort();
-        }
-        if slot.handshake.check(socket, cx.now) {
-            let _ = writeln!(log, "web[{index}] a handshake never finished; socket taken back");
-        }
+        slot.listener.reclaim(socket, cx.now, log);
         if let Some(since) = slot.closing_since {
             if socket.is_open() && cx.now < since + CLOSE_LINGER {
                 return 0;
@@ -154,11 +151,7 @@ fn serve_slot<S: FrameSource>(
             }
             slot.closing_since = None;
         }
-        if !socket.is_open() {
-            if let Err(e) = socket.listen(WEB_PORT) {
-                let _ = writeln!(log, "web[{index}] listen on {WEB_PORT} failed: {e:?}");
-            }
-        } else if matches!(socket.state(), tcp::State::Established | tcp::State::CloseWait) {
+        if slot.listener.accept(socket, log).is_some() {
             slot.connection = Some(Connection::new(cx.now));
         }
         return 0;

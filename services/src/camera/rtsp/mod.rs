@@ -53,7 +53,7 @@
 //! Call it until it returns `None` (pipelined requests are answered in
 //! order). A connection is closed by the caller once
 //! [`Server::connection_expired`] says so: a request left unfinished for
-//! [`REQUEST_DEADLINE`], or no session of its own and no request for
+//! [`crate::time::REQUEST_LIMIT`], or no session of its own and no request for
 //! [`IDLE_DEADLINE`]. Sessions outlive their connection (RFC 2326 section
 //! 3.1), but for interleaved ones.
 //!
@@ -90,7 +90,7 @@ pub use message::{Connection, Transport};
 use super::sdp::{self, Description};
 pub use super::sdp::{Group, Profile};
 pub use super::url::{ControlUrl, Fps, Stream, StreamSpec, UrlError, DEFAULT_FPS, MAX_FPS};
-use crate::time::Instant;
+use crate::time::{Instant, REQUEST_LIMIT};
 
 /// TCP port of the RTSP server.
 pub const RTSP_PORT: u16 = 8554;
@@ -140,11 +140,6 @@ pub const UNPLAYED_TIMEOUT: Duration = Duration::from_secs(15);
 /// this long ago (a player between its `SETUP` and its `PLAY` keeps its
 /// place).
 pub const RECLAIM_AFTER: Duration = Duration::from_secs(2);
-
-/// A request left unfinished this long closes its connection (a client
-/// that sends half a request and waits holds a socket no longer):
-/// [`crate::time::REQUEST_LIMIT`], the same for every service.
-pub const REQUEST_DEADLINE: Duration = crate::time::REQUEST_LIMIT;
 
 /// A connection that owns no session and has made no request for this
 /// long is closed (players set up within milliseconds of connecting).
@@ -679,13 +674,13 @@ impl<const N: usize> Server<N> {
     }
 
     /// Whether the caller should close `conn` at `now`: a request has been
-    /// left unfinished for [`REQUEST_DEADLINE`], or the connection owns no
+    /// left unfinished for [`crate::time::REQUEST_LIMIT`], or the connection owns no
     /// session that has played and made no request for [`IDLE_DEADLINE`]
     /// (or a reply closed it). A session set up and never played keeps no
     /// connection open: it would let one host hold sockets with sessions
     /// it never plays.
     pub fn connection_expired(&self, conn: &Connection, now: Instant) -> bool {
-        let unfinished = conn.partial_since.is_some_and(|t| now.saturating_duration_since(t) >= REQUEST_DEADLINE);
+        let unfinished = conn.partial_since.is_some_and(|t| now.saturating_duration_since(t) >= REQUEST_LIMIT);
         let owns = self.sessions.iter().any(|s| s.client.conn == conn.id() && s.played);
         let idle = !owns && now.saturating_duration_since(conn.last_request) >= IDLE_DEADLINE;
         conn.closed || unfinished || idle
@@ -696,7 +691,7 @@ impl<const N: usize> Server<N> {
     pub fn connection_deadline(&self, conn: &Connection) -> Instant {
         let idle = conn.last_request + IDLE_DEADLINE;
         match conn.partial_since {
-            Some(t) => (t + REQUEST_DEADLINE).min(idle),
+            Some(t) => (t + REQUEST_LIMIT).min(idle),
             None => idle,
         }
     }
