@@ -25,7 +25,7 @@ use model::Light;
 use proptest::prelude::*;
 use rt_services::camera::packetiser::Packetiser;
 use rt_services::camera::rtsp::{
-    Client, ConnId, EndReason, Fps, Fresh, Profile, SessionId, Stream as Kind, StreamSpec, Streams, Transport,
+    Client, ConnId, EndReason, Fps, Fresh, LightSource as Kind, Profile, SessionId, StreamSpec, Streams, Transport,
 };
 use rt_services::camera::sender::{
     self, Bound, Camera, Dest, Multicast, RtpSink, CAMERA_SLOTS, MIN_ROUND_TRIP, REPAIR_BURST, REPAIR_SHARE,
@@ -211,8 +211,8 @@ fn run(events: &[Event]) -> Result<(), TestCaseError> {
     // Sessions: two of one stream from client 0 (UDP ports 6000, 7000),
     // one multicast from client 1, one of another stream from client 1.
     // Paced, so that time (not the number of polls) makes frames.
-    let fixed = StreamSpec { stream: Kind::Light(light), fps: Fps::Rate(30), multicast: false };
-    let other = StreamSpec { stream: Kind::Light(light), fps: Fps::Rate(20), multicast: false };
+    let fixed = StreamSpec { light: Kind::Light(light), fps: Fps::Rate(30), multicast: false };
+    let other = StreamSpec { light: Kind::Light(light), fps: Fps::Rate(20), multicast: false };
     let setups = [
         (fixed, Transport::Udp { rtp_port: 6000, rtcp_port: 6001 }, 0),
         (fixed, Transport::Udp { rtp_port: 7000, rtcp_port: 7001 }, 0),

@@ -72,7 +72,7 @@ use crate::camera::packetiser::{self, Packetiser};
 use crate::camera::repair::{FrameRepairWindow, FrameResendLog};
 use crate::camera::report_timer::ReportTimer;
 use crate::camera::rtsp::{
-    Client, ConnId, EndReason, Fresh, Group, Position, Profile, SessionId, SetUp, Status, Stream as Light_, StreamSpec,
+    Client, ConnId, EndReason, Fresh, Group, LightSource, Position, Profile, SessionId, SetUp, Status, StreamSpec,
     Streams, Transport, MAX_SESSIONS,
 };
 use crate::camera::wire::rtcp::{
@@ -1588,7 +1588,7 @@ impl<S: SlotSource, const N: usize> Streams for Bound<'_, S, N> {
         let Some(m) = self.camera.member(session).copied() else { return };
         let Some(o) = self.camera.outputs[m.output].as_ref() else { return };
         if let Some(media) = self.camera.media[o.media].as_mut() {
-            if media.spec.stream == Light_::Live {
+            if media.spec.light == LightSource::Live {
                 media.live = light;
             }
         }

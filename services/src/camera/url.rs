@@ -36,7 +36,7 @@ impl Fps {
 
 /// Where a stream's light comes from.
 #[derive(Clone, Copy, PartialEq, Debug)]
-pub enum Stream {
+pub enum LightSource {
     /// `/light/X,Y,Z`: a fixed light.
     Light(Light),
     /// `/orbit`: the light orbiting the sphere.
@@ -48,8 +48,8 @@ pub enum Stream {
 /// A parsed stream URL: the light and the frame rate.
 #[derive(Clone, Copy, PartialEq, Debug)]
 pub struct StreamSpec {
-    /// The light.
-    pub stream: Stream,
+    /// Where the light comes from.
+    pub light: LightSource,
     /// The frame rate.
     pub fps: Fps,
     /// `multicast` in the query: the description names the stream's
@@ -116,30 +116,30 @@ impl StreamSpec {
                 _ => return Err(UrlError::BadParameter),
             }
         }
-        let stream = match kind {
-            Kind::Light(l) => Stream::Light(l),
-            Kind::Live => Stream::Live,
-            Kind::Orbit => Stream::Orbit(Orbit::new(radius, height, period).map_err(|_| UrlError::BadParameter)?),
+        let light = match kind {
+            Kind::Light(l) => LightSource::Light(l),
+            Kind::Live => LightSource::Live,
+            Kind::Orbit => LightSource::Orbit(Orbit::new(radius, height, period).map_err(|_| UrlError::BadParameter)?),
         };
-        Ok(StreamSpec { stream, fps, multicast })
+        Ok(StreamSpec { light, fps, multicast })
     }
 
     /// Whether viewers of `self` and of `other` see the same frames: the
     /// same light (or orbit) at the same rate. A live stream's light is its
     /// session's own, so live streams never share.
     pub fn same_frames(&self, other: &StreamSpec) -> bool {
-        self.stream != Stream::Live && self.stream == other.stream && self.fps == other.fps
+        self.light != LightSource::Live && self.light == other.light && self.fps == other.fps
     }
 
     /// The stream's light `t` into the stream (media time: the RTP
     /// timestamp's advance since `PLAY` over [`RTP_CLOCK_HZ`](super::sdp::RTP_CLOCK_HZ), pauses left
     /// out); `live` is the light `SET_PARAMETER` set last (or
-    /// [`Config::live_light`](super::sender::Config::live_light)), used by [`Stream::Live`].
+    /// [`Config::live_light`](super::sender::Config::live_light)), used by [`LightSource::Live`].
     pub fn light_at(&self, t: Duration, live: Light) -> Light {
-        match self.stream {
-            Stream::Light(l) => l,
-            Stream::Orbit(o) => o.light_at(t),
-            Stream::Live => live,
+        match self.light {
+            LightSource::Light(l) => l,
+            LightSource::Orbit(o) => o.light_at(t),
+            LightSource::Live => live,
         }
     }
 }
@@ -238,7 +238,7 @@ mod tests {
         let fixed = StreamSpec::parse("rtsp://board:8554/light/3,4,-2").unwrap();
         assert_eq!(
             fixed,
-            StreamSpec { stream: Stream::Light(light(3.0, 4.0, -2.0)), fps: Fps::Rate(30), multicast: false }
+            StreamSpec { light: LightSource::Light(light(3.0, 4.0, -2.0)), fps: Fps::Rate(30), multicast: false }
         );
         let spec = |u| StreamSpec::parse(u);
         assert_eq!(spec("rtsp://board/light/0.5,2,-1.25?fps=60").unwrap().fps, Fps::Rate(60));
@@ -246,17 +246,17 @@ mod tests {
         assert_eq!(spec("RTSP://board:8554/light/3,4,-2/trackID=0").unwrap(), fixed);
         assert_eq!(
             spec("rtsp://10.0.0.2:8554/live").unwrap(),
-            StreamSpec { stream: Stream::Live, fps: Fps::Rate(30), multicast: false }
+            StreamSpec { light: LightSource::Live, fps: Fps::Rate(30), multicast: false }
         );
         assert_eq!(spec("rtsp://h/live?fps=max").unwrap().fps, Fps::Max);
         assert_eq!(spec("rtsp://h/live?fps=MAX/trackID=0").unwrap().fps, Fps::Max);
-        let orbit = |r, h, p| Stream::Orbit(Orbit::new(r, h, Duration::from_secs_f64(p)).unwrap());
-        assert_eq!(spec("rtsp://h/orbit").unwrap().stream, orbit(3.0, 4.0, 2.0), "rt-client orbit's defaults");
-        assert_eq!(spec("rtsp://h/orbit?").unwrap().stream, orbit(3.0, 4.0, 2.0));
-        assert_eq!(spec("rtsp://h/orbit?height=6").unwrap().stream, orbit(3.0, 6.0, 2.0));
+        let orbit = |r, h, p| LightSource::Orbit(Orbit::new(r, h, Duration::from_secs_f64(p)).unwrap());
+        assert_eq!(spec("rtsp://h/orbit").unwrap().light, orbit(3.0, 4.0, 2.0), "rt-client orbit's defaults");
+        assert_eq!(spec("rtsp://h/orbit?").unwrap().light, orbit(3.0, 4.0, 2.0));
+        assert_eq!(spec("rtsp://h/orbit?height=6").unwrap().light, orbit(3.0, 6.0, 2.0));
         let full = spec("rtsp://h:8554/orbit?radius=5&height=-1.5&period=8&fps=12").unwrap();
-        assert_eq!(full, StreamSpec { stream: orbit(5.0, -1.5, 8.0), fps: Fps::Rate(12), multicast: false });
-        assert_eq!(spec("rtsp://h/orbit?period=0.5&&radius=2").unwrap().stream, orbit(2.0, 4.0, 0.5));
+        assert_eq!(full, StreamSpec { light: orbit(5.0, -1.5, 8.0), fps: Fps::Rate(12), multicast: false });
+        assert_eq!(spec("rtsp://h/orbit?period=0.5&&radius=2").unwrap().light, orbit(2.0, 4.0, 0.5));
         let group = spec("rtsp://h/light/3,4,-2?multicast&fps=30").unwrap();
         assert!(group.multicast && group.same_frames(&fixed) && fixed.same_frames(&group));
         assert!(!spec("/live").unwrap().same_frames(&spec("/live").unwrap()), "a live light is its session's");

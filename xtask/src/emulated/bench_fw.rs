@@ -287,7 +287,7 @@ impl Viewers {
 /// model (where a viewer here receives); the counts of all but the first
 /// and the last frame the firmware rendered meanwhile, per frame rendered.
 fn measure_rtp(frames: usize, viewers: Viewers) -> Result<Measured> {
-    use crate::support::rtsp_client::{Stream, Transport};
+    use crate::support::rtsp_client::{RtspSession, Transport};
     match viewers {
         Viewers::Multicast(n) => return measure_multicast(frames, n),
         Viewers::Unicast(n) if n > 1 => return measure_unicast_hosts(frames, n),
@@ -303,10 +303,10 @@ fn measure_rtp(frames: usize, viewers: Viewers) -> Result<Measured> {
     let mut sessions = Vec::new();
     let from = g.uart().len();
     match viewers {
-        Viewers::Interleaved => sessions.push(Stream::open_with(rtsp, path, Some(rtcp), Transport::Tcp)?),
+        Viewers::Interleaved => sessions.push(RtspSession::open_with(rtsp, path, Some(rtcp), Transport::Tcp)?),
         _ => {
             for _ in 0..viewers.copies() {
-                sessions.push(Stream::open(rtsp, path, Some(rtcp))?);
+                sessions.push(RtspSession::open(rtsp, path, Some(rtcp))?);
             }
         }
     }
@@ -333,14 +333,14 @@ fn measure_rtp(frames: usize, viewers: Viewers) -> Result<Measured> {
 /// frames; the others hold their sessions.
 fn measure_unicast_hosts(frames: usize, n: usize) -> Result<Measured> {
     use super::lan::{Lan, BOARD};
-    use crate::support::rtsp_client::Stream;
+    use crate::support::rtsp_client::RtspSession;
     let elf = build("qemu-npcm750", &["bench", "sim-accelerator"])?;
     let mut lan = Lan::boot_with(&elf, n, &["-icount", "shift=0"])?;
     let rtsp = std::net::SocketAddr::from((BOARD, 8554));
     let want = super::qemu_e2e::expected_frame([3072, 4096, -2048])?;
     let from = lan.guest.uart().len();
-    let sessions: Vec<Stream> = (0..n)
-        .map(|k| lan.on_host(k, move || Stream::open(rtsp, "/light/3,4,-2?fps=max", None)))
+    let sessions: Vec<RtspSession> = (0..n)
+        .map(|k| lan.on_host(k, move || RtspSession::open(rtsp, "/light/3,4,-2?fps=max", None)))
         .collect::<Result<_>>()?;
     let mut sessions = sessions.into_iter();
     let mut first = sessions.next().ok_or("no viewer")?;

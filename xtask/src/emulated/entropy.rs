@@ -7,7 +7,7 @@
 use std::net::SocketAddr;
 
 use crate::images::firmware::Guest;
-use crate::support::rtsp_client::Stream;
+use crate::support::rtsp_client::RtspSession;
 use crate::support::Result;
 
 /// One boot's first session: its id and its stream's SSRC.
@@ -15,7 +15,7 @@ fn first_session(elf: &std::path::Path) -> Result<(String, u32)> {
     let g = Guest::boot(elf, &["-icount", "shift=0"])?;
     let f = g.forwards.as_ref().ok_or("the guest has no forwarded ports")?;
     let rtsp = SocketAddr::from(([127, 0, 0, 1], f.rtsp));
-    let s = Stream::open(rtsp, "/light/3,4,-2?fps=1", None).map_err(|e| format!("{e}\nUART:\n{}", g.uart()))?;
+    let s = RtspSession::open(rtsp, "/light/3,4,-2?fps=1", None).map_err(|e| format!("{e}\nUART:\n{}", g.uart()))?;
     let seen = (s.session_id().to_string(), s.ssrc);
     s.teardown()?;
     Ok(seen)

@@ -32,7 +32,7 @@ use clap::Args;
 use super::lossy::{self, connect_patiently, ip, open_tap, Faults, Namespace, Relay};
 use super::qemu_e2e::expected_frame;
 use crate::images::firmware::{free_udp_port, Guest};
-use crate::support::rtsp_client::Stream;
+use crate::support::rtsp_client::RtspSession;
 use crate::support::Result;
 
 /// The least share of its clean rate the player keeps through an attack.
@@ -254,7 +254,7 @@ pub fn client(args: &ClientArgs) -> Result<()> {
         let (seen, stop) = (seen.clone(), stop.clone());
         thread::spawn(move || {
             let result = (|| -> Result<()> {
-                let mut s = Stream::open(rtsp, "/light/3,4,-2?fps=max", None)?;
+                let mut s = RtspSession::open(rtsp, "/light/3,4,-2?fps=max", None)?;
                 seen.lock().map_err(|_| "lock")?.rtcp = Some(s.rtcp_endpoint()?);
                 while !stop.load(Ordering::Relaxed) {
                     let f = s.next_frame(Duration::from_secs(20))?;

@@ -564,7 +564,7 @@ fn rtsp_client(board: &str, frames: usize, phases: usize) -> Result<()> {
     // The namespace's first ARP exchange may be lost: the TCP connect
     // retries like the frame ports' (connect_patiently).
     drop(connect_patiently(board, rt_services::camera::rtsp::RTSP_PORT)?);
-    let mut s = crate::support::rtsp_client::Stream::open(addr, "/light/3,4,-2?fps=max", None)?;
+    let mut s = crate::support::rtsp_client::RtspSession::open(addr, "/light/3,4,-2?fps=max", None)?;
     let want = expected_frame([3072, 4096, -2048])?;
     for phase in 0..phases {
         if phases > 1 {

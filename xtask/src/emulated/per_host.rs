@@ -41,7 +41,7 @@ use super::lan::{Lan, BOARD};
 use super::lossy::Faults;
 use super::qemu_e2e::expected_frame;
 use crate::support::player::{Kind, Player};
-use crate::support::rtsp_client::Stream;
+use crate::support::rtsp_client::RtspSession;
 use crate::support::tools::root;
 use crate::support::Result;
 
@@ -228,7 +228,7 @@ fn laggard(lan: &Lan, rtsp: SocketAddr) -> Result<()> {
     let viewer = {
         let (frames, stop) = (frames.clone(), stop.clone());
         lan.spawn_on_host(0, move || {
-            let mut s = Stream::open(rtsp, PATH, None)?;
+            let mut s = RtspSession::open(rtsp, PATH, None)?;
             while !stop.load(Ordering::Relaxed) {
                 let f = s.next_frame(Duration::from_secs(20))?;
                 if f.bytes != want {

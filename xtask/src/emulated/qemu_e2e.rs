@@ -268,10 +268,14 @@ pub fn run(elf: &std::path::Path) -> Result<()> {
 
 /// The network camera's stream at `path`, through the forwarded RTSP and
 /// RTCP ports.
-fn rtsp_stream(g: &Guest, path: &str) -> Result<crate::support::rtsp_client::Stream> {
+fn rtsp_stream(g: &Guest, path: &str) -> Result<crate::support::rtsp_client::RtspSession> {
     let f = g.forwards.ok_or("the guest has no forwarded RTSP port")?;
     let rtcp = std::net::SocketAddr::from(([127, 0, 0, 1], f.rtcp));
-    crate::support::rtsp_client::Stream::open(std::net::SocketAddr::from(([127, 0, 0, 1], f.rtsp)), path, Some(rtcp))
+    crate::support::rtsp_client::RtspSession::open(
+        std::net::SocketAddr::from(([127, 0, 0, 1], f.rtsp)),
+        path,
+        Some(rtcp),
+    )
 }
 
 fn t_rtsp_fixed_light(g: &mut Guest) -> Result<()> {

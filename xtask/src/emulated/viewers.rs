@@ -15,7 +15,7 @@ use super::lan::{Lan, BOARD};
 use super::qemu_e2e::expected_frame;
 use crate::images::firmware::Guest;
 use crate::support::player::{Kind, Played, Player};
-use crate::support::rtsp_client::Stream;
+use crate::support::rtsp_client::RtspSession;
 use crate::support::tools::root;
 use crate::support::Result;
 use model::ROW_BYTES;
@@ -47,7 +47,7 @@ pub fn run(elf: &Path) -> Result<()> {
     let alone_want = want.clone();
     let alone_fps = lan
         .on_host(alone_host, move || {
-            let mut alone = Stream::open(rtsp, PATH, None)?;
+            let mut alone = RtspSession::open(rtsp, PATH, None)?;
             let mut times = Vec::new();
             for i in 0..FRAMES {
                 let frame = alone.next_frame(Duration::from_secs(60))?;
@@ -121,7 +121,7 @@ pub fn run(elf: &Path) -> Result<()> {
     let took = lan
         .on_host(next_host, move || {
             let started = Instant::now();
-            let mut next = Stream::open(rtsp, PATH, None).map_err(|e| format!("after the four: {e}"))?;
+            let mut next = RtspSession::open(rtsp, PATH, None).map_err(|e| format!("after the four: {e}"))?;
             let frame = next.next_frame(Duration::from_secs(10))?;
             if frame.bytes != want {
                 return Err("the viewer after the four got a frame that is not the model's".into());

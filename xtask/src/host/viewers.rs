@@ -15,7 +15,7 @@ use clap::Args;
 use model::Light;
 
 use crate::support::player::{Kind, Player};
-use crate::support::rtsp_client::{Stream, Transport};
+use crate::support::rtsp_client::{RtspSession, Transport};
 use crate::support::tools::root;
 use crate::support::Result;
 
@@ -78,7 +78,7 @@ fn viewers(
                 // Each from an address of its own (127.0.0.10 + i): one
                 // address holds at most SESSIONS_PER_ADDRESS sessions.
                 let local = Ipv4Addr::new(127, 0, 0, 10 + i as u8);
-                let mut s = Stream::open_from(rtsp, &path, None, transport, Some(local))?;
+                let mut s = RtspSession::open_from(rtsp, &path, None, transport, Some(local))?;
                 let mut first = None;
                 for k in 0..frames {
                     let f = s.next_frame(Duration::from_secs(20)).map_err(|e| format!("viewer {i}, frame {k}: {e}"))?;
@@ -294,7 +294,7 @@ pub fn receive(args: &ReceiveArgs) -> Result<()> {
         (None, true) => Transport::Tcp,
         (None, false) => Transport::Udp,
     };
-    let mut s = Stream::open_from(args.rtsp, &args.path, None, transport, args.from)?;
+    let mut s = RtspSession::open_from(args.rtsp, &args.path, None, transport, args.from)?;
     if args.rtcp_to_group {
         s.send_rtcp_to_group();
     }

@@ -29,7 +29,7 @@ pub enum Transport {
 }
 
 /// An RTSP session playing one stream.
-pub struct Stream {
+pub struct RtspSession {
     ctrl: TcpStream,
     reader: BufReader<TcpStream>,
     cseq: u32,
@@ -135,18 +135,23 @@ pub struct Frame {
 
 type Headers = BTreeMap<String, String>;
 
-impl Stream {
+impl RtspSession {
     /// Set up and play `path` (e.g. `/light/3,4,-2?fps=10`) on the RTSP
     /// server at `rtsp`. `rtcp` overrides where RTCP goes (a forwarded
     /// port); by default the announced `server_port` on the server's
     /// address.
-    pub fn open(rtsp: SocketAddr, path: &str, rtcp: Option<SocketAddr>) -> Result<Stream> {
-        Stream::open_with(rtsp, path, rtcp, Transport::Udp)
+    pub fn open(rtsp: SocketAddr, path: &str, rtcp: Option<SocketAddr>) -> Result<RtspSession> {
+        RtspSession::open_with(rtsp, path, rtcp, Transport::Udp)
     }
 
     /// [`open`](Self::open) over `transport`.
-    pub fn open_with(rtsp: SocketAddr, path: &str, rtcp: Option<SocketAddr>, transport: Transport) -> Result<Stream> {
-        Stream::open_from(rtsp, path, rtcp, transport, None)
+    pub fn open_with(
+        rtsp: SocketAddr,
+        path: &str,
+        rtcp: Option<SocketAddr>,
+        transport: Transport,
+    ) -> Result<RtspSession> {
+        RtspSession::open_from(rtsp, path, rtcp, transport, None)
     }
 
     /// [`open_with`](Self::open_with) from the local address `local` (its
@@ -159,7 +164,7 @@ impl Stream {
         rtcp: Option<SocketAddr>,
         transport: Transport,
         local: Option<Ipv4Addr>,
-    ) -> Result<Stream> {
+    ) -> Result<RtspSession> {
         // A server with every connection taken refuses more for a moment:
         // try again for up to 10 s, as a user would.
         let deadline = Instant::now() + Duration::from_secs(10);
@@ -175,7 +180,7 @@ impl Stream {
         ctrl.set_read_timeout(Some(Duration::from_secs(20))).map_err(|e| e.to_string())?;
         let reader = BufReader::new(ctrl.try_clone().map_err(|e| e.to_string())?);
         let (rtp, rtcp_sock) = udp_pair(local.unwrap_or(Ipv4Addr::UNSPECIFIED))?;
-        let mut s = Stream {
+        let mut s = RtspSession {
             ctrl,
             reader,
             cseq: 0,

@@ -89,7 +89,7 @@ pub use message::{Connection, Transport};
 
 use super::sdp::{self, Description};
 pub use super::sdp::{Group, Profile};
-pub use super::url::{ControlUrl, Fps, Stream, StreamSpec, UrlError, DEFAULT_FPS, MAX_FPS};
+pub use super::url::{ControlUrl, Fps, LightSource, StreamSpec, UrlError, DEFAULT_FPS, MAX_FPS};
 use crate::time::{Instant, REQUEST_LIMIT};
 
 /// TCP port of the RTSP server.
@@ -858,7 +858,7 @@ impl<const N: usize> Server<N> {
                 };
                 if let (Some(i), Some(light)) = (i, light) {
                     let s = &self.sessions[i];
-                    if s.spec.stream != Stream::Live {
+                    if s.spec.light != LightSource::Live {
                         return fail(out, Status::ParameterNotUnderstood);
                     }
                     streams.set_light(s.id, light);

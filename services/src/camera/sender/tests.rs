@@ -1,5 +1,5 @@
 use super::*;
-use crate::camera::rtsp::{Fps, Stream as Kind};
+use crate::camera::rtsp::{Fps, LightSource as Kind};
 use crate::camera::wire::rtp;
 use crate::frames::{FrameEngine, FrameMemory, FrameRing};
 use model::{FRAME_BYTES, ROW_BYTES};
@@ -185,8 +185,8 @@ fn udp_dest(addr: IpAddr, port: u16) -> Dest {
     Dest::Udp { addr, rtp_port: port, rtcp_port: port + 1 }
 }
 
-fn spec(stream: Kind, fps: Fps) -> StreamSpec {
-    StreamSpec { stream, fps, multicast: false }
+fn spec(light: Kind, fps: Fps) -> StreamSpec {
+    StreamSpec { light, fps, multicast: false }
 }
 
 struct Rig {
@@ -237,8 +237,8 @@ impl Rig {
         s.play(SessionId(session)).unwrap()
     }
 
-    fn play(&mut self, session: u64, stream: Kind, fps: Fps, now: Instant) -> Position {
-        self.join(session, spec(stream, fps), udp(6000), CLIENT, now)
+    fn play(&mut self, session: u64, light: Kind, fps: Fps, now: Instant) -> Position {
+        self.join(session, spec(light, fps), udp(6000), CLIENT, now)
     }
 
     fn poll(&mut self, now: Instant) -> bool {
@@ -355,7 +355,7 @@ fn a_paced_stream_begins_a_frame_per_interval_at_its_media_time() {
 fn an_orbit_renders_each_frame_at_its_media_time_and_resumes_after_pause() {
     let mut r = rig(ROWS);
     let orbit = StreamSpec::parse("rtsp://h/orbit?period=4&fps=1").unwrap();
-    r.play(1, orbit.stream, orbit.fps, t(0));
+    r.play(1, orbit.light, orbit.fps, t(0));
     r.settle(t(0));
     r.streams(t(1_000)).pause(SessionId(1));
     let before = r.sink.rows.len();
