@@ -1,4 +1,4 @@
-//! The receiving end of [`crate::camera::rtp`]'s stream: RTP datagrams in, whole
+//! The receiving end of [`crate::camera::wire::rtp`]'s stream: RTP datagrams in, whole
 //! frames and generic NACKs out.
 //!
 //! Sans-IO like the rest of the crate: the caller hands in each datagram
@@ -616,7 +616,7 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>> Receiver<B> {
         });
     }
 
-    /// The fields of a row packet as [`crate::camera::rtp`] writes it.
+    /// The fields of a row packet as [`crate::camera::wire::rtp`] writes it.
     fn parse<'d>(&self, d: &'d [u8]) -> Result<RowIn<'d>, Ignored> {
         let (Some(h), Some(pixels)) = (d.first_chunk::<HEADER_BYTES>(), d.get(HEADER_BYTES..PACKET_BYTES)) else {
             return Err(Ignored::Short);

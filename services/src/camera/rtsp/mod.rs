@@ -82,15 +82,18 @@ use core::time::Duration;
 use heapless::String;
 use model::Light;
 
+mod connection;
 mod message;
 
-use message::{bare_answer, parse_request, parse_transport, status_line, Framing, Out, Request};
-pub use message::{Connection, Transport};
+pub use connection::Connection;
+use connection::Framing;
+pub use message::Transport;
+use message::{bare_answer, parse_request, parse_transport, status_line, Out, Request};
 
 use super::sdp::{self, Description};
 pub use super::sdp::{Group, Profile};
 pub use super::url::{ControlUrl, Fps, LightSource, StreamSpec, UrlError, DEFAULT_FPS, MAX_FPS};
-use crate::time::{Instant, REQUEST_LIMIT};
+use crate::time::Instant;
 
 /// TCP port of the RTSP server.
 pub const RTSP_PORT: u16 = 8554;
@@ -680,20 +683,14 @@ impl<const N: usize> Server<N> {
     /// connection open: it would let one host hold sockets with sessions
     /// it never plays.
     pub fn connection_expired(&self, conn: &Connection, now: Instant) -> bool {
-        let unfinished = conn.partial_since.is_some_and(|t| now.saturating_duration_since(t) >= REQUEST_LIMIT);
         let owns = self.sessions.iter().any(|s| s.client.conn == conn.id() && s.played);
-        let idle = !owns && now.saturating_duration_since(conn.last_request) >= IDLE_DEADLINE;
-        conn.closed || unfinished || idle
+        conn.closed || conn.progress().expired(now, (!owns).then_some(IDLE_DEADLINE))
     }
 
     /// When [`connection_expired`](Self::connection_expired) may next turn
     /// true for `conn` (nothing arriving meanwhile).
     pub fn connection_deadline(&self, conn: &Connection) -> Instant {
-        let idle = conn.last_request + IDLE_DEADLINE;
-        match conn.partial_since {
-            Some(t) => (t + REQUEST_LIMIT).min(idle),
-            None => idle,
-        }
+        conn.progress().deadline(IDLE_DEADLINE)
     }
 
     /// The session that never played and was heard of longest ago, at
