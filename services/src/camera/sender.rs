@@ -408,6 +408,8 @@ struct Media {
     /// ([`Media::repairable_until`]), as the last poll found.
     repair_wait: Option<Instant>,
     stats: StreamStats,
+    /// Which slot and row each recent packet came from.
+    window: FrameRepairWindow,
 }
 
 impl Media {
@@ -487,6 +489,8 @@ struct Output {
     /// keep the stream's numbers: their NACKs name them. PLAY starts again
     /// at 0 (RTP-Info names the stream's number).
     seq_shift: u32,
+    /// When each recent packet was resent to it.
+    resends: FrameResendLog,
 }
 
 impl Output {
@@ -522,9 +526,7 @@ const RTCP_BYTES: usize = SENDER_REPORT_BYTES + rtcp::sdes_cname_bytes(MAX_CNAME
 pub struct Camera<const N: usize = MAX_SESSIONS> {
     config: Option<Config>,
     media: [Option<Media>; N],
-    windows: [FrameRepairWindow; N],
     outputs: [Option<Output>; N],
-    resends: [FrameResendLog; N],
     members: [Option<Member>; N],
     /// Sessions the sender ended itself, for the RTSP server to forget.
     ended: heapless::Deque<(SessionId, Gone), N>,
@@ -560,9 +562,7 @@ impl<const N: usize> Camera<N> {
         Camera {
             config: None,
             media: [const { None }; N],
-            windows: [const { FrameRepairWindow::new(MIN_REPAIR_HOLD) }; N],
             outputs: [const { None }; N],
-            resends: [const { FrameResendLog::new() }; N],
             members: [const { None }; N],
             ended: heapless::Deque::new(),
             byes: heapless::Deque::new(),
@@ -639,7 +639,7 @@ impl<const N: usize> Camera<N> {
     /// Packets `session`'s stream's repair window holds.
     pub fn repairable(&self, session: SessionId) -> usize {
         let Some(m) = self.member(session) else { return 0 };
-        self.outputs[m.output].as_ref().map_or(0, |o| self.windows[o.media].len())
+        self.outputs[m.output].as_ref().and_then(|o| self.media[o.media].as_ref()).map_or(0, |s| s.window.len())
     }
 
     /// The frame slots the repair windows and late outputs hold (bit `i`:
@@ -654,7 +654,7 @@ impl<const N: usize> Camera<N> {
                 _ => m,
             }),
         };
-        self.windows.iter().fold(late, |m, w| m | w.held())
+        self.media.iter().flatten().fold(late, |held, m| held | m.window.held())
     }
 
     /// Give the source the slots held now ([`held`](Self::held)).
@@ -774,8 +774,8 @@ impl<const N: usize> Camera<N> {
                     lossy_until: None,
                     repair_wait: None,
                     stats: StreamStats::default(),
+                    window: FrameRepairWindow::new(MIN_REPAIR_HOLD),
                 });
-                self.windows[i].clear(MIN_REPAIR_HOLD);
                 i
             }
         };
@@ -823,8 +823,8 @@ impl<const N: usize> Camera<N> {
                     unreachable: 0,
                     stats: OutputStats::default(),
                     seq_shift: 0,
+                    resends: FrameResendLog::new(),
                 });
-                self.resends[o].clear();
                 o
             }
         };
@@ -895,7 +895,7 @@ impl<const N: usize> Camera<N> {
         if let Some(f) = m.current.take() {
             source.end(f.slot);
             m.packetiser.skip_to(f.first_seq.wrapping_add(u32::from(ROWS)));
-            self.windows[media].restart_hold(f.first_seq, now);
+            m.window.restart_hold(f.first_seq, now);
             m.frame_ended(f.first_seq, now);
             m.stats.failed += 1;
             self.frame_edges = self.frame_edges.wrapping_add(1);
@@ -943,7 +943,6 @@ impl<const N: usize> Camera<N> {
                 source.end(f.slot);
             }
         }
-        self.windows[media].clear(MIN_REPAIR_HOLD);
         self.give_held(source);
     }
 
@@ -1000,7 +999,6 @@ impl<const N: usize> Camera<N> {
         let session = self.members.iter().flatten().find(|m| m.output == i && (m.client == from))?.session;
         let o = self.outputs[i].as_mut()?;
         let media = self.media[o.media].as_ref()?;
-        let window = &self.windows[o.media];
         o.last_rtcp = Some(now);
         o.stats.reports = o.stats.reports.wrapping_add(1);
         o.unreachable = 0;
@@ -1018,24 +1016,23 @@ impl<const N: usize> Camera<N> {
             return Some(session);
         }
         let mut room = affordable - o.repairs.len();
-        let log = &mut self.resends[i];
         let mut asked = false;
         for seq in NackRequests::new(datagram, media.packetiser.ssrc(), media.packetiser.highest_seq()) {
             asked = true;
-            if window.lookup(seq).is_none() {
+            if media.window.lookup(seq).is_none() {
                 o.stats.unrepairable += 1;
-            } else if !log.may_resend(seq, now, o.round_trip) {
+            } else if !o.resends.may_resend(seq, now, o.round_trip) {
                 // Resent (or queued to be) within the round trip.
                 o.stats.too_soon += 1;
             } else if room > 0 && o.repairs.push_back(seq).is_ok() {
                 // Its time counts from now: the same NACK again waits.
-                log.resent(seq, now);
+                o.resends.resent(seq, now);
                 room -= 1;
             } else {
                 o.stats.over_budget += 1;
             }
         }
-        send_repairs(o, window, &media.packetiser, source, sink);
+        send_repairs(o, &media.window, &media.packetiser, source, sink);
         if asked {
             let m = o.media;
             if let Some(media) = self.media[m].as_mut() {
@@ -1134,7 +1131,7 @@ impl<const N: usize> Camera<N> {
     fn cut_late_over_budget(&mut self) -> bool {
         let mut cut = false;
         while self.held().count_ones() as usize > CAMERA_SLOTS {
-            let windows = self.windows.iter().fold(0, |m, w| m | w.held());
+            let windows = self.media.iter().flatten().fold(0, |held, m| held | m.window.held());
             // A late output whose slot nothing else holds.
             let Some(o) = self
                 .outputs
@@ -1187,11 +1184,10 @@ impl<const N: usize> Camera<N> {
     ) -> bool {
         let hold = self.frame_hold(mi);
         let Some(media) = self.media[mi].as_mut() else { return false };
-        let window = &mut self.windows[mi];
         let mut progress = false;
         // Packets expire by time only between frames: a frame's hold
         // starts when its last row went, however long it took.
-        if media.current.is_none() && window.expire(now).released != 0 {
+        if media.current.is_none() && media.window.expire(now).released != 0 {
             progress = true;
         }
         // Repairs first: a receiver waits for them more than for new rows.
@@ -1199,7 +1195,7 @@ impl<const N: usize> Camera<N> {
         for o in self.outputs.iter_mut() {
             let Some(o) = o.as_mut().filter(|o| o.media == mi && !o.repairs.is_empty()) else { continue };
             let before = o.stats.resent;
-            repairs_left |= !send_repairs(o, window, &media.packetiser, source, sink);
+            repairs_left |= !send_repairs(o, &media.window, &media.packetiser, source, sink);
             progress |= o.stats.resent != before;
         }
         // Late outputs finish their frames; nothing waits for them.
@@ -1230,7 +1226,7 @@ impl<const N: usize> Camera<N> {
             // new frame (the source learns at once; with a late output,
             // which may read that slot too, at the poll's end).
             if let Some(p) = media.previous_first {
-                let released = window.forget_before(p).released;
+                let released = media.window.forget_before(p).released;
                 if released != 0 && self.late_outputs == 0 {
                     self.held_given &= !released;
                     source.set_held(self.held_given);
@@ -1316,7 +1312,7 @@ impl<const N: usize> Camera<N> {
             let mut refused = false;
             if let Some(b) = behind.filter(|&b| ready > b) {
                 if ready - b >= MIN_RUN || ready == ROWS || !landing {
-                    record_landed(window, &mut frame, now);
+                    record_landed(&mut media.window, &mut frame, now);
                     for o in self.outputs.iter_mut().flatten().filter(|o| o.media == mi) {
                         let Cursor::Sending { next } = o.cursor else { continue };
                         if next >= ready {
@@ -1360,7 +1356,7 @@ impl<const N: usize> Camera<N> {
                 break;
             }
         }
-        record_landed(window, &mut frame, now);
+        record_landed(&mut media.window, &mut frame, now);
         // Outputs done with the frame, or stalled too long, wait for the next.
         let next_frame = frame.first_seq.wrapping_add(u32::from(ROWS));
         if self.outputs.iter().flatten().any(|o| o.media == mi && o.cursor == Cursor::Sending { next: ROWS }) {
@@ -1409,7 +1405,7 @@ impl<const N: usize> Camera<N> {
                 source.set_held(self.held_given);
             }
             source.end(frame.slot);
-            window.restart_hold(frame.first_seq, now);
+            media.window.restart_hold(frame.first_seq, now);
             if failed {
                 media.packetiser.skip_to(next_frame);
                 media.stats.failed += 1;
