@@ -286,7 +286,7 @@ pub fn run<B: Board, P: RegisterPort>(
                 // Named again when the board has its address.
                 cname: sender::Cname::for_address(Ipv4Addr::UNSPECIFIED),
             });
-            let config = rtsp::Config { server_ip: Ipv4Addr::UNSPECIFIED, rtp_port: SERVER_RTP_PORT };
+            let config = rtsp::Config { server_ip: Ipv4Addr::UNSPECIFIED, rtp_port: SERVER_RTP_PORT, udp: true };
             // What the board has to key its random numbers with: the time
             // since reset on the 200 MHz global timer (boot loaders and DDR
             // training vary it), its MAC address (not secret, but its own);

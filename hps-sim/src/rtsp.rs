@@ -34,10 +34,8 @@ use rt_services::camera::random::SessionRng;
 use rt_services::camera::rtsp::{
     self, ConnId, Connection, Server, CONNECTIONS, CONNECTIONS_PER_ADDRESS, MAX_RESPONSE_BYTES, MAX_SESSIONS,
 };
-use rt_services::camera::rtsp::{
-    EndReason, Fresh, Group, Position, Profile, SessionId, SetUp, StreamSpec, Streams, Transport,
-};
 use rt_services::camera::sender::{self, Bound, Camera, Dest, Multicast, RtpSink, SlotSource, CAMERA_SLOTS};
+use rt_services::camera::station::Station;
 use rt_services::camera::wire::rtcp::ntp_timestamp;
 use rt_services::camera::wire::rtp::{self, RowPacket};
 use rt_services::{FrameRing, FrameSource, Instant};
@@ -397,7 +395,8 @@ fn run<S: SlotSource>(
     let (x, y, z) = LIVE_LIGHT;
     let live_light = Light::from_world(x, y, z).map_err(|e| io::Error::other(format!("{e:?}")))?;
     let rtp_port = sockets.rtp.local_addr()?.port();
-    let mut server: Server<MAX_SESSIONS> = Server::new(rtsp::Config { server_ip, rtp_port });
+    let mut server: Server<MAX_SESSIONS> =
+        Server::new(rtsp::Config { server_ip, rtp_port, udp: !options.faults.refuse_udp });
     let mut camera: Box<Camera<MAX_SESSIONS>> = Box::new(Camera::new());
     camera.configure(sender::Config {
         live_light,
@@ -459,12 +458,9 @@ fn run<S: SlotSource>(
                 if c.out.len() + MAX_RESPONSE_BYTES > CLIENT_OUT_BYTES {
                     break; // its responses wait until it reads
                 }
-                let bound = Bound { camera: &mut camera, source: &mut ring, now: now(), wall: wall() };
-                let mut streams = Refusing { inner: bound, udp: !options.faults.refuse_udp };
-                let Some(reply) = server.handle(&mut c.conn, now(), &mut rng, &mut streams, &mut response) else {
-                    break;
-                };
-                let _ = writeln!(log, "rtsp: {} -> {}", c.conn.peer(), reply.status.code());
+                let streams = Bound { camera: &mut camera, source: &mut ring, now: now(), wall: wall() };
+                let mut station = Station { server: &mut server, streams };
+                let Some(reply) = station.answer(&mut c.conn, &mut rng, &mut response, log) else { break };
                 c.out.extend_from_slice(&response[..reply.len]);
                 if reply.close {
                     break;
@@ -478,21 +474,16 @@ fn run<S: SlotSource>(
                 c.open = false;
             }
         }
-        for c in clients.iter().filter(|c| !c.open) {
-            let mut streams = Bound { camera: &mut camera, source: &mut ring, now: now(), wall: wall() };
-            let ended = server.connection_closed(c.conn.id(), &mut streams);
-            if ended > 0 {
-                let _ = writeln!(log, "rtsp: connection {} gone: {ended} interleaved session(s) end", c.conn.id());
+        {
+            let streams = Bound { camera: &mut camera, source: &mut ring, now: now(), wall: wall() };
+            let mut station = Station { server: &mut server, streams };
+            for c in clients.iter().filter(|c| !c.open) {
+                station.connection_closed(c.conn.id(), log);
             }
+            // Sessions gone quiet.
+            station.expire_sessions(log);
         }
         clients.retain(|c| c.open);
-        // Sessions gone quiet.
-        {
-            let mut streams = Bound { camera: &mut camera, source: &mut ring, now: now(), wall: wall() };
-            while let Some(session) = server.poll(now(), &mut streams) {
-                let _ = writeln!(log, "rtsp: session {session} timed out");
-            }
-        }
         let mut sink = Sink {
             rtp: &sockets.rtp,
             rtcp: &sockets.rtcp,
@@ -506,9 +497,8 @@ fn run<S: SlotSource>(
             loop {
                 match socket.recv_from(&mut datagram) {
                     Ok((n, from)) => {
-                        if server.rtcp_received(now(), from.ip(), from.port(), &datagram[..n]).is_some() {
-                            camera.rtcp_received(from, &datagram[..n], now(), wall(), &mut ring, &mut sink);
-                        }
+                        let streams = Bound { camera: &mut camera, source: &mut ring, now: now(), wall: wall() };
+                        Station { server: &mut server, streams }.rtcp(from, &datagram[..n], &mut sink);
                         busy = true;
                     }
                     Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
@@ -525,10 +515,8 @@ fn run<S: SlotSource>(
             busy = true;
         }
         tokens = (sink.tokens, sink.refilled);
-        while let Some((session, why)) = camera.take_ended() {
-            server.remove(session);
-            let _ = writeln!(log, "rtsp: session {session} ends: {why}");
-        }
+        let streams = Bound { camera: &mut camera, source: &mut ring, now: now(), wall: wall() };
+        Station { server: &mut server, streams }.forget_ended(log);
         if let Some(g) = sockets.group_rtcp.as_ref() {
             groups.sync(&camera, g, server_ip, log);
         }
@@ -581,54 +569,5 @@ impl Joined {
                 }
             }
         }
-    }
-}
-
-/// The camera's streams, refusing RTP over UDP (unicast or multicast) when
-/// `udp` is off ([`Faults::refuse_udp`]): 461, as the board would answer a
-/// transport it does not offer.
-struct Refusing<S> {
-    inner: S,
-    udp: bool,
-}
-
-impl<S: Streams> Streams for Refusing<S> {
-    fn setup(
-        &mut self,
-        session: SessionId,
-        spec: &StreamSpec,
-        transport: Transport,
-        profile: Profile,
-        client: rtsp::Client,
-        fresh: Fresh,
-    ) -> Result<SetUp, rtsp::Status> {
-        if !self.udp && !matches!(transport, Transport::Interleaved { .. }) {
-            return Err(rtsp::Status::UnsupportedTransport);
-        }
-        self.inner.setup(session, spec, transport, profile, client, fresh)
-    }
-
-    fn play(&mut self, session: SessionId) -> Result<Position, rtsp::Status> {
-        self.inner.play(session)
-    }
-
-    fn pause(&mut self, session: SessionId) {
-        self.inner.pause(session)
-    }
-
-    fn end(&mut self, session: SessionId, why: EndReason) {
-        self.inner.end(session, why)
-    }
-
-    fn set_light(&mut self, session: SessionId, light: Light) {
-        self.inner.set_light(session, light)
-    }
-
-    fn rtcp(&mut self, session: SessionId, datagram: &[u8]) {
-        self.inner.rtcp(session, datagram)
-    }
-
-    fn group(&self, spec: &StreamSpec) -> Option<Group> {
-        self.inner.group(spec)
     }
 }

@@ -432,7 +432,8 @@ fn nack(ssrc: u32, pid: u16) -> Vec<u8> {
 }
 
 fn run(c: &Case) -> Result<(), TestCaseError> {
-    let mut server: Server = Server::new(Config { server_ip: Ipv4Addr::new(10, 0, 0, 9), rtp_port: SERVER_RTP_PORT });
+    let mut server: Server =
+        Server::new(Config { server_ip: Ipv4Addr::new(10, 0, 0, 9), rtp_port: SERVER_RTP_PORT, udp: true });
     let mut camera: Box<Camera> = Box::new(Camera::new());
     let live = Light::from_world(3.0, 4.0, -2.0).unwrap();
     let multicast = Some(Multicast { group: Ipv4Addr::new(239, 255, 42, 1), base_port: 5006, ttl: 1 });

@@ -523,7 +523,7 @@ impl CameraRig {
             cname: rt_services::camera::sender::Cname::for_address(std::net::Ipv4Addr::new(10, 0, 0, 1)),
         });
         let mut server_sockets = SocketSet::new(vec![]);
-        let config = rtsp::Config { server_ip: SERVER, rtp_port: SERVER_RTP_PORT };
+        let config = rtsp::Config { server_ip: SERVER, rtp_port: SERVER_RTP_PORT, udp: true };
         let server_mac = EthernetAddress([0x02, 0, 0, 0, 0, 1]);
         let service =
             CameraService::new(&mut server_sockets, buffers, camera, config, server_mac, b"seed").expect("RTCP binds");

@@ -22,6 +22,8 @@
 //!   through a zero-copy transmitter, as the firmware runs it; `snoop`
 //!   (feature `smoltcp`): what the received frames tell it (next hops,
 //!   ICMP port unreachable).
+//! * [`station`]: the server and the sender wired together, once for the
+//!   board's service and the std bindings alike.
 //! * [`receiver`]: the client's end: datagrams to whole frames, NACKs out.
 
 pub mod frame_header;
@@ -37,5 +39,6 @@ pub mod sender;
 pub mod service;
 #[cfg(feature = "smoltcp")]
 pub mod snoop;
+pub mod station;
 pub mod url;
 pub mod wire;

@@ -41,6 +41,7 @@ use super::rtsp::{
 };
 use super::sender::{Bound, Camera, Dest, RtpSink, SlotSource};
 pub use super::snoop::{Snooped, Unreachable, PEERS, UNREACHABLE_NOTES};
+use super::station::Station;
 use super::wire::rtp::{interleaved_head, RowPacket, HEADER_BYTES};
 use crate::frames::FrameSource;
 pub use crate::snoop::{Snoop, SnoopRx};
@@ -323,12 +324,7 @@ impl<'c> CameraService<'c> {
         for i in 0..RTSP_SOCKETS {
             self.serve_socket(i, now_ms, wall, sockets, source, entropy, log);
         }
-        {
-            let mut streams = Bound { camera: &mut *self.camera, source: &mut *source, now: now_ms, wall };
-            while let Some(session) = self.server.poll(now_ms, &mut streams) {
-                let _ = writeln!(log, "rtsp: session {session} timed out");
-            }
-        }
+        self.station(source, now_ms, wall).expire_sessions(log);
         while let Some(u) = snooped.take_unreachable() {
             self.camera.unreachable(IpAddr::V4(u.client), u.port, u.ssrc, now_ms, source);
         }
@@ -371,10 +367,7 @@ impl<'c> CameraService<'c> {
                 break;
             }
         }
-        while let Some((session, why)) = self.camera.take_ended() {
-            self.server.remove(session);
-            let _ = writeln!(log, "rtsp: session {session} ends: {why}");
-        }
+        self.station(source, now_ms, wall).forget_ended(log);
         // Routes of outputs that are gone are dropped; a new output to the
         // same place makes its own (its own IPv4 identifications).
         let camera = &*self.camera;
@@ -401,7 +394,7 @@ impl<'c> CameraService<'c> {
         self.sockets[i].listener.reclaim(socket, now, log);
         if !socket.is_open() {
             if let Some(conn) = self.sockets[i].conn.take() {
-                self.closed(conn.id(), now, wall, source, log);
+                self.station(source, now, wall).connection_closed(conn.id(), log);
             }
         }
         let client = self.sockets[i].listener.accept(socket, log);
@@ -432,7 +425,7 @@ impl<'c> CameraService<'c> {
             // 2326 section 3.1); the connection and what went through it go.
             socket.close();
             if let Some(conn) = self.sockets[i].conn.take() {
-                self.closed(conn.id(), now, wall, source, log);
+                self.station(source, now, wall).connection_closed(conn.id(), log);
             }
             return;
         }
@@ -454,7 +447,7 @@ impl<'c> CameraService<'c> {
                 let id = conn.id();
                 socket.abort();
                 self.sockets[i].conn = None;
-                self.closed(id, now, wall, source, log);
+                self.station(source, now, wall).connection_closed(id, log);
                 return;
             }
             // Answer only what fits: a response is never cut, nor put
@@ -462,13 +455,12 @@ impl<'c> CameraService<'c> {
             if socket.send_capacity() - socket.send_queue() < MAX_RESPONSE_BYTES {
                 return;
             }
-            let mut streams = Bound { camera: &mut *self.camera, source: &mut *source, now, wall };
-            let Some(reply) = self.server.handle(conn, now, &mut self.rng, &mut streams, &mut self.response) else {
-                return;
+            let mut station = Station {
+                server: &mut self.server,
+                streams: Bound { camera: &mut *self.camera, source: &mut *source, now, wall },
             };
+            let Some(reply) = station.answer(conn, &mut self.rng, &mut self.response, log) else { return };
             let _ = socket.send_slice(&self.response[..reply.len]);
-            let sessions = self.server.sessions().len();
-            let _ = writeln!(log, "rtsp: {} {} ({sessions} sessions)", reply.status.code(), reply.status.reason());
             if reply.close {
                 sockets.get_mut::<tcp::Socket>(self.sockets[i].handle).close();
                 return;
@@ -476,20 +468,15 @@ impl<'c> CameraService<'c> {
         }
     }
 
-    /// Connection `id` is gone: its interleaved sessions end.
-    fn closed<S: SlotSource>(
-        &mut self,
-        id: ConnId,
+    /// The server and the sender with `source` at `now` (`wall` on the
+    /// sender reports' clock).
+    fn station<'s, S: SlotSource>(
+        &'s mut self,
+        source: &'s mut S,
         now: time::Instant,
         wall: u64,
-        source: &mut S,
-        log: &mut impl Write,
-    ) {
-        let mut streams = Bound { camera: &mut *self.camera, source, now, wall };
-        let ended = self.server.connection_closed(id, &mut streams);
-        if ended > 0 {
-            let _ = writeln!(log, "rtsp: connection {id} gone: {ended} interleaved session(s) end");
-        }
+    ) -> Station<'s, 's, S, MAX_SESSIONS> {
+        Station { server: &mut self.server, streams: Bound { camera: &mut *self.camera, source, now, wall } }
     }
 }
 
@@ -513,10 +500,9 @@ fn read_rtcp<S: SlotSource, T: RowTransmitter>(
         let IpAddr::V4(from) = IpAddr::from(meta.endpoint.addr) else { continue };
         let from = IpAddr::V4(from);
         let port = meta.endpoint.port;
-        if server.rtcp_received(now, from, port, &datagram[..n]).is_some() {
-            let from = core::net::SocketAddr::new(from, port);
-            camera.rtcp_received(from, &datagram[..n], now, wall, source, sink);
-        } else {
+        let mut station =
+            Station { server: &mut *server, streams: Bound { camera: &mut *camera, source: &mut *source, now, wall } };
+        if !station.rtcp(core::net::SocketAddr::new(from, port), &datagram[..n], sink) {
             sink.stats.stray_rtcp = sink.stats.stray_rtcp.wrapping_add(1);
         }
     }

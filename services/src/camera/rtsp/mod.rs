@@ -502,6 +502,11 @@ pub struct Config {
     /// The UDP port RTP leaves from ([`SERVER_RTP_PORT`]); RTCP uses the
     /// next one. Announced as `server_port` in `SETUP`.
     pub rtp_port: u16,
+    /// Whether RTP goes over UDP (unicast or multicast) at all; `false`: a
+    /// `SETUP` for either is answered 461 and only RTP inside the RTSP
+    /// connection is served (hps-sim's `--fault refuse-udp`, for clients'
+    /// fallback tests).
+    pub udp: bool,
 }
 
 // ---- The server -----------------------------------------------------------------------
@@ -894,6 +899,9 @@ impl<const N: usize> Server<N> {
         let Some((mut transport, profile)) = parse_transport(transport, peer.addr) else {
             return fail(out, Status::UnsupportedTransport);
         };
+        if !self.config.udp && !matches!(transport, Transport::Interleaved { .. }) {
+            return fail(out, Status::UnsupportedTransport);
+        }
         if let Transport::Interleaved { rtp_channel, rtcp_channel } = &mut transport {
             // Channels another session of this connection uses are moved on.
             let own = session.ok().flatten();

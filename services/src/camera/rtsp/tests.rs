@@ -25,7 +25,7 @@ fn light(x: f64, y: f64, z: f64) -> Light {
 }
 
 fn config() -> Config {
-    Config { server_ip: SERVER_IP, rtp_port: SERVER_RTP_PORT }
+    Config { server_ip: SERVER_IP, rtp_port: SERVER_RTP_PORT, udp: true }
 }
 
 fn at(ms: u64) -> Instant {
@@ -491,6 +491,19 @@ fn each_error_status_is_answered() {
         Status::UnsupportedTransport
     );
     assert!(r.server.sessions().is_empty());
+}
+
+#[test]
+fn a_server_without_udp_offers_rtp_inside_the_connection_only() {
+    let mut r = Rig::new();
+    r.server = Server::new(Config { udp: false, ..config() });
+    for transport in ["RTP/AVP;unicast;client_port=6000-6001", "RTP/AVP;multicast"] {
+        let a = r.ask(&request("SETUP", URL, 1, &format!("Transport: {transport}\r\n")));
+        assert_eq!(a.status, Status::UnsupportedTransport, "{transport}");
+    }
+    assert!(r.streams.calls.is_empty(), "the sender was never asked");
+    let a = r.ask(&request("SETUP", URL, 2, "Transport: RTP/AVP/TCP;interleaved=0-1\r\n"));
+    assert_eq!(a.status, Status::Ok, "{}", a.text);
 }
 
 #[test]
