@@ -219,7 +219,7 @@ pub fn open(sys: &System, access: &Access) -> Result<(MappedPort, Report), Refus
                 Some(d) => d.clone(),
                 None => Window::find_uio(&sys.uio_class(), &sys.dev, LW_BRIDGE_BASE as u64)?,
             };
-            Window::uio(&device, &sys.uio_class())?
+            Window::uio(&device, &sys.uio_class(), LW_BRIDGE_BASE as u64)?
         }
     };
     let what = window.describe().to_string();

@@ -61,6 +61,15 @@ pub enum OpenError {
         /// The physical address looked for.
         phys: u64,
     },
+    /// The UIO device named maps another physical window than the bridge.
+    NotTheBridge {
+        /// The device.
+        path: PathBuf,
+        /// Where its map 0 is.
+        addr: u64,
+        /// Where the bridge is.
+        phys: u64,
+    },
     /// The mapping is smaller than the accelerator's registers.
     TooSmall {
         /// The device.
@@ -99,6 +108,12 @@ impl fmt::Display for OpenError {
                  and uio_pdrv_genirq.of_id=generic-uio to the kernel command line (docs/linux.md), or use \
                  --accelerator devmem as root",
                 class.display()
+            ),
+            OpenError::NotTheBridge { path, addr, phys } => write!(
+                f,
+                "{} maps {addr:#x}, not the lightweight bridge at {phys:#x}: its registers are another device's; \
+                 name the UIO device of the generic-uio node, or leave the device out to have it found (docs/linux.md)",
+                path.display()
             ),
             OpenError::TooSmall { path, size } => write!(
                 f,
@@ -146,9 +161,15 @@ impl Window {
     }
 
     /// Map 0 of the UIO device `device` (`/dev/uioN`), as big as its sysfs
-    /// entry under `class` (`/sys/class/uio`) says.
-    pub fn uio(device: &Path, class: &Path) -> Result<Window, OpenError> {
+    /// entry under `class` (`/sys/class/uio`) says, if it starts at
+    /// physical address `phys` (a device named by hand may be another
+    /// device's registers: nothing is written to those).
+    pub fn uio(device: &Path, class: &Path, phys: u64) -> Result<Window, OpenError> {
         let name = device.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let addr = read_hex(&class.join(&name).join("maps/map0/addr"))?;
+        if addr != phys {
+            return Err(OpenError::NotTheBridge { path: device.to_path_buf(), addr, phys });
+        }
         let size_file = class.join(&name).join("maps/map0/size");
         let size = read_hex(&size_file)?;
         let size = usize::try_from(size).map_err(|_| OpenError::TooSmall { path: device.to_path_buf(), size: 0 })?;

@@ -144,6 +144,23 @@ fn a_wrong_image_or_register_map_is_named() {
 }
 
 #[test]
+fn a_uio_device_named_on_the_command_line_must_map_the_bridge() {
+    let s = stand();
+    s.uio();
+    // uio5 maps another device's registers (the SD/MMC host's, say): the
+    // accelerator's START written there would reach that device.
+    let maps = s.sys.sysfs.join("class/uio/uio5/maps/map0");
+    std::fs::create_dir_all(&maps).unwrap();
+    std::fs::write(maps.join("addr"), "0xff704000\n").unwrap();
+    std::fs::write(maps.join("size"), "0x00200000\n").unwrap();
+    std::fs::copy(s.sys.dev.join("uio2"), s.sys.dev.join("uio5")).unwrap();
+    let r = s.refusal(Access::Uio(Some(s.sys.dev.join("uio5"))));
+    assert!(r.to_string().contains("maps 0xff704000, not the lightweight bridge at 0xff200000"), "{r}");
+    let (_, report) = preflight::open(&s.sys, &Access::Uio(Some(s.sys.dev.join("uio2")))).expect("uio2 is the bridge");
+    assert!(report.window.ends_with("uio2 (map 0)"), "{}", report.window);
+}
+
+#[test]
 fn missing_devices_say_what_to_do() {
     let s = stand();
     let r = s.refusal(Access::Uio(None));

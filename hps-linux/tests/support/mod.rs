@@ -96,7 +96,7 @@ pub fn through_uio() -> (Bridge, Window) {
     }
     let device = Window::find_uio(&class, &dev, LW_BRIDGE_BASE as u64).expect("the bridge's UIO device");
     assert_eq!(device, dev.join("uio3"), "the device whose map 0 is the bridge");
-    let window = Window::uio(&device, &class).expect("the window through UIO");
+    let window = Window::uio(&device, &class, LW_BRIDGE_BASE as u64).expect("the window through UIO");
     assert_eq!(window.len(), LW_BRIDGE_SIZE, "as big as sysfs says");
     let view = map_view(&device, 0, LW_BRIDGE_SIZE);
     (Bridge { dir, view }, window)
