@@ -43,10 +43,11 @@ pub fn configure(socket: &mut tcp::Socket<'_>) {
 /// One service socket's upkeep between connections, the same for every
 /// service (module docs): the port it listens on, and its handshake
 /// watched. Each poll a service calls [`reclaim`](Self::reclaim), then
-/// [`accept`](Self::accept) while the socket holds no connection of its.
+/// [`accept`](Self::accept), which listens again once the socket closed and
+/// names a client that connected.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Listener {
-    /// What the log calls the socket (`seed[2]`, `web[0]`, `rtsp`).
+    /// What the log calls the socket (`seed[2]`, `web[0]`, `rtsp:`).
     name: &'static str,
     index: Option<usize>,
     port: u16,

@@ -823,6 +823,8 @@ impl<const N: usize> Camera<N> {
                     unreachable: 0,
                     stats: OutputStats::default(),
                     seq_shift: 0,
+                    // Some 12 KiB built once per output (at SETUP, on a
+                    // 256 KiB stack on the board: memory.x).
                     resends: FrameResendLog::new(),
                 });
                 o
@@ -921,11 +923,14 @@ impl<const N: usize> Camera<N> {
         let used = self.members.iter().flatten().any(|x| x.output == m.output);
         let Some(media) = self.outputs[m.output].as_ref().map(|o| o.media) else { return };
         if !used {
-            if let Some(o) = self.outputs[m.output].take() {
+            // Its destination read in place: an output is some 12 KiB (its
+            // resend log), not to be moved out to read one field.
+            if let Some(dest) = self.outputs[m.output].as_ref().map(|o| o.dest) {
+                self.outputs[m.output] = None;
                 self.output_changes = self.output_changes.wrapping_add(1);
                 if let (true, Some(m)) = (bye, self.media[media].as_ref()) {
                     let last = m.packetiser.sender_report(0, m.media_ticks(now));
-                    let _ = self.byes.push_back((o.dest, last));
+                    let _ = self.byes.push_back((dest, last));
                 }
             }
         }

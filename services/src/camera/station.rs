@@ -1,5 +1,5 @@
 //! The RTSP server and the RTP sender wired together, once for every
-//! binding: the board's smoltcp service ([`service`](super::service)) and
+//! binding: the board's smoltcp service (`service`, feature `smoltcp`) and
 //! the std sockets of hps-sim and hps-linux own the sockets and call this
 //! for what a request, a closed connection, an RTCP datagram and the
 //! passing of time do to both, with the log lines they write.
