@@ -499,6 +499,13 @@ impl Output {
         RowPacket { seq: p.seq.wrapping_sub(self.seq_shift), ..p }
     }
 
+    /// Whether it goes inside a client's connection that took nothing the
+    /// last time it was offered rows (its own backlog, not the
+    /// transmitter's).
+    fn connection_stalled(&self) -> bool {
+        self.stalled_since.is_some() && matches!(self.dest, Dest::Interleaved { .. })
+    }
+
     /// How long it may take no rows before it is cut from its frame.
     fn stall_limit(&self) -> Duration {
         match self.dest {
@@ -1281,14 +1288,17 @@ impl<const N: usize> Camera<N> {
         let mut failed = false;
         let mut seen = frame.landed;
         // The furthest-behind output's next row; it changes only when rows
-        // go, so it is worked out again only then.
+        // go, so it is worked out again only then. A client's connection
+        // that takes nothing (a laggard, interleaved) is left out: it would
+        // make every look a run of its own for everyone else. It is offered
+        // rows whenever a run goes to the others.
         let behind_of = |outputs: &[Option<Output>; N]| {
             outputs
                 .iter()
                 .flatten()
                 .filter(|o| o.media == mi)
                 .filter_map(|o| match o.cursor {
-                    Cursor::Sending { next } => Some(next),
+                    Cursor::Sending { next } if !o.connection_stalled() => Some(next),
                     _ => None,
                 })
                 .min()
@@ -1343,7 +1353,10 @@ impl<const N: usize> Camera<N> {
                             o.stalled_since = None;
                         }
                         if sent < want {
-                            refused = true;
+                            // The transmitter is full: the others wait too.
+                            // A connection already taking nothing holds
+                            // back no one.
+                            refused |= !o.connection_stalled();
                             o.stalled_since.get_or_insert(now);
                         }
                     }

@@ -662,6 +662,11 @@ impl<T: RowTransmitter> RtpSink for Sink<'_, '_, T> {
         if let Dest::Interleaved { conn, rtp_channel, .. } = *to {
             let Some(handle) = self.connection(conn) else { return count };
             let socket = self.sockets.get_mut::<tcp::Socket>(handle);
+            // A client that reads nothing is asked every poll: answered
+            // before a packet's worth of stack is even zeroed.
+            if socket.send_capacity() - socket.send_queue() < INTERLEAVED_BYTES {
+                return 0;
+            }
             let mut packet = [0u8; INTERLEAVED_BYTES];
             packet[..4].copy_from_slice(&interleaved_head(rtp_channel, (HEADER_BYTES + model::ROW_BYTES) as u16));
             for k in 0..count {
