@@ -1289,19 +1289,25 @@ impl<const N: usize> Camera<N> {
         let mut seen = frame.landed;
         // The furthest-behind output's next row; it changes only when rows
         // go, so it is worked out again only then. A client's connection
-        // that takes nothing (a laggard, interleaved) is left out: it would
-        // make every look a run of its own for everyone else. It is offered
-        // rows whenever a run goes to the others.
+        // that took nothing (a laggard, interleaved) is left out while
+        // another output still takes rows of the frame: it would make every
+        // look a run of its own for everyone else (it is offered rows with
+        // every run that goes). With no such other output it counts, or it
+        // would be offered none.
         let behind_of = |outputs: &[Option<Output>; N]| {
-            outputs
-                .iter()
-                .flatten()
-                .filter(|o| o.media == mi)
-                .filter_map(|o| match o.cursor {
-                    Cursor::Sending { next } if !o.connection_stalled() => Some(next),
-                    _ => None,
-                })
-                .min()
+            let (mut all, mut taking): (Option<u16>, Option<u16>) = (None, None);
+            for o in outputs.iter().flatten().filter(|o| o.media == mi) {
+                if let Cursor::Sending { next } = o.cursor {
+                    all = Some(all.map_or(next, |m| m.min(next)));
+                    if !o.connection_stalled() {
+                        taking = Some(taking.map_or(next, |m| m.min(next)));
+                    }
+                }
+            }
+            match taking {
+                Some(t) if t < ROWS => Some(t),
+                _ => all,
+            }
         };
         let mut behind = behind_of(&self.outputs);
         loop {
