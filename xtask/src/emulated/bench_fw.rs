@@ -317,7 +317,7 @@ fn measure_rtp(frames: usize, viewers: Viewers) -> Result<Measured> {
             return Err(format!("RTP: frame {i} differs from model::render_frame"));
         }
     }
-    let repaired = s.repaired_rows;
+    let repaired = s.frames.repaired_rows;
     for s in sessions {
         s.teardown()?;
     }

@@ -365,6 +365,9 @@ pub struct RtspOutcome {
     pub repaired_rows: u64,
     /// NACK datagrams sent.
     pub nacks: u64,
+    /// Packets of frames already whole or given up (a repair that came
+    /// twice).
+    pub stale: u64,
     /// Wall time of the stream, from its first frame to its last.
     pub elapsed_ms: u64,
 }
@@ -387,6 +390,7 @@ impl RtspOutcome {
             given_up: a.given_up + b.given_up,
             repaired_rows: a.repaired_rows + b.repaired_rows,
             nacks: a.nacks + b.nacks,
+            stale: a.stale + b.stale,
             elapsed_ms: a.elapsed_ms + b.elapsed_ms,
         }
     }
@@ -402,6 +406,7 @@ impl RtspOutcome {
                 "given_up" => o.given_up = v,
                 "repaired_rows" => o.repaired_rows = v,
                 "nacks" => o.nacks = v,
+                "stale" => o.stale = v,
                 "elapsed_ms" => o.elapsed_ms = v,
                 _ => return None,
             }
@@ -573,7 +578,7 @@ fn rtsp_client(board: &str, frames: usize, phases: usize) -> Result<()> {
             // Frames under way when the faults changed belong to neither.
             s.next_frame(Duration::from_secs(300))?;
         }
-        let (given_up, repaired, nacks) = (s.given_up, s.repaired_rows, s.nacks);
+        let (given_up, repaired, nacks, stale) = (s.frames.given_up, s.frames.repaired_rows, s.nacks, s.frames.stale);
         let mut start = None;
         for i in 0..frames {
             let f = s.next_frame(Duration::from_secs(300))?;
@@ -584,10 +589,11 @@ fn rtsp_client(board: &str, frames: usize, phases: usize) -> Result<()> {
         }
         let elapsed = start.map_or(0, |t| t.elapsed().as_millis());
         println!(
-            "lossy-client: rtsp exact={frames} given_up={} repaired_rows={} nacks={} elapsed_ms={elapsed}",
-            s.given_up - given_up,
-            s.repaired_rows - repaired,
-            s.nacks - nacks
+            "lossy-client: rtsp exact={frames} given_up={} repaired_rows={} nacks={} stale={} elapsed_ms={elapsed}",
+            s.frames.given_up - given_up,
+            s.frames.repaired_rows - repaired,
+            s.nacks - nacks,
+            s.frames.stale - stale
         );
     }
     s.teardown()
@@ -780,7 +786,7 @@ pub fn suite_test() -> Result<()> {
         let lossy = &o[k];
         let verdict = rtsp_verdict(&base, lossy, bar);
         println!(
-            "lossy link, RTSP: {name}: {:.2} frames/s ({:.0}% of the clean phases around it, {:.2} and {:.2}), {:.1}% exact ({} given up), {} rows repaired by {} NACKs",
+            "lossy link, RTSP: {name}: {:.2} frames/s ({:.0}% of the clean phases around it, {:.2} and {:.2}), {:.1}% exact ({} given up), {} rows repaired by {} NACKs ({} packets of finished frames)",
             lossy.fps(),
             100.0 * lossy.fps() / base.fps().max(1e-9),
             o[k - 1].fps(),
@@ -788,7 +794,8 @@ pub fn suite_test() -> Result<()> {
             100.0 * lossy.exact_share(),
             lossy.given_up,
             lossy.repaired_rows,
-            lossy.nacks
+            lossy.nacks,
+            lossy.stale
         );
         verdict?;
     }
@@ -852,10 +859,10 @@ mod tests {
         assert!(rtsp_verdict(&clean, &o(30, 1, 19_000), BAR_10).is_ok(), "97% exact at 76% of the rate");
         assert!(rtsp_verdict(&clean, &o(30, 2, 14_500), BAR_10).is_err(), "two in 32 given up is under 95%");
         assert!(rtsp_verdict(&clean, &o(30, 0, 21_000), BAR_10).is_err(), "1.38 frames/s is under 70% of 2");
-        let line = "exact=30 given_up=1 repaired_rows=5 nacks=2 elapsed_ms=900";
+        let line = "exact=30 given_up=1 repaired_rows=5 nacks=2 stale=3 elapsed_ms=900";
         assert_eq!(
             RtspOutcome::parse(line),
-            Some(RtspOutcome { exact: 30, given_up: 1, repaired_rows: 5, nacks: 2, elapsed_ms: 900 })
+            Some(RtspOutcome { exact: 30, given_up: 1, repaired_rows: 5, nacks: 2, stale: 3, elapsed_ms: 900 })
         );
         assert_eq!(RtspOutcome::parse("exact=x"), None);
     }

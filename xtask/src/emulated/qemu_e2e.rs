@@ -280,7 +280,7 @@ fn rtsp_stream(g: &Guest, path: &str) -> Result<crate::support::rtsp_client::Rts
 
 fn t_rtsp_fixed_light(g: &mut Guest) -> Result<()> {
     let mut s = rtsp_stream(g, "/light/3,4,-2?fps=5")?;
-    s.drop_once = Some(17);
+    s.frames.drop_once = Some(17);
     let expected = expected_frame([3072, 4096, -2048])?;
     for i in 0..3 {
         let f = s.next_frame(Duration::from_secs(60))?;
@@ -288,7 +288,7 @@ fn t_rtsp_fixed_light(g: &mut Guest) -> Result<()> {
             return Err(format!("RTSP frame {i} (timestamp {}) is not the model's", f.timestamp));
         }
     }
-    let (repaired, nacks) = (s.repaired_rows, s.nacks);
+    let (repaired, nacks) = (s.frames.repaired_rows, s.nacks);
     s.teardown()?;
     if repaired == 0 {
         return Err("row 17, dropped on purpose, never came back by NACK".into());

@@ -7,6 +7,7 @@
 pub mod browser;
 pub mod player;
 pub mod process;
+pub mod rtp_frames;
 pub mod rtsp_client;
 pub mod tools;
 

@@ -10,11 +10,8 @@ use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{Ipv4Addr, SocketAddr, TcpStream, UdpSocket};
 use std::time::{Duration, Instant};
 
+use super::rtp_frames::{Frame, FrameAssembly};
 use super::Result;
-
-const ROWS: usize = 360;
-const ROW_BYTES: usize = 1440;
-const HEADER: usize = 20;
 
 /// How the stream's packets come.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -54,83 +51,10 @@ pub struct RtspSession {
     last_report: Instant,
     /// Datagrams on a multicast group that were not this stream's.
     pub foreign: usize,
-    /// The newest extended sequence number received.
-    highest: u32,
-    partial: BTreeMap<u32, Partial>,
-    /// Rows received again after a NACK.
-    pub repaired_rows: usize,
+    /// The frames being put together, and their counts.
+    pub frames: FrameAssembly,
     /// NACK datagrams sent.
     pub nacks: usize,
-    /// Incomplete frames given up (repairs not in within
-    /// [`GIVE_UP_AFTER`], or too many frames incomplete at once).
-    pub given_up: usize,
-    /// A line to ignore the first time it arrives (a loss made on
-    /// purpose, for the repair to fill).
-    pub drop_once: Option<usize>,
-    /// The time from a NACK to the first row it brought, smoothed: how
-    /// long to wait before asking again ([`renack_interval`]).
-    repair_delay: Option<Duration>,
-}
-
-/// Bounds of the time between NACKs for one frame: a little more than a
-/// LAN's answer takes, and at most 100 ms (a fixed 100 ms let only two
-/// rounds fit in the time the server kept a frame on a slow machine, and
-/// the suite's lossy test failed on it).
-const RENACK_MIN: Duration = Duration::from_millis(20);
-const RENACK_MAX: Duration = Duration::from_millis(100);
-
-/// The time to wait before asking again for rows still missing after a
-/// NACK: twice the smoothed repair delay (the rows asked for are on their
-/// way until then), within [`RENACK_MIN`]..=[`RENACK_MAX`]; 50 ms before
-/// any repair was seen.
-fn renack_interval(repair_delay: Option<Duration>) -> Duration {
-    repair_delay.map_or(Duration::from_millis(50), |d| (2 * d).clamp(RENACK_MIN, RENACK_MAX))
-}
-
-/// The smoothed repair delay after one more sample: every row a NACK
-/// brought is a sample, and the estimate follows the latest of them (a
-/// NACK's rows come in a burst whose tail is what a second NACK must not
-/// overtake): halfway up to a longer sample at once, an eighth of the way
-/// down to a shorter one.
-fn smooth(delay: Option<Duration>, sample: Duration) -> Duration {
-    match delay {
-        None => sample,
-        Some(d) if sample > d => (d + sample) / 2,
-        Some(d) => (d * 7 + sample) / 8,
-    }
-}
-
-/// A frame being received.
-struct Partial {
-    rows: Vec<Option<Vec<u8>>>,
-    /// Rows that came after the frame's NACK (repairs, or late).
-    repaired: Vec<usize>,
-    /// A row's sequence number and its line, to number the missing ones.
-    known: Option<(u32, usize)>,
-    marked: bool,
-    nacked_at: Option<Instant>,
-    /// When the frame's last packet of the first send could have come (its
-    /// marker, or a newer frame's packet).
-    marked_at: Option<Instant>,
-}
-
-/// How long a frame with missing rows waits for its repairs before it is
-/// given up, as a player's jitter buffer would (newer frames may complete
-/// meanwhile: the emulated board renders the next frame, on its CPU, before
-/// it reads the NACK).
-const GIVE_UP_AFTER: Duration = Duration::from_secs(3);
-
-/// Incomplete frames kept at most; the oldest is given up beyond.
-const MAX_PARTIAL: usize = 8;
-
-/// A whole frame.
-pub struct Frame {
-    /// Its RTP timestamp.
-    pub timestamp: u32,
-    /// 518,400 bytes.
-    pub bytes: Vec<u8>,
-    /// The rows that came after a NACK for the frame (repairs, or late).
-    pub repaired: Vec<usize>,
 }
 
 type Headers = BTreeMap<String, String>;
@@ -196,13 +120,8 @@ impl RtspSession {
             group: None,
             last_report: Instant::now(),
             foreign: 0,
-            highest: 0,
-            partial: BTreeMap::new(),
-            repaired_rows: 0,
+            frames: FrameAssembly::default(),
             nacks: 0,
-            drop_once: None,
-            repair_delay: None,
-            given_up: 0,
         };
         let url = s.url.clone();
         let (_, sdp) = s.request("DESCRIBE", &url, &[("Accept", "application/sdp")], "")?;
@@ -286,7 +205,7 @@ impl RtspSession {
 
     /// The newest extended sequence number received.
     pub fn highest_seq(&self) -> u32 {
-        self.highest
+        self.frames.highest_seq()
     }
 
     fn request(&mut self, method: &str, url: &str, headers: &[(&str, &str)], body: &str) -> Result<(Headers, String)> {
@@ -378,7 +297,7 @@ impl RtspSession {
                     }
                 }
                 Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
-                    self.give_up(Instant::now())
+                    self.frames.give_up(Instant::now())
                 }
                 Err(e) => return Err(format!("RTP: {e}")),
             }
@@ -448,85 +367,7 @@ impl RtspSession {
 
     /// One RTP packet; a frame if it completed one.
     fn take(&mut self, p: &[u8]) -> Result<Option<Frame>> {
-        if p.len() != HEADER + ROW_BYTES || p[0] != 0x80 || p[1] & 0x7f != 96 {
-            return Err(format!("not a row packet of this stream ({} bytes, {:02x} {:02x})", p.len(), p[0], p[1]));
-        }
-        let be16 = |i: usize| u16::from_be_bytes([p[i], p[i + 1]]);
-        let be32 = |i: usize| u32::from_be_bytes([p[i], p[i + 1], p[i + 2], p[i + 3]]);
-        if be32(8) != self.ssrc || usize::from(be16(14)) != ROW_BYTES || be16(18) != 0 {
-            return Err("an RTP header field is off (SSRC, length or offset)".into());
-        }
-        let (seq, ts, marker) = (u32::from(be16(12)) << 16 | u32::from(be16(2)), be32(4), p[1] & 0x80 != 0);
-        let line = usize::from(be16(16) & 0x7fff);
-        if seq.wrapping_sub(self.highest) < 1 << 31 {
-            self.highest = seq;
-        }
-        if line >= ROWS || marker != (line == ROWS - 1) {
-            return Err(format!("line {line} with marker {marker}"));
-        }
-        let f = self.partial.entry(ts).or_insert_with(|| Partial {
-            rows: vec![None; ROWS],
-            repaired: Vec::new(),
-            known: None,
-            marked: false,
-            nacked_at: None,
-            marked_at: None,
-        });
-        if self.drop_once == Some(line) {
-            self.drop_once = None;
-        } else if f.rows[line].is_none() {
-            if let Some(asked) = f.nacked_at {
-                self.repaired_rows += 1;
-                f.repaired.push(line);
-                self.repair_delay = Some(smooth(self.repair_delay, asked.elapsed()));
-            }
-            f.rows[line] = Some(p[HEADER..].to_vec());
-        }
-        f.known.get_or_insert((seq, line));
-        let now = Instant::now();
-        if marker && !f.marked {
-            f.marked = true;
-            f.marked_at = Some(now);
-        }
-        let complete = f.rows.iter().all(Option::is_some);
-        // A newer frame's packet also ends the older ones (their marker
-        // may be what was lost).
-        for (_, older) in self.partial.iter_mut().filter(|(&t, _)| ts.wrapping_sub(t).wrapping_sub(1) < 1 << 31) {
-            if !older.marked {
-                older.marked = true;
-                older.marked_at = Some(now);
-            }
-        }
-        if complete {
-            let f = self.partial.remove(&ts).ok_or("frame vanished")?;
-            let repaired = f.repaired;
-            return Ok(Some(Frame {
-                timestamp: ts,
-                bytes: f.rows.into_iter().flatten().flatten().collect(),
-                repaired,
-            }));
-        }
-        self.give_up(now);
-        Ok(None)
-    }
-
-    /// Give up frames that waited [`GIVE_UP_AFTER`] for their repairs, and
-    /// the oldest beyond [`MAX_PARTIAL`].
-    fn give_up(&mut self, now: Instant) {
-        let before = self.partial.len();
-        self.partial.retain(|_, f| f.marked_at.is_none_or(|t| now - t < GIVE_UP_AFTER));
-        while self.partial.len() > MAX_PARTIAL {
-            // The oldest by timestamp (wrapping): the one every other is newer than.
-            let oldest =
-                self.partial.keys().copied().find(|&t| self.partial.keys().all(|&u| u.wrapping_sub(t) < 1 << 31));
-            match oldest {
-                Some(t) => {
-                    self.partial.remove(&t);
-                }
-                None => break,
-            }
-        }
-        self.given_up += before - self.partial.len();
+        self.frames.take(p, self.ssrc, Instant::now())
     }
 
     /// NACK the missing rows of marked frames, again after
@@ -542,18 +383,7 @@ impl RtspSession {
                 self.rtcp.send_to(&rr, self.server_rtcp).map_err(|e| format!("RR: {e}"))?;
             }
         }
-        let now = Instant::now();
-        let again = renack_interval(self.repair_delay);
-        let mut lost = Vec::new();
-        for f in self.partial.values_mut() {
-            let Some((seq, line)) = f.known else { continue };
-            if !f.marked || f.nacked_at.is_some_and(|t| now - t < again) {
-                continue;
-            }
-            f.nacked_at = Some(now);
-            let first = seq.wrapping_sub(line as u32);
-            lost.extend((0..ROWS).filter(|&y| f.rows[y].is_none()).map(|y| first.wrapping_add(y as u32)));
-        }
+        let lost = self.frames.missing(Instant::now());
         for chunk in lost.chunks(200) {
             let mut d = vec![0x81, 205];
             d.extend_from_slice(&(2 + chunk.len() as u16).to_be_bytes());
@@ -621,25 +451,4 @@ pub fn connect_from(local: Option<Ipv4Addr>, to: SocketAddr) -> std::io::Result<
     socket.bind(&SocketAddr::from((local, 0)).into())?;
     socket.connect_timeout(&to.into(), Duration::from_secs(10))?;
     Ok(socket.into())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_client_asks_again_after_twice_the_repair_delay_within_bounds() {
-        let ms = Duration::from_millis;
-        assert_eq!(renack_interval(None), ms(50));
-        assert_eq!(renack_interval(Some(ms(15))), ms(30));
-        assert_eq!(renack_interval(Some(ms(2))), RENACK_MIN, "a LAN's answer");
-        assert_eq!(renack_interval(Some(ms(400))), RENACK_MAX, "a slow path still gets rounds");
-        let mut d = None;
-        for _ in 0..40 {
-            d = Some(smooth(d, ms(30)));
-        }
-        assert_eq!(d, Some(ms(30)));
-        assert_eq!(smooth(Some(ms(80)), ms(0)), ms(70), "a shorter sample moves it an eighth");
-        assert_eq!(smooth(Some(ms(30)), ms(90)), ms(60), "a longer one halfway");
-    }
 }
