@@ -12,12 +12,21 @@
 //! address the kernel did not set aside would write over whatever memory
 //! is there.
 //!
-//! Serving frames from such a buffer (mapping it non-cached, the boot
-//! self-test's frame half on it, the ring in it) is not built yet: a
-//! buffer found is reported, and rows are rendered still.
+//! A buffer found is mapped non-cached ([`DmaRing`]: u-dma-buf's README,
+//! "CPU cache for the allocated DMA buffer can be disabled by setting the
+//! O_SYNC flag when opening the device file"), so what the FPGA writes
+//! behind the caches is what the program reads, with no cache maintenance
+//! from user space. The ring's slots lie in it, and the frame DMA is given
+//! their physical addresses.
 
 use std::fmt;
+use std::fs::OpenOptions;
+use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
+
+use memmap2::{MmapOptions, MmapRaw};
+use model::{FRAME_BYTES, ROW_BYTES};
+use rt_services::FrameMemory;
 
 /// The HPS's SDRAM that the FPGA-to-SDRAM port addresses: the DE1-SoC's
 /// 1 GiB of DDR3 from address 0 (Terasic DE1-SoC User Manual, 2.1 "Layout
@@ -113,6 +122,99 @@ fn fits(phys_addr: u64, size: u64, need: u64) -> Result<(), String> {
         return Err(format!("not {FRAME_BASE_ALIGN}-byte aligned"));
     }
     Ok(())
+}
+
+/// The ring's slots in a u-dma-buf buffer, mapped non-cached (`O_SYNC`):
+/// the [`FrameMemory`] frame mode renders into. The slots follow each
+/// other from the buffer's start; the frame DMA is given their physical
+/// addresses.
+pub struct DmaRing {
+    map: MmapRaw,
+    phys_addr: u32,
+    slots: usize,
+    device: PathBuf,
+}
+
+impl fmt::Debug for DmaRing {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "DmaRing({}, {} slots at {:#x})", self.device.display(), self.slots, self.phys_addr)
+    }
+}
+
+impl DmaRing {
+    /// Map `slots` frame slots of `buffer` (found by [`find`], so it holds
+    /// them inside [`SDRAM_END`]).
+    pub fn open(buffer: &DmaBuffer, slots: usize) -> Result<DmaRing, String> {
+        let len = slots * FRAME_BYTES;
+        if (len as u64) > buffer.size {
+            return Err(format!("{}: {} bytes, not enough for {slots} frames", buffer.device.display(), buffer.size));
+        }
+        let phys_addr = u32::try_from(buffer.phys_addr)
+            .ok()
+            .filter(|a| u64::from(*a) + len as u64 <= SDRAM_END)
+            .ok_or(format!("{}: {:#x} is past the SDRAM", buffer.device.display(), buffer.phys_addr))?;
+        let file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .custom_flags(libc::O_SYNC)
+            .open(&buffer.device)
+            .map_err(|e| format!("{}: {e}", buffer.device.display()))?;
+        let map = MmapOptions::new()
+            .len(len)
+            .map_raw(&file)
+            .map_err(|e| format!("{}: mmap: {e}", buffer.device.display()))?;
+        Ok(DmaRing { map, phys_addr, slots, device: buffer.device.clone() })
+    }
+
+    /// Where row `y` of `slot` starts plus `offset`, if `len` bytes from
+    /// there lie in the mapping.
+    fn at(&self, slot: usize, y: u16, offset: usize, len: usize) -> Option<*mut u8> {
+        if slot >= self.slots || usize::from(y) >= model::HEIGHT || offset + len > ROW_BYTES {
+            return None;
+        }
+        let start = slot * FRAME_BYTES + usize::from(y) * ROW_BYTES + offset;
+        Some(self.map.as_mut_ptr().wrapping_add(start))
+    }
+}
+
+/// Orders the loads after it after every load before it, as seen by the
+/// whole system (`dmb sy`, not only the inner-shareable `dmb ish` that
+/// `std::sync::atomic::fence` issues on ARMv7): the ring reads a row only
+/// after the accelerator's ROWS_DONE register (Strongly-ordered memory)
+/// said it landed, and the row itself is Normal non-cacheable memory,
+/// whose loads the A9 may otherwise issue before the register's (ARM
+/// Architecture Reference Manual ARMv7-A, A3.8.3 "Memory barriers", DMB).
+fn read_barrier() {
+    #[cfg(target_arch = "arm")]
+    // SAFETY: a barrier instruction: no memory, register or flag changes.
+    unsafe {
+        core::arch::asm!("dmb sy", options(nostack, preserves_flags))
+    };
+    #[cfg(not(target_arch = "arm"))]
+    std::sync::atomic::fence(std::sync::atomic::Ordering::SeqCst);
+}
+
+impl FrameMemory for DmaRing {
+    fn slot_address(&self, slot: usize) -> u32 {
+        self.phys_addr + (slot * FRAME_BYTES) as u32
+    }
+
+    fn read_row(&mut self, slot: usize, y: u16, offset: usize, out: &mut [u8]) {
+        let Some(src) = self.at(slot, y, offset, out.len()) else { return };
+        read_barrier();
+        // SAFETY: `at` checked the range lies in the mapping, which lives
+        // as long as `self`; the ring reads only rows the DMA finished
+        // writing (its counter covered them), so no write races the copy.
+        unsafe { std::ptr::copy_nonoverlapping(src, out.as_mut_ptr(), out.len()) };
+    }
+
+    fn write_row(&mut self, slot: usize, y: u16, row: &[u8; ROW_BYTES]) {
+        let Some(dst) = self.at(slot, y, 0, ROW_BYTES) else { return };
+        // SAFETY: `at` checked the range; the ring gives a slot to one
+        // engine at a time (this is only for an engine that writes rows
+        // itself, never while the DMA has the slot).
+        unsafe { std::ptr::copy_nonoverlapping(row.as_ptr(), dst, ROW_BYTES) };
+    }
 }
 
 /// sysfs numbers: `0x`-prefixed hex (`phys_addr`) or decimal (`size`).

@@ -7,12 +7,13 @@
 //! * [`preflight`]: the FPGA configured, the bridge out of reset, the ray
 //!   tracer answering with a known register map, before the first access;
 //!   each refusal names its cause.
-//! * [`frame_memory`]: the contiguous buffer frame mode would need, or
-//!   why there is none (rows are rendered either way for now).
+//! * [`frame_memory`]: the contiguous buffer frame mode renders into
+//!   ([`DmaRing`](frame_memory::DmaRing), mapped non-cached), or why there
+//!   is none.
 //! * [`serve`]: the board the services draw from (hps-sim's
 //!   [`Board`](hps_sim::board::Board): one engine, one ring, every service
-//!   within its quota): the FPGA's rows, the simulated accelerator, or
-//!   software when told to.
+//!   within its quota): the FPGA's frames (or rows, saying why), the
+//!   simulated accelerator, or software when told to.
 
 pub mod frame_memory;
 pub mod preflight;

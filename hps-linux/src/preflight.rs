@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 
 use hal_avalon::map::{Csr, ID_MAGIC, ID_VERSION, LW_BRIDGE_BASE};
 use hal_avalon::RegisterPort;
-use soc::cyclone_v::{BrgModRst, FpgaMode, FpgaStat, FPGAMGR_BASE, RSTMGR_BASE};
+use soc::cyclone_v::{BrgModRst, FpgaMode, FpgaStat, FPGAMGR_BASE, FPGAPORTRST, FPGAPORTRST_RELEASED, RSTMGR_BASE};
 
 use crate::window::{MappedPort, OpenError, Window};
 
@@ -198,6 +198,31 @@ pub fn bridge(sys: &System) -> Finding {
             }
         }
         Err(e) => Finding::Unknown(format!("no lwhps2fpga bridge in sysfs, and {e}")),
+    }
+}
+
+/// Whether the SDRAM controller's FPGA ports the frame DMA writes through
+/// are out of reset: `fpgaportrst` through /dev/mem has every bit of
+/// [`FPGAPORTRST_RELEASED`] set. Only the boot loader can release them
+/// (the controller takes the change only while SDRAM is idle); a frame DMA
+/// into a port held in reset never finishes, so frame mode is not tried
+/// then. Unknown without /dev/mem (the self-test's frame half then finds
+/// out).
+pub fn sdram_ports(sys: &System) -> Finding {
+    let page = FPGAPORTRST & !0xfff;
+    match Window::dev_mem(&sys.dev_mem, page as u64, 4096) {
+        Ok(w) => {
+            let raw = w.read_word(FPGAPORTRST - page).unwrap_or(0);
+            if raw & FPGAPORTRST_RELEASED == FPGAPORTRST_RELEASED {
+                Finding::Good(format!("fpgaportrst {raw:#x}: the frame DMA's ports run"))
+            } else {
+                Finding::Bad(format!(
+                    "fpgaportrst {raw:#x}: the frame DMA's ports ({FPGAPORTRST_RELEASED:#x}) are held in reset; the \
+                     boot loader must release them (docs/linux.md, \"Frame mode\")"
+                ))
+            }
+        }
+        Err(e) => Finding::Unknown(format!("fpgaportrst unread: {e}")),
     }
 }
 

@@ -4,13 +4,13 @@
 //! ([`simulated`]) or the model in software ([`software`]), and what
 //! `/status` says of it ([`Facts`]).
 //!
-//! Under Linux the FPGA renders rows (the seed's way, row mode over the
-//! lightweight bridge) into a ring in the process's memory: its frame DMA
-//! needs physically contiguous, cache-coherent memory at a bus address
-//! (docs/linux.md, "Frame mode"), which an ordinary process does not have.
-//! The accelerator's frame registers are never touched here: a frame DMA
-//! started at an address the kernel did not set aside would write over
-//! whatever memory is there.
+//! With the accelerator, frame mode is used where the kernel set memory
+//! aside for it ([`frame_memory()`], [`DmaRing`]: a u-dma-buf
+//! buffer, the SDRAM ports out of reset) and the boot self-test's frame
+//! half passes there; otherwise rows over the lightweight bridge (the
+//! seed's way), with the reason in the log and `/status`. The frame
+//! registers are never given an address outside that buffer: a frame DMA
+//! started anywhere else would write over whatever memory is there.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -18,12 +18,13 @@ use std::time::{Duration, Instant};
 use embedded_hal::delay::DelayNs;
 use hal_avalon::selftest::{self, Outcome, SelfTestReport, PLAN};
 use hal_avalon::{Accelerator, PollTimeout, RegisterPort};
-use hps_sim::board::{self, Board};
+use hps_sim::board::{self, Board, BOARD_SLOTS};
 use hps_sim::web::Facts;
 use hps_sim::SelfTest;
 use rt_services::SoftwareRenderer;
 
-use crate::preflight::Report;
+use crate::frame_memory::{self, DmaRing};
+use crate::preflight::{self, Finding, Report, System};
 
 /// Delays the driver's STATUS polls: short waits spin (a row is about
 /// 12 us of the FPGA's, and the kernel's shortest sleep is tens of
@@ -51,13 +52,13 @@ impl DelayNs for PollDelay {
 
 /// The FPGA's rows, compared with the model's, at start: the row half of
 /// the firmware's boot self-test (hal-avalon `selftest::check_rows` with
-/// its `PLAN`); its frame half would start the frame DMA.
+/// its `PLAN`), for row mode.
 pub fn row_self_test<P: RegisterPort, D: DelayNs>(accel: &mut Accelerator<P, D>) -> SelfTest {
     match selftest::check_rows(accel, &mut SoftwareRenderer, &PLAN) {
         Ok(pixels) => SelfTest {
             result: "pass",
             detail: format!(
-                "self-test: pass: {} rows, {pixels} pixels equal the model's (row mode; frame mode not used under Linux)",
+                "self-test: pass: {} rows, {pixels} pixels equal the model's (row mode)",
                 PLAN.rows.len() * PLAN.row_lights.len()
             ),
         },
@@ -68,32 +69,84 @@ pub fn row_self_test<P: RegisterPort, D: DelayNs>(accel: &mut Accelerator<P, D>)
     }
 }
 
-/// A board rendering rows on the accelerator behind `port` (already
-/// checked by [`preflight`](crate::preflight)), with its self-test; an
-/// accelerator that fails the self-test is refused (the caller may fall
-/// back to [`software`] when told to).
-pub fn fpga<P>(port: P, report: &Report) -> Result<(Arc<Board>, Facts), SelfTest>
+/// The ring frame mode would render into on `sys`: the u-dma-buf buffer
+/// mapped, or why frame mode is not tried (no buffer fit for the ring, or
+/// the SDRAM ports the DMA writes through held in reset).
+pub fn frame_memory(sys: &System) -> Result<DmaRing, String> {
+    let buffer = frame_memory::find(&sys.sysfs, &sys.dev, frame_memory::RING_BYTES).map_err(|e| e.to_string())?;
+    if let Finding::Bad(seen) = preflight::sdram_ports(sys) {
+        return Err(format!("frame mode not tried: {seen}; rendering rows over the lightweight bridge"));
+    }
+    DmaRing::open(&buffer, BOARD_SLOTS)
+        .map_err(|e| format!("frame mode not tried: {e}; rendering rows over the lightweight bridge"))
+}
+
+/// A board on the accelerator behind `port` (already checked by
+/// [`preflight`]), after its self-test: frame mode into
+/// `memory` when there is one and the self-test passes there, rows when
+/// there is none (`Err`: why) or only the frame path failed; an
+/// accelerator that fails otherwise is refused (the caller may fall back
+/// to [`software`] when told to).
+pub fn fpga<P>(port: P, report: &Report, memory: Result<DmaRing, String>) -> Result<(Arc<Board>, Facts), SelfTest>
 where
     P: RegisterPort + Send + 'static,
 {
     let mut accel = Accelerator::new(port, PollDelay, PollTimeout::DEFAULT);
-    if let Err(e) = accel.probe() {
-        return Err(SelfTest { result: "fail", detail: format!("self-test: FAIL: {e}") });
+    let caps = match accel.probe() {
+        Ok(caps) => caps,
+        Err(e) => return Err(SelfTest { result: "fail", detail: format!("self-test: FAIL: {e}") }),
+    };
+    let mut ring = match memory {
+        Ok(ring) if caps.frames() => ring,
+        Ok(_) => {
+            let why = format!("register map version {} has no frame DMA: rendering rows", caps.version);
+            return rows(accel, report, &why);
+        }
+        Err(why) => return rows(accel, report, &why),
+    };
+    let outcome = selftest::run(&mut accel, &mut ring, &mut SoftwareRenderer, &mut PollDelay, &PLAN);
+    let detail = outcome.to_string();
+    match outcome.failure().copied() {
+        None => {
+            let self_test = SelfTest { result: "pass", detail: format!("{detail} (frame mode into {ring:?})") };
+            let engine = rt_services::FrameRing::<_, _, BOARD_SLOTS>::new(ring, accel);
+            let board = Board::new(engine, "FPGA frame DMA into the u-dma-buf ring");
+            Ok((board, Facts { mode: "frames".into(), ..fpga_facts(report, self_test) }))
+        }
+        Some(failure) if selftest::frame_path_only(&mut accel, &mut SoftwareRenderer, &failure) => {
+            let why = format!(
+                "{detail}; row mode renders that row right: the frame path is at fault (check that the boot loader \
+                 released the FPGA-to-SDRAM ports, fpgaportrst): rendering rows over the lightweight bridge"
+            );
+            rows(accel, report, &why)
+        }
+        Some(_) => Err(SelfTest { result: "fail", detail }),
     }
-    let self_test = row_self_test(&mut accel);
+}
+
+/// Row mode on `accel` after the row self-test; `why` says why not frames.
+fn rows<P>(mut accel: Accelerator<P, PollDelay>, report: &Report, why: &str) -> Result<(Arc<Board>, Facts), SelfTest>
+where
+    P: RegisterPort + Send + 'static,
+{
+    let mut self_test = row_self_test(&mut accel);
     if self_test.result != "pass" {
         return Err(self_test);
     }
+    self_test.detail = format!("{}; {why}", self_test.detail);
     let board = board::rows_into_ring(accel, "FPGA rows into the ring");
-    let facts = Facts {
+    Ok((board, Facts { mode: "rows".into(), ..fpga_facts(report, self_test) }))
+}
+
+/// What a board on the FPGA says of itself.
+fn fpga_facts(report: &Report, self_test: SelfTest) -> Facts {
+    Facts {
         renderer: "fpga".into(),
-        mode: "rows".into(),
         register_map: Some(report.register_map),
         fpga_build: Some(report.build_id),
         bridges: format!("{}; {}", report.fpga, report.bridge),
         ..facts(self_test)
-    };
-    Ok((board, facts))
+    }
 }
 
 /// A board on hal-avalon's simulated accelerator (frame mode into host

@@ -156,6 +156,14 @@ impl Window {
     /// `O_SYNC` (non-cached even where the range is RAM).
     pub fn dev_mem(dev_mem: &Path, phys: u64, len: usize) -> Result<Window, OpenError> {
         let file = open_rw(dev_mem, libc::O_SYNC)?;
+        // A regular file standing in for /dev/mem (tests) must hold the
+        // window: a page mapped past its end faults on the first access.
+        if let Ok(meta) = file.metadata() {
+            if meta.is_file() && phys.saturating_add(len as u64) > meta.len() {
+                let error = io::Error::new(io::ErrorKind::UnexpectedEof, format!("ends before {phys:#x} + {len:#x}"));
+                return Err(OpenError::Io { path: dev_mem.to_path_buf(), error });
+            }
+        }
         let map = MmapOptions::new().offset(phys).len(len).map_raw(&file).map_err(|e| classify(dev_mem, e))?;
         Ok(Window { map, what: format!("{} at {phys:#x}", dev_mem.display()) })
     }

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use hal_avalon::map::{Csr, ID_VALUE, LW_BRIDGE_BASE, LW_BRIDGE_SIZE};
 use hps_linux::preflight::{self, Access, Finding, Refusal, System};
-use soc::cyclone_v::{FPGAMGR_BASE, RSTMGR_BASE};
+use soc::cyclone_v::{FPGAMGR_BASE, FPGAPORTRST, FPGAPORTRST_RELEASED, RSTMGR_BASE};
 use tempfile::TempDir;
 
 struct Stand {
@@ -21,9 +21,16 @@ fn stand() -> Stand {
     let sys = System { sysfs: dir.path().join("sys"), dev: dir.path().join("dev"), dev_mem: dir.path().join("mem") };
     std::fs::create_dir_all(&sys.sysfs).unwrap();
     std::fs::create_dir_all(&sys.dev).unwrap();
-    let end = LW_BRIDGE_BASE as u64 + LW_BRIDGE_SIZE as u64;
+    // Every page read whole: the bridge, the SDRAM controller's
+    // (fpgaportrst) and the reset manager's, the highest.
+    let end =
+        [LW_BRIDGE_BASE as u64 + LW_BRIDGE_SIZE as u64, (FPGAPORTRST as u64 | 0xfff) + 1, RSTMGR_BASE as u64 + 0x1000]
+            .into_iter()
+            .max()
+            .unwrap_or(0);
     std::fs::File::create(&sys.dev_mem).and_then(|f| f.set_len(end)).unwrap();
     let s = Stand { dir, sys };
+    s.poke(FPGAPORTRST as u64, FPGAPORTRST_RELEASED);
     s.poke(FPGAMGR_BASE as u64, 4); // stat.mode: user mode
     s.poke(RSTMGR_BASE as u64 + 0x1c, 0); // brgmodrst: all bridges out of reset
     s.poke(LW_BRIDGE_BASE as u64 + Csr::Id.offset() as u64, ID_VALUE);
@@ -266,13 +273,14 @@ fn frame_mode_without_contiguous_memory_says_what_is_missing() {
     assert!(text.contains("udmabuf1") && text.contains("past the SDRAM"), "{text}");
     // A fitting one is found, with its device node.
     dma_buffer(&s, "udmabuf2", 0x3e00_0000, 8 << 20);
+    std::fs::File::create(s.sys.dev.join("udmabuf2")).and_then(|f| f.set_len(8 << 20)).unwrap();
     let found = find(&s.sys.sysfs, &s.sys.dev, RING_BYTES).unwrap();
     assert_eq!((found.phys_addr, found.size), (0x3e00_0000, 8 << 20));
     assert_eq!(found.device, s.sys.dev.join("udmabuf2"));
     let out = check_command(&s).output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
-        stdout.contains("frame memory: ") && stdout.contains("udmabuf2 holds 8388608 bytes at 0x3e000000"),
+        stdout.contains("frame memory: ") && stdout.contains("udmabuf2, 14 slots at 0x3e000000): frame mode"),
         "{stdout}"
     );
 }

@@ -60,7 +60,7 @@ fn the_fpga_path_serves_the_models_frames_through_the_mapped_registers() {
         register_map: 3,
         build_id: 0,
     };
-    let (board, facts) = serve::fpga(port, &report).expect("the self-test passes");
+    let (board, facts) = serve::fpga(port, &report, Err("no frame memory here".into())).expect("the self-test passes");
     assert_eq!(facts.self_test.result, "pass", "{}", facts.self_test.detail);
     let mut sim = HpsSim::start_board("127.0.0.1:0".parse().unwrap(), board.clone(), facts, false).unwrap();
     let http = sim.start_web("127.0.0.1:0".parse().unwrap(), false).unwrap();

@@ -19,7 +19,6 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Args as ClapArgs, Parser, Subcommand};
-use hps_linux::frame_memory;
 use hps_linux::preflight::{self, Access, System};
 use hps_linux::serve;
 use hps_sim::cli::ServiceArgs;
@@ -145,17 +144,11 @@ fn check(access: &AccessArgs) -> ExitCode {
     }
 }
 
-/// What frame mode would have to work with: the refusal, or the buffer
-/// found (frame mode itself is not built yet: rows either way).
+/// What frame mode has to work with: the ring's buffer, or why rows.
 fn frame_memory_line(system: &System) -> String {
-    match frame_memory::find(&system.sysfs, &system.dev, frame_memory::RING_BYTES) {
-        Err(why) => why.to_string(),
-        Ok(b) => format!(
-            "{} holds {} bytes at {:#x}, enough for the ring; frame mode is not built yet: rendering rows over the lightweight bridge",
-            b.device.display(),
-            b.size,
-            b.phys_addr
-        ),
+    match serve::frame_memory(system) {
+        Err(why) => why,
+        Ok(ring) => format!("{ring:?}: frame mode, once the self-test's frame half passes there"),
     }
 }
 
@@ -170,8 +163,11 @@ fn run(args: ServeArgs) -> ExitCode {
                         "hps-linux: {}: register map version {}, FPGA build {:07x}",
                         report.window, report.register_map, report.build_id
                     );
-                    eprintln!("hps-linux: {}", frame_memory_line(&args.access.system()));
-                    serve::fpga(port, &report).map_err(|t| t.detail)
+                    let memory = serve::frame_memory(&args.access.system());
+                    if let Err(why) = &memory {
+                        eprintln!("hps-linux: {why}");
+                    }
+                    serve::fpga(port, &report, memory).map_err(|t| t.detail)
                 });
             match opened {
                 Ok(b) => b,

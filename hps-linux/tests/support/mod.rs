@@ -9,7 +9,7 @@ use std::path::Path;
 
 use hal_avalon::conformance::TestMemory;
 use hal_avalon::map::{line_word_offset, Csr, LINE_WORDS, LW_BRIDGE_BASE, LW_BRIDGE_SIZE};
-use hal_avalon::sim::SimAccelerator;
+use hal_avalon::sim::{DmaTarget, SimAccelerator};
 use hal_avalon::RegisterPort;
 use hps_linux::window::{MappedPort, Window};
 use memmap2::{MmapOptions, MmapRaw};
@@ -47,7 +47,7 @@ impl Bridge {
     }
 
     /// The model's read at `offset`, put where the code under test reads.
-    pub fn answer_read(&self, sim: &mut SimAccelerator<TestMemory>, offset: usize) {
+    pub fn answer_read<M: DmaTarget>(&self, sim: &mut SimAccelerator<M>, offset: usize) {
         self.set(offset, sim.bus_read(offset));
     }
 
@@ -58,7 +58,7 @@ impl Bridge {
 
     /// The value the write landed, handed to the model; `None` if nothing
     /// landed.
-    pub fn take_write(&self, sim: &mut SimAccelerator<TestMemory>, offset: usize) -> Option<u32> {
+    pub fn take_write<M: DmaTarget>(&self, sim: &mut SimAccelerator<M>, offset: usize) -> Option<u32> {
         let value = self.get(offset);
         (value != POISON).then(|| {
             sim.bus_write(offset, value);
@@ -102,7 +102,7 @@ pub fn through_uio() -> (Bridge, Window) {
     (Bridge { dir, view }, window)
 }
 
-fn map_view(path: &Path, offset: u64, len: usize) -> MmapRaw {
+pub fn map_view(path: &Path, offset: u64, len: usize) -> MmapRaw {
     let file = std::fs::OpenOptions::new().read(true).write(true).open(path).expect("the stand-in file");
     MmapOptions::new().offset(offset).len(len).map_raw(&file).expect("the model's mapping")
 }
@@ -113,13 +113,13 @@ pub fn simulated() -> SimAccelerator<TestMemory> {
 
 /// The driver's port: the bare-metal `MmioPort` on the mapping under test,
 /// each access answered by the model through the file.
-pub struct Answered {
+pub struct Answered<M = TestMemory> {
     pub port: MappedPort,
     pub bridge: Bridge,
-    pub sim: SimAccelerator<TestMemory>,
+    pub sim: SimAccelerator<M>,
 }
 
-impl RegisterPort for Answered {
+impl<M: DmaTarget> RegisterPort for Answered<M> {
     fn read(&mut self, csr: Csr) -> u32 {
         self.bridge.answer_read(&mut self.sim, csr.offset());
         self.port.read(csr)

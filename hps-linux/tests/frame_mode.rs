@@ -1,0 +1,179 @@
+//! Frame mode under Linux on a stand-in system: a u-dma-buf buffer (a
+//! sysfs entry and a file standing in for `/dev/udmabuf0`), the SDRAM
+//! controller's `fpgaportrst` in a /dev/mem stand-in, and the accelerator
+//! behind the mapped registers (the device model answering through the
+//! bridge's stand-in file, as in `mapped_registers.rs`), its frame DMA
+//! writing into the buffer's file through a mapping of its own. So the
+//! code that maps the buffer, hands the DMA its physical addresses and
+//! reads the rows back is the code tested, and an address or offset wrong
+//! in it gives wrong frames here.
+
+mod support;
+
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpStream};
+use std::path::Path;
+use std::time::Duration;
+
+use hal_avalon::sim::{DmaTarget, SimAccelerator};
+use hps_linux::frame_memory::RING_BYTES;
+use hps_linux::preflight::{self, Finding, Report, System};
+use hps_linux::serve;
+use hps_sim::HpsSim;
+use memmap2::MmapRaw;
+use model::{Light, FRAME_BYTES};
+use soc::cyclone_v::{FPGAPORTRST, FPGAPORTRST_RELEASED};
+use support::{map_view, through_dev_mem, Answered, BUSY_POLLS};
+use tempfile::TempDir;
+
+/// Where the stand-in buffer lies in the board's physical address space.
+const PHYS: u32 = 0x3000_0000;
+
+/// The stand-in system: `sysfs/class/u-dma-buf/udmabuf0`, `dev/udmabuf0`
+/// and a /dev/mem holding `fpgaportrst`.
+struct Stand {
+    _dir: TempDir,
+    sys: System,
+}
+
+fn stand(ports: u32) -> Stand {
+    let dir = tempfile::tempdir().unwrap();
+    let sys = System { sysfs: dir.path().join("sys"), dev: dir.path().join("dev"), dev_mem: dir.path().join("mem") };
+    let class = sys.sysfs.join("class/u-dma-buf/udmabuf0");
+    std::fs::create_dir_all(&class).unwrap();
+    std::fs::write(class.join("phys_addr"), format!("{PHYS:#010x}\n")).unwrap();
+    std::fs::write(class.join("size"), format!("{RING_BYTES}\n")).unwrap();
+    std::fs::create_dir_all(&sys.dev).unwrap();
+    std::fs::File::create(sys.dev.join("udmabuf0")).and_then(|f| f.set_len(RING_BYTES)).unwrap();
+    let page_end = (FPGAPORTRST as u64 | 0xfff) + 1;
+    std::fs::File::create(&sys.dev_mem).and_then(|f| f.set_len(page_end)).unwrap();
+    poke(&sys.dev_mem, FPGAPORTRST as u64, ports);
+    Stand { _dir: dir, sys }
+}
+
+fn poke(file: &Path, at: u64, value: u32) {
+    use std::os::unix::fs::FileExt;
+    let f = std::fs::OpenOptions::new().write(true).open(file).unwrap();
+    f.write_all_at(&value.to_le_bytes(), at).unwrap();
+}
+
+/// The SDRAM behind the FPGA-to-SDRAM port: the buffer's file, seen
+/// through a mapping of the device model's own at physical [`PHYS`].
+/// `answers: false` is a port held in reset (no write ever completes).
+struct Sdram {
+    view: MmapRaw,
+    answers: bool,
+}
+
+impl DmaTarget for Sdram {
+    fn write(&mut self, addr: u32, bytes: &[u8]) -> bool {
+        let Some(at) = addr.checked_sub(PHYS).map(|a| a as usize) else { return false };
+        if at + bytes.len() > self.view.len() {
+            return false;
+        }
+        // SAFETY: in bounds (checked); the mapping lives as long as
+        // `self`. The code under test reads these bytes through its own
+        // mapping, only after the frame's counter covered them.
+        unsafe { std::ptr::copy_nonoverlapping(bytes.as_ptr(), self.view.as_mut_ptr().add(at), bytes.len()) };
+        true
+    }
+
+    fn answers(&self) -> bool {
+        self.answers
+    }
+}
+
+fn report() -> Report {
+    Report {
+        fpga: Finding::Good("stand-in".into()),
+        bridge: Finding::Good("stand-in".into()),
+        window: "stand-in".into(),
+        register_map: hal_avalon::map::ID_VERSION,
+        build_id: 0,
+    }
+}
+
+/// The accelerator behind the mapped registers, its DMA into `s`'s buffer.
+fn accelerator(s: &Stand, answers: bool) -> Answered<Sdram> {
+    let (bridge, window) = through_dev_mem();
+    let view = map_view(&s.sys.dev.join("udmabuf0"), 0, RING_BYTES as usize);
+    let sim = SimAccelerator::with_memory(Sdram { view, answers }, BUSY_POLLS);
+    Answered { port: window.into_port().unwrap(), bridge, sim }
+}
+
+fn seed_frame(addr: SocketAddr, raw: [i32; 3]) -> Vec<u8> {
+    let mut s = TcpStream::connect(addr).expect("connect");
+    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+    let req: Vec<u8> = raw.iter().flat_map(|v| v.to_be_bytes()).collect();
+    s.write_all(&req).unwrap();
+    let mut frame = Vec::new();
+    s.read_to_end(&mut frame).expect("the frame");
+    frame
+}
+
+fn model_frame(raw: [i32; 3]) -> Vec<u8> {
+    let mut want = vec![0u8; FRAME_BYTES];
+    let light = Light::from_raw(raw[0], raw[1], raw[2]).unwrap();
+    model::render_frame_rgb888(&light, (&mut want[..]).try_into().unwrap());
+    want
+}
+
+#[test]
+fn frames_land_in_the_dma_buffer_and_are_served_from_it() {
+    let s = stand(FPGAPORTRST_RELEASED);
+    let ring = serve::frame_memory(&s.sys).expect("the buffer fits the ring");
+    let (board, facts) = serve::fpga(accelerator(&s, true), &report(), Ok(ring)).expect("the self-test passes");
+    assert_eq!((facts.self_test.result, facts.mode.as_str()), ("pass", "frames"), "{}", facts.self_test.detail);
+    assert!(facts.self_test.detail.contains("frame mode"), "{}", facts.self_test.detail);
+    let sim = HpsSim::start_board("127.0.0.1:0".parse().unwrap(), board, facts, false).unwrap();
+    let addr = sim.frame_addr();
+    let lights = [[3072, 4096, -2048], [-5120, 6144, 1024]];
+    let clients: Vec<_> = lights.iter().map(|&raw| std::thread::spawn(move || (raw, seed_frame(addr, raw)))).collect();
+    for c in clients {
+        let (raw, frame) = c.join().unwrap();
+        assert!(frame == model_frame(raw), "the frame for {raw:?} is the model's");
+    }
+    // The frames went through the buffer's file: a slot of it holds the
+    // last one served byte for byte (an earlier one's slot may be reused).
+    let last = [1500, 2500, 700];
+    assert!(seed_frame(addr, last) == model_frame(last));
+    let bytes = std::fs::read(s.sys.dev.join("udmabuf0")).unwrap();
+    let want = model_frame(last);
+    assert!(bytes.chunks(FRAME_BYTES).any(|slot| slot == &want[..]), "a slot of the buffer holds the frame");
+}
+
+#[test]
+fn a_frame_dma_that_never_lands_falls_back_to_rows_and_says_why() {
+    let s = stand(FPGAPORTRST_RELEASED);
+    let ring = serve::frame_memory(&s.sys).unwrap();
+    let (board, facts) = serve::fpga(accelerator(&s, false), &report(), Ok(ring)).expect("rows still work");
+    assert_eq!(facts.mode, "rows");
+    let detail = &facts.self_test.detail;
+    assert!(detail.contains("FAIL: frame mode") && detail.contains("fpgaportrst"), "{detail}");
+    let sim = HpsSim::start_board("127.0.0.1:0".parse().unwrap(), board, facts, false).unwrap();
+    let raw = [1500, 2500, 700];
+    assert!(seed_frame(sim.frame_addr(), raw) == model_frame(raw), "rows give the model's frame");
+}
+
+#[test]
+fn sdram_ports_in_reset_keep_frame_mode_from_being_tried() {
+    let s = stand(0);
+    assert!(matches!(preflight::sdram_ports(&s.sys), Finding::Bad(_)));
+    let why = serve::frame_memory(&s.sys).unwrap_err();
+    assert!(why.contains("fpgaportrst 0x0") && why.contains("held in reset"), "{why}");
+    let (_, facts) = serve::fpga(accelerator(&s, true), &report(), Err(why)).expect("rows");
+    assert_eq!(facts.mode, "rows");
+    assert!(facts.self_test.detail.contains("held in reset"), "{}", facts.self_test.detail);
+    // Without /dev/mem the ports are not known, and the self-test decides.
+    std::fs::remove_file(&s.sys.dev_mem).unwrap();
+    assert!(matches!(preflight::sdram_ports(&s.sys), Finding::Unknown(_)));
+    assert!(serve::frame_memory(&s.sys).is_ok());
+}
+
+#[test]
+fn a_buffer_whose_device_cannot_be_opened_is_said() {
+    let s = stand(FPGAPORTRST_RELEASED);
+    std::fs::remove_file(s.sys.dev.join("udmabuf0")).unwrap();
+    let why = serve::frame_memory(&s.sys).unwrap_err();
+    assert!(why.contains("udmabuf0") && why.contains("rendering rows"), "{why}");
+}
