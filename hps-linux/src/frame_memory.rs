@@ -34,8 +34,9 @@ use rt_services::FrameMemory;
 /// Controller Subsystem": the FPGA ports see SDRAM addresses).
 pub const SDRAM_END: u64 = 0x4000_0000;
 
-/// The ring frame mode would fill: the board's slots, whole frames.
-pub const RING_BYTES: u64 = (hps_sim::board::BOARD_SLOTS * model::FRAME_BYTES) as u64;
+/// The ring frame mode fills: the board's slots (the services' and the
+/// display's), whole frames.
+pub const RING_BYTES: u64 = (crate::panel::RING_SLOTS * model::FRAME_BYTES) as u64;
 
 /// FRAME_BASE holds an 8-byte aligned address (docs/frame-dma.md).
 const FRAME_BASE_ALIGN: u64 = 8;

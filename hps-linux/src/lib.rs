@@ -10,12 +10,15 @@
 //! * [`frame_memory`]: the contiguous buffer frame mode renders into
 //!   ([`DmaRing`](frame_memory::DmaRing), mapped non-cached), or why there
 //!   is none.
+//! * [`panel`]: the VGA monitor, keys, switches, LEDs and displays, as on
+//!   bare metal (the firmware's policy), on the board's ring.
 //! * [`serve`]: the board the services draw from (hps-sim's
 //!   [`Board`](hps_sim::board::Board): one engine, one ring, every service
 //!   within its quota): the FPGA's frames (or rows, saying why), the
 //!   simulated accelerator, or software when told to.
 
 pub mod frame_memory;
+pub mod panel;
 pub mod preflight;
 pub mod serve;
 pub mod window;

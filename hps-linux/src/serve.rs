@@ -18,12 +18,14 @@ use std::time::{Duration, Instant};
 use embedded_hal::delay::DelayNs;
 use hal_avalon::selftest::{self, Outcome, SelfTestReport, PLAN};
 use hal_avalon::{Accelerator, PollTimeout, RegisterPort};
-use hps_sim::board::{self, Board, BOARD_SLOTS};
+use hps_sim::board::{self, Board};
 use hps_sim::web::Facts;
 use hps_sim::SelfTest;
-use rt_services::SoftwareRenderer;
+use rt_services::monitor::Code;
+use rt_services::{FrameRing, RowEngine, SoftwareRenderer};
 
 use crate::frame_memory::{self, DmaRing};
+use crate::panel::{Identity, PanelRing, RING_SLOTS};
 use crate::preflight::{self, Finding, Report, System};
 
 /// Delays the driver's STATUS polls: short waits spin (a row is about
@@ -77,7 +79,7 @@ pub fn frame_memory(sys: &System) -> Result<DmaRing, String> {
     if let Finding::Bad(seen) = preflight::sdram_ports(sys) {
         return Err(format!("frame mode not tried: {seen}; rendering rows over the lightweight bridge"));
     }
-    DmaRing::open(&buffer, BOARD_SLOTS)
+    DmaRing::open(&buffer, RING_SLOTS)
         .map_err(|e| format!("frame mode not tried: {e}; rendering rows over the lightweight bridge"))
 }
 
@@ -109,9 +111,11 @@ where
     match outcome.failure().copied() {
         None => {
             let self_test = SelfTest { result: "pass", detail: format!("{detail} (frame mode into {ring:?})") };
-            let engine = rt_services::FrameRing::<_, _, BOARD_SLOTS>::new(ring, accel);
-            let board = Board::new(engine, "FPGA frame DMA into the u-dma-buf ring");
-            Ok((board, Facts { mode: "frames".into(), ..fpga_facts(report, self_test) }))
+            let identity = Identity { name: host_name(), fpga: true, self_test_passed: true, code: Code::Ok };
+            let panel = PanelRing::new(FrameRing::new(ring, accel), true, identity);
+            let vga = panel.vga().to_string();
+            let board = Board::new(panel, "FPGA frame DMA into the u-dma-buf ring");
+            Ok((board, Facts { mode: "frames".into(), vga, ..fpga_facts(report, self_test) }))
         }
         Some(failure) if selftest::frame_path_only(&mut accel, &mut SoftwareRenderer, &failure) => {
             let why = format!(
@@ -134,8 +138,22 @@ where
         return Err(self_test);
     }
     self_test.detail = format!("{}; {why}", self_test.detail);
-    let board = board::rows_into_ring(accel, "FPGA rows into the ring");
-    Ok((board, Facts { mode: "rows".into(), ..fpga_facts(report, self_test) }))
+    // The displays show E4 (rows only), as the firmware's do.
+    let identity = Identity { name: host_name(), fpga: true, self_test_passed: true, code: Code::RowsOnly };
+    let ring = FrameRing::new(hps_sim::SharedMemory::new(RING_SLOTS), RowEngine::new(accel));
+    let panel = PanelRing::new(ring, false, identity);
+    let vga = panel.vga().to_string();
+    let board = Board::new(panel, "FPGA rows into the ring");
+    Ok((board, Facts { mode: "rows".into(), vga, ..fpga_facts(report, self_test) }))
+}
+
+/// The host's name (`/proc/sys/kernel/hostname`), for the displays.
+fn host_name() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|n| n.trim().to_string())
+        .ok()
+        .filter(|n| !n.is_empty())
+        .unwrap_or_else(|| "raytracer".into())
 }
 
 /// What a board on the FPGA says of itself.
@@ -147,6 +165,19 @@ fn fpga_facts(report: &Report, self_test: SelfTest) -> Facts {
         bridges: format!("{}; {}", report.fpga, report.bridge),
         ..facts(self_test)
     }
+}
+
+/// How often the board's own work runs ([`Board::tick`]): the display's
+/// refresh is 16.8 ms, and each frame shown waits for one.
+pub const TICK_EVERY: Duration = Duration::from_millis(4);
+
+/// Run `board`'s own work (the monitor, the keys, the LEDs and displays)
+/// every [`TICK_EVERY`] on a thread of its own, for the program's life.
+pub fn drive(board: Arc<Board>) {
+    std::thread::spawn(move || loop {
+        board.tick();
+        std::thread::sleep(TICK_EVERY);
+    });
 }
 
 /// A board on hal-avalon's simulated accelerator (frame mode into host

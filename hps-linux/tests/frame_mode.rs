@@ -15,6 +15,7 @@ use std::net::{SocketAddr, TcpStream};
 use std::path::Path;
 use std::time::Duration;
 
+use hal_avalon::map::{Csr, LW_BRIDGE_BASE, LW_BRIDGE_SIZE, VGA_CONTROL_ENABLE};
 use hal_avalon::sim::{DmaTarget, SimAccelerator};
 use hps_linux::frame_memory::RING_BYTES;
 use hps_linux::preflight::{self, Finding, Report, System};
@@ -22,6 +23,7 @@ use hps_linux::serve;
 use hps_sim::HpsSim;
 use memmap2::MmapRaw;
 use model::{Light, FRAME_BYTES};
+use rt_services::monitor::{LED_ATTRACT, LED_FPGA, LED_LINK, LED_SELF_TEST};
 use soc::cyclone_v::{FPGAPORTRST, FPGAPORTRST_RELEASED};
 use support::{map_view, through_dev_mem, Answered, BUSY_POLLS};
 use tempfile::TempDir;
@@ -101,6 +103,21 @@ fn accelerator(s: &Stand, answers: bool) -> Answered<Sdram> {
     Answered { port: window.into_port().unwrap(), bridge, sim }
 }
 
+/// A view of the bridge's stand-in file behind `a`: the registers as the
+/// last access left them (a write's value, or the model's answer to a
+/// read), after `a` is given away.
+fn registers(a: &Answered<Sdram>) -> impl Fn(Csr) -> u32 {
+    let view = map_view(&a.bridge.dir.path().join("mem"), LW_BRIDGE_BASE as u64, LW_BRIDGE_SIZE);
+    move |csr: Csr| {
+        let at = csr.offset();
+        assert!(at + 4 <= view.len());
+        // SAFETY: in bounds, 4-byte aligned in a page-aligned mapping that
+        // lives as long as the closure; the board's thread-free calls here
+        // are done when it is read.
+        unsafe { view.as_mut_ptr().add(at).cast::<u32>().read_volatile() }
+    }
+}
+
 fn seed_frame(addr: SocketAddr, raw: [i32; 3]) -> Vec<u8> {
     let mut s = TcpStream::connect(addr).expect("connect");
     s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
@@ -176,4 +193,53 @@ fn a_buffer_whose_device_cannot_be_opened_is_said() {
     std::fs::remove_file(s.sys.dev.join("udmabuf0")).unwrap();
     let why = serve::frame_memory(&s.sys).unwrap_err();
     assert!(why.contains("udmabuf0") && why.contains("rendering rows"), "{why}");
+}
+
+/// The board's own work as on bare metal: attract mode renders into the
+/// buffer and the scan-out is pointed at the frame there; the LEDs say
+/// link, FPGA, self-test passed, attract mode. (What the displays show
+/// first is the host's address scrolling in from blank: not checked here;
+/// the policy's own tests in rt-services cover it.)
+#[test]
+fn the_monitor_shows_attract_frames_from_the_buffer_and_lights_the_leds() {
+    let s = stand(FPGAPORTRST_RELEASED);
+    let ring = serve::frame_memory(&s.sys).unwrap();
+    let accel = accelerator(&s, true);
+    let reg = registers(&accel);
+    let (board, facts) = serve::fpga(accel, &report(), Ok(ring)).expect("the self-test passes");
+    assert_eq!(facts.vga, "starting");
+    for _ in 0..5_000 {
+        board.tick();
+        if reg(Csr::VgaControl) & VGA_CONTROL_ENABLE != 0 {
+            break;
+        }
+    }
+    assert_ne!(reg(Csr::VgaControl) & VGA_CONTROL_ENABLE, 0, "the scan-out is enabled once a frame is complete");
+    let base = reg(Csr::VgaBase);
+    assert!(
+        (PHYS..PHYS + RING_BYTES as u32).contains(&base) && ((base - PHYS) as usize).is_multiple_of(FRAME_BYTES),
+        "VGA_BASE {base:#x} is a slot of the buffer"
+    );
+    let bytes = std::fs::read(s.sys.dev.join("udmabuf0")).unwrap();
+    let shown = &bytes[(base - PHYS) as usize..][..FRAME_BYTES];
+    assert!(shown.iter().any(|&b| b != 0), "the frame shown was rendered into the buffer");
+    let want = LED_LINK | LED_FPGA | LED_SELF_TEST | LED_ATTRACT;
+    assert_eq!(reg(Csr::Leds) as u16 & want, want, "LEDs {:#x}", reg(Csr::Leds));
+}
+
+/// In row mode the ring is the process's memory, which the FPGA cannot
+/// read: no scan-out, no attract mode; the LEDs and displays still run.
+#[test]
+fn rows_keep_the_scan_out_off_and_the_leds_on() {
+    let s = stand(FPGAPORTRST_RELEASED);
+    let accel = accelerator(&s, true);
+    let reg = registers(&accel);
+    let (board, facts) = serve::fpga(accel, &report(), Err("no buffer here".into())).expect("rows");
+    assert!(facts.vga.starts_with("off: rows"), "{}", facts.vga);
+    for _ in 0..200 {
+        board.tick();
+    }
+    assert_eq!(reg(Csr::VgaControl) & VGA_CONTROL_ENABLE, 0);
+    assert_eq!(reg(Csr::Leds) as u16 & (LED_FPGA | LED_ATTRACT), LED_FPGA, "LEDs {:#x}", reg(Csr::Leds));
+    assert_eq!(board.frames_begun(), 0, "no attract frames");
 }

@@ -269,7 +269,7 @@ fn frame_mode_without_contiguous_memory_says_what_is_missing() {
     dma_buffer(&s, "udmabuf0", 0x3f00_0000, 1 << 20);
     dma_buffer(&s, "udmabuf1", 0x4000_0000, 16 << 20);
     let text = find(&s.sys.sysfs, &s.sys.dev, RING_BYTES).unwrap_err().to_string();
-    assert!(text.contains("udmabuf0 (1048576 bytes at 0x3f000000): smaller than the ring's 7257600 bytes"), "{text}");
+    assert!(text.contains("udmabuf0 (1048576 bytes at 0x3f000000): smaller than the ring's 8294400 bytes"), "{text}");
     assert!(text.contains("udmabuf1") && text.contains("past the SDRAM"), "{text}");
     // A fitting one is found, with its device node.
     dma_buffer(&s, "udmabuf2", 0x3e00_0000, 8 << 20);
@@ -280,7 +280,7 @@ fn frame_mode_without_contiguous_memory_says_what_is_missing() {
     let out = check_command(&s).output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
-        stdout.contains("frame memory: ") && stdout.contains("udmabuf2, 14 slots at 0x3e000000): frame mode"),
+        stdout.contains("frame memory: ") && stdout.contains("udmabuf2, 16 slots at 0x3e000000): frame mode"),
         "{stdout}"
     );
 }

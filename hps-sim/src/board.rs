@@ -18,8 +18,8 @@ use rt_services::seed::SEED_FRAMES;
 use rt_services::web::WEB_FRAMES;
 use rt_services::FrameSource;
 
-/// Slots of a board's ring: the sum of its users' quotas (no VGA display
-/// under Linux to keep two more, unlike the firmware's `RING_SLOTS`).
+/// Slots of a board's ring: the sum of its users' quotas (a board with a
+/// VGA display keeps two more, as the firmware's `RING_SLOTS`).
 pub const BOARD_SLOTS: usize = SEED_FRAMES + CAMERA_SLOTS + WEB_FRAMES;
 
 /// Which service a [`Share`] serves: its quota.
@@ -78,6 +78,13 @@ pub trait Frames: Send {
     fn end_frame(&mut self, frame: usize);
     /// [`SlotSource::set_held`].
     fn hold_slots(&mut self, mask: u32);
+    /// The board's own work between requests, called every few
+    /// milliseconds by whoever runs the board ([`Board::tick`]); `clients`
+    /// counts the frames its services hold. Nothing by default (a board
+    /// with a display and keys runs them here).
+    fn tick(&mut self, clients: usize) {
+        let _ = clients;
+    }
 }
 
 impl<S: SlotSource + Send> Frames for S {
@@ -147,6 +154,14 @@ impl Board {
     /// Frames begun so far, by every service.
     pub fn frames_begun(&self) -> u64 {
         self.lock().begun
+    }
+
+    /// Let the frames do their own work ([`Frames::tick`]), under the
+    /// board's lock like every other call.
+    pub fn tick(&self) {
+        let mut inner = self.lock();
+        let clients = inner.held.iter().sum();
+        inner.frames.tick(clients);
     }
 
     /// Frames `service` holds now.

@@ -185,6 +185,8 @@ fn run(args: ServeArgs) -> ExitCode {
         }
     };
     eprintln!("hps-linux: {}", facts.self_test.detail);
+    eprintln!("hps-linux: VGA: {}", facts.vga);
+    serve::drive(board.clone());
     let renderer = board.renderer().to_string();
     let mut sim = match HpsSim::start_board(args.listen, board, facts, true) {
         Ok(sim) => sim,
