@@ -143,7 +143,7 @@ impl Board {
 
     /// A share of the frames for a user of `service`.
     pub fn share(self: &Arc<Board>, service: Service) -> Share {
-        Share { board: self.clone(), service }
+        Share { board: self.clone(), service, open: Vec::new() }
     }
 
     /// What renders.
@@ -177,11 +177,31 @@ impl Board {
 }
 
 /// One user's view of a [`Board`]: its service's quota, every call under
-/// the board's lock.
-#[derive(Clone, Debug)]
+/// the board's lock. The frames it began and has not ended are ended when
+/// it is dropped, so a connection thread that panics mid-frame gives its
+/// frames back instead of shrinking its service's quota for good. A clone
+/// starts with no frames of its own.
+#[derive(Debug)]
 pub struct Share {
     board: Arc<Board>,
     service: Service,
+    /// Frames begun through this share and not yet ended.
+    open: Vec<usize>,
+}
+
+impl Clone for Share {
+    fn clone(&self) -> Share {
+        Share { board: self.board.clone(), service: self.service, open: Vec::new() }
+    }
+}
+
+impl Drop for Share {
+    fn drop(&mut self) {
+        // `end` takes each out of `open`.
+        while let Some(&frame) = self.open.last() {
+            self.end(frame);
+        }
+    }
 }
 
 impl Share {
@@ -203,9 +223,10 @@ impl FrameSource for Share {
             return Ok(None);
         }
         let frame = inner.frames.begin_frame(light)?;
-        if frame.is_some() {
+        if let Some(f) = frame {
             inner.held[i] += 1;
             inner.begun += 1;
+            self.open.push(f);
         }
         Ok(frame)
     }
@@ -219,6 +240,13 @@ impl FrameSource for Share {
     }
 
     fn end(&mut self, frame: usize) {
+        match self.open.iter().position(|&f| f == frame) {
+            Some(k) => {
+                self.open.swap_remove(k);
+            }
+            // Not this share's (or ended already): nothing to give back.
+            None => return,
+        }
         let mut inner = self.board.lock();
         let i = self.service.index();
         inner.held[i] = inner.held[i].saturating_sub(1);
@@ -320,6 +348,33 @@ mod tests {
             assert_eq!(row, want[at..at + model::ROW_BYTES], "row {y}");
         }
         s.end(f);
+        assert_eq!(b.held(Service::Seed), 0);
+    }
+
+    #[test]
+    fn a_connection_that_panics_mid_frame_gives_its_frames_back() {
+        let b = board();
+        let mut share = b.share(Service::Seed);
+        let frame = share.begin(&light(1)).unwrap().expect("a frame");
+        let _ = share.rows_ready(frame).unwrap();
+        let died = std::thread::spawn(move || {
+            let _held = share;
+            panic!("a connection thread dies mid-frame");
+        })
+        .join();
+        assert!(died.is_err());
+        assert_eq!(b.held(Service::Seed), 0, "the quota is whole again");
+        let mut again = b.share(Service::Seed);
+        let frames: Vec<usize> = (0..SEED_FRAMES).map(|i| again.begin(&light(i as i32)).unwrap().unwrap()).collect();
+        assert_eq!(frames.len(), SEED_FRAMES);
+        // A clone holds none of the original's frames.
+        let copy = again.clone();
+        drop(copy);
+        assert_eq!(b.held(Service::Seed), SEED_FRAMES);
+        for f in frames {
+            again.end(f);
+            again.end(f); // a second end gives nothing back twice
+        }
         assert_eq!(b.held(Service::Seed), 0);
     }
 }
