@@ -12,12 +12,17 @@
 //! address the kernel did not set aside would write over whatever memory
 //! is there.
 //!
-//! A buffer found is mapped non-cached ([`DmaRing`]: u-dma-buf's README,
-//! "CPU cache for the allocated DMA buffer can be disabled by setting the
-//! O_SYNC flag when opening the device file"), so what the FPGA writes
-//! behind the caches is what the program reads, with no cache maintenance
-//! from user space. The ring's slots lie in it, and the frame DMA is given
-//! their physical addresses.
+//! A buffer found is mapped with the CPU cache off ([`DmaRing`]): opened
+//! with `O_SYNC`, which u-dma-buf maps uncached under its default
+//! `sync_mode` 1 (u-dma-buf README, "Disabling CPU cache": modes 1, 2, 3,
+//! 5, 6, 7 give an uncached, write-combined or coherent mapping with
+//! `O_SYNC`; 0 and 4 keep the cache on, which [`find`] refuses). So what
+//! the FPGA writes behind the caches is what the program reads, with no
+//! cache maintenance from user space. On 32-bit ARM the kernel's uncached
+//! mapping (`pgprot_noncached`) is Strongly-ordered, where an unaligned
+//! access is unpredictable: every access to the ring is an aligned word.
+//! The ring's slots lie in the buffer, and the frame DMA is given their
+//! physical addresses.
 
 use std::fmt;
 use std::fs::OpenOptions;
@@ -97,9 +102,17 @@ pub fn find(sysfs: &Path, dev: &Path, need: u64) -> Result<DmaBuffer, NoFrameMem
             let text = std::fs::read_to_string(&path).map_err(|e| format!("{name}: {}: {e}", path.display()))?;
             parse_number(text.trim()).ok_or(format!("{name}: {a} reads {:?}", text.trim()))
         };
+        // Absent in older modules, whose O_SYNC mapping is uncached.
+        let sync_mode = attr("sync_mode").ok();
         let checked =
             attr("phys_addr").and_then(|phys_addr| Ok((phys_addr, attr("size")?))).and_then(|(phys_addr, size)| {
                 fits(phys_addr, size, need).map_err(|why| format!("{name} ({size} bytes at {phys_addr:#x}): {why}"))?;
+                if let Some(mode @ (0 | 4)) = sync_mode {
+                    return Err(format!(
+                        "{name}: sync_mode {mode} keeps the CPU cache on even with O_SYNC, and the FPGA's writes \
+                         would be read stale (write 1 to /sys/class/u-dma-buf/{name}/sync_mode)"
+                    ));
+                }
                 Ok(DmaBuffer { device: dev.join(&name), phys_addr, size })
             });
         match checked {
@@ -181,10 +194,10 @@ impl DmaRing {
 /// Orders the loads after it after every load before it, as seen by the
 /// whole system (`dmb sy`, not only the inner-shareable `dmb ish` that
 /// `std::sync::atomic::fence` issues on ARMv7): the ring reads a row only
-/// after the accelerator's ROWS_DONE register (Strongly-ordered memory)
-/// said it landed, and the row itself is Normal non-cacheable memory,
-/// whose loads the A9 may otherwise issue before the register's (ARM
+/// after the accelerator's ROWS_DONE register said it landed (ARM
 /// Architecture Reference Manual ARMv7-A, A3.8.3 "Memory barriers", DMB).
+/// Needed where the mapping is Normal non-cacheable (`sync_mode` 2, write
+/// combining); harmless on a Strongly-ordered one.
 fn read_barrier() {
     #[cfg(target_arch = "arm")]
     // SAFETY: a barrier instruction: no memory, register or flag changes.
@@ -197,24 +210,43 @@ fn read_barrier() {
 
 impl FrameMemory for DmaRing {
     fn slot_address(&self, slot: usize) -> u32 {
+        // The frame DMA is given this address: never one past the buffer.
+        assert!(slot < self.slots, "slot {slot} of a ring of {}", self.slots);
         self.phys_addr + (slot * FRAME_BYTES) as u32
     }
 
     fn read_row(&mut self, slot: usize, y: u16, offset: usize, out: &mut [u8]) {
-        let Some(src) = self.at(slot, y, offset, out.len()) else { return };
+        let Some(row) = self.at(slot, y, 0, ROW_BYTES) else { return };
+        if offset + out.len() > ROW_BYTES {
+            return;
+        }
         read_barrier();
-        // SAFETY: `at` checked the range lies in the mapping, which lives
-        // as long as `self`; the ring reads only rows the DMA finished
-        // writing (its counter covered them), so no write races the copy.
-        unsafe { std::ptr::copy_nonoverlapping(src, out.as_mut_ptr(), out.len()) };
+        // Whole aligned words only (module docs): those covering the bytes
+        // asked for, then the bytes out of them.
+        let (first, last) = (offset / 4, (offset + out.len()).div_ceil(4));
+        let mut bytes = [0u8; ROW_BYTES];
+        for w in first..last {
+            // SAFETY: `at` checked the row lies in the mapping, which lives
+            // as long as `self`; rows start 4-byte aligned (the mapping is
+            // page aligned, frames and rows are multiples of 4 bytes), and
+            // `w` is below the row's word count. The ring reads only rows
+            // the DMA finished writing (its counter covered them).
+            let word = unsafe { row.cast::<u32>().add(w).read_volatile() };
+            bytes[w * 4..w * 4 + 4].copy_from_slice(&word.to_ne_bytes());
+        }
+        out.copy_from_slice(&bytes[offset..offset + out.len()]);
     }
 
     fn write_row(&mut self, slot: usize, y: u16, row: &[u8; ROW_BYTES]) {
         let Some(dst) = self.at(slot, y, 0, ROW_BYTES) else { return };
-        // SAFETY: `at` checked the range; the ring gives a slot to one
-        // engine at a time (this is only for an engine that writes rows
-        // itself, never while the DMA has the slot).
-        unsafe { std::ptr::copy_nonoverlapping(row.as_ptr(), dst, ROW_BYTES) };
+        for (w, chunk) in row.chunks_exact(4).enumerate() {
+            let word = u32::from_ne_bytes([chunk[0], chunk[1], chunk[2], chunk[3]]);
+            // SAFETY: as in `read_row`: an aligned word of the row, in the
+            // mapping; the ring gives a slot to one engine at a time (this
+            // is only for an engine that writes rows itself, never while
+            // the DMA has the slot).
+            unsafe { dst.cast::<u32>().add(w).write_volatile(word) };
+        }
     }
 }
 

@@ -8,7 +8,10 @@
 //! every [`Frames::tick`] (a thread of the program's calls
 //! [`Board::tick`](hps_sim::board::Board::tick) every few milliseconds)
 //! one step of the monitor. Only on an FPGA image whose register map has
-//! the block (version 3, hal-avalon [`has_board_io`]).
+//! the block (version 3, hal-avalon [`has_board_io`]). The code on the
+//! displays is worked out on every step as the firmware's is
+//! ([`Code::of`]), and `/status` reads it and the VGA state live
+//! ([`Frames::live`]).
 //!
 //! The scan-out reads frames by physical address through the
 //! FPGA-to-SDRAM port, so it runs in frame mode only (the ring in the
@@ -18,9 +21,12 @@
 //!
 //! What Linux owns, the monitor is told as it is: the link is up, the
 //! address is the first IPv4 address of an interface that is up and not
-//! loopback ([`host_address`]), the name is the host name. "Clients"
-//! (LEDR3) are the frames the services hold.
+//! loopback ([`host_address`], looked up by a thread of its own, never
+//! under the board's lock), the name is the host name. "Clients" (LEDR3)
+//! are the frames the services hold.
 
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::Arc;
 use std::time::Instant as StdInstant;
 
 use embedded_hal::delay::DelayNs;
@@ -28,11 +34,12 @@ use embedded_hal::delay::DelayNs;
 use hal_avalon::board::{has_board_io, BoardIo};
 use hal_avalon::map::Csr;
 use hal_avalon::{Accelerator, RegisterPort};
-use hps_sim::board::{Failed, Frames, BOARD_SLOTS};
+use hps_sim::board::{Failed, Frames, Live, BOARD_SLOTS};
 use model::display::Layout;
 use model::{Light, ROW_BYTES};
 use rt_services::camera::sender::SlotSource;
-use rt_services::frames::{Completed, FrameEngine, FrameMemory, FrameRing, RowEngine};
+use rt_services::frames::{Completed, FallbackEngine, FrameEngine, FrameMemory, FrameRing, RowEngine, Watchdog};
+use rt_services::monitor::code::Facts as CodeFacts;
 use rt_services::monitor::{Code, Inputs, Monitor, Panel, Refreshes, Screen, Status};
 use rt_services::{FrameSource, Instant};
 
@@ -47,40 +54,60 @@ pub const RING_SLOTS: usize = BOARD_SLOTS + DISPLAY_SLOTS;
 pub type Ring<M, E> = FrameRing<M, E, RING_SLOTS>;
 
 /// An engine whose accelerator's port the board I/O block is reached
-/// through: the frame DMA's, or the row engine's.
+/// through (the frame DMA's, or the row engine's), and whether the
+/// accelerator still renders.
 pub trait BoardPort {
     /// The port.
     type Port: RegisterPort;
-    /// The accelerator's port.
-    fn board_port(&mut self) -> &mut Self::Port;
-}
-
-impl<P: RegisterPort, D: DelayNs> BoardPort for Accelerator<P, D> {
-    type Port = P;
-    fn board_port(&mut self) -> &mut P {
-        self.port_mut()
+    /// The accelerator's port, if the engine has one.
+    fn board_port(&mut self) -> Option<&mut Self::Port>;
+    /// Whether the accelerator still renders (not switched off after
+    /// failed frames).
+    fn fpga_in_use(&self) -> bool {
+        true
+    }
+    /// `true` once, right after the accelerator was switched off.
+    fn take_switched_off(&mut self) -> bool {
+        false
     }
 }
 
 impl<P: RegisterPort, D: DelayNs> BoardPort for RowEngine<Accelerator<P, D>> {
     type Port = P;
-    fn board_port(&mut self) -> &mut P {
-        self.rows().port_mut()
+    fn board_port(&mut self) -> Option<&mut P> {
+        Some(self.rows().port_mut())
     }
 }
 
-/// What the displays and LEDs say of the program: fixed at start, but the
-/// address (read again now and then).
+/// Frame mode's engine: the frame DMA watched for stalls, the software
+/// renderer once it was switched off (as the firmware's).
+impl<P, D, C, F> BoardPort for FallbackEngine<Watchdog<Accelerator<P, D>, C>, F>
+where
+    P: RegisterPort,
+    D: DelayNs,
+    C: FnMut() -> Instant,
+{
+    type Port = P;
+    fn board_port(&mut self) -> Option<&mut P> {
+        self.primary_kept().map(|w| w.engine().port_mut())
+    }
+    fn fpga_in_use(&self) -> bool {
+        self.primary_active()
+    }
+    fn take_switched_off(&mut self) -> bool {
+        FallbackEngine::take_switched_off(self)
+    }
+}
+
+/// What the displays and LEDs say of the program that does not change
+/// while it runs.
 #[derive(Clone, Debug)]
 pub struct Identity {
     /// The host name.
     pub name: String,
-    /// The FPGA renders (LEDR1).
-    pub fpga: bool,
-    /// The boot self-test passed (LEDR2).
-    pub self_test_passed: bool,
-    /// What is wrong, shown after the address.
-    pub code: Code,
+    /// The frame path passed the self-test, or was not tried (no frame
+    /// memory is not a fault; a frame path that failed is, E4).
+    pub frames_passed: bool,
 }
 
 /// The ring, the accelerator's board I/O and the monitor policy.
@@ -90,8 +117,10 @@ pub struct PanelRing<M: FrameMemory, E: FrameEngine<M>> {
     monitor: Option<Monitor>,
     scan_out: bool,
     identity: Identity,
-    address: [u8; 4],
-    address_read: Option<StdInstant>,
+    /// The host's address (a thread of its own looks it up).
+    address: Arc<AtomicU32>,
+    /// The code shown at the last step.
+    code: Code,
     /// Frames the services began (the monitor's "client requests").
     requests: u32,
     origin: StdInstant,
@@ -107,20 +136,25 @@ where
 {
     /// `ring` with its accelerator's board I/O, if the image has the
     /// block; `scan_out` where the ring is memory the FPGA reads (frame
-    /// mode).
+    /// mode). Elsewhere the scan-out is switched off (an earlier run in
+    /// frame mode may have left it reading that run's memory).
     pub fn new(mut ring: Ring<M, E>, scan_out: bool, identity: Identity) -> PanelRing<M, E> {
-        let id = ring.engine().board_port().read(Csr::Id);
+        let id = ring.engine().board_port().map_or(0, |p| p.read(Csr::Id));
         let monitor = has_board_io(id).then(Monitor::new);
-        PanelRing {
-            ring,
-            monitor,
-            scan_out,
-            identity,
-            address: [0; 4],
-            address_read: None,
-            requests: 0,
-            origin: StdInstant::now(),
+        if monitor.is_some() && !scan_out {
+            if let Some(port) = ring.engine().board_port() {
+                BoardIo::checked(port).disable();
+            }
         }
+        let address = Arc::new(AtomicU32::new(u32::from_be_bytes(host_address().unwrap_or([0; 4]))));
+        if monitor.is_some() {
+            let shared = Arc::clone(&address);
+            std::thread::spawn(move || loop {
+                std::thread::sleep(ADDRESS_EVERY);
+                shared.store(u32::from_be_bytes(host_address().unwrap_or([0; 4])), Ordering::Relaxed);
+            });
+        }
+        PanelRing { ring, monitor, scan_out, identity, address, code: Code::Ok, requests: 0, origin: StdInstant::now() }
     }
 
     /// Whether the image has the board I/O block (the monitor runs).
@@ -167,29 +201,47 @@ where
         SlotSource::set_held(&mut self.ring, mask)
     }
 
-    fn tick(&mut self, clients: usize) {
-        let Some(monitor) = self.monitor.as_mut() else { return };
-        let now = StdInstant::now();
-        if self.address_read.is_none_or(|t| now.duration_since(t) >= ADDRESS_EVERY) {
-            self.address_read = Some(now);
-            self.address = host_address().unwrap_or([0; 4]);
-        }
+    fn tick(&mut self, clients: usize) -> Option<String> {
+        let switched_off = self.ring.engine().take_switched_off();
+        let fpga_in_use = self.ring.engine().fpga_in_use();
+        let address = self.address.load(Ordering::Relaxed).to_be_bytes();
+        let monitor = self.monitor.as_mut()?;
+        self.code = Code::of(&CodeFacts {
+            fpga_answers: true,
+            rows_passed: true,
+            frames_passed: self.identity.frames_passed,
+            fpga_in_use,
+            link_up: true,
+            has_address: address != [0; 4],
+            vga_fault: monitor.scanout().port_fault(),
+        });
         let status = Status {
             link_up: true,
-            fpga: self.identity.fpga,
-            self_test_passed: self.identity.self_test_passed,
+            fpga: fpga_in_use,
+            self_test_passed: true,
             clients,
-            address: self.address,
+            address,
             name: &self.identity.name,
-            code: self.identity.code,
+            code: self.code,
         };
+        let now = StdInstant::now();
         let t = Instant::from_millis(now.duration_since(self.origin).as_millis() as u64);
         let mut device = Device { ring: &mut self.ring };
-        if !self.scan_out {
+        let report = if !self.scan_out {
             monitor.poll_panel(t, &mut device, &status);
-        } else if let Some(report) = monitor.poll(t, &mut device, self.requests, &status) {
-            eprintln!("hps-linux: {report}");
+            None
+        } else {
+            monitor.poll(t, &mut device, self.requests, &status).map(|r| r.to_string())
+        };
+        if switched_off {
+            return Some(format!("{}: frames from the software renderer from now on", Code::SwitchedOff.meaning()));
         }
+        report
+    }
+
+    fn live(&self) -> Option<Live> {
+        self.monitor.as_ref()?;
+        Some(Live { vga: self.vga(), code: self.code.as_str() })
     }
 }
 
@@ -234,8 +286,8 @@ struct Device<'a, M: FrameMemory, E: FrameEngine<M>> {
 }
 
 impl<M: FrameMemory, E: FrameEngine<M> + BoardPort> Device<'_, M, E> {
-    fn io(&mut self) -> BoardIo<&mut E::Port> {
-        BoardIo::checked(self.ring.engine().board_port())
+    fn io(&mut self) -> Option<BoardIo<&mut E::Port>> {
+        self.ring.engine().board_port().map(BoardIo::checked)
     }
 }
 
@@ -284,26 +336,34 @@ impl<M: FrameMemory, E: FrameEngine<M>> Screen for Device<'_, M, E> {
 
 impl<M: FrameMemory, E: FrameEngine<M> + BoardPort> Panel for Device<'_, M, E> {
     fn refreshes(&mut self) -> Refreshes {
-        Panel::refreshes(&mut self.io())
+        self.io().map(|mut io| Panel::refreshes(&mut io)).unwrap_or_default()
     }
 
     fn show(&mut self, base: u32) {
-        self.io().show(base)
+        if let Some(mut io) = self.io() {
+            io.show(base);
+        }
     }
 
     fn scan_out(&mut self, layout: Layout) {
-        self.io().enable(layout)
+        if let Some(mut io) = self.io() {
+            io.enable(layout);
+        }
     }
 
     fn inputs(&mut self) -> Inputs {
-        Panel::inputs(&mut self.io())
+        self.io().map(|mut io| Panel::inputs(&mut io)).unwrap_or_default()
     }
 
     fn set_leds(&mut self, leds: u16) {
-        self.io().set_leds(leds)
+        if let Some(mut io) = self.io() {
+            io.set_leds(leds);
+        }
     }
 
     fn set_text(&mut self, text: [u8; 6]) {
-        self.io().set_text(text)
+        if let Some(mut io) = self.io() {
+            io.set_text(text);
+        }
     }
 }

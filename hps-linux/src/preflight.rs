@@ -212,7 +212,9 @@ pub fn sdram_ports(sys: &System) -> Finding {
     let page = FPGAPORTRST & !0xfff;
     match Window::dev_mem(&sys.dev_mem, page as u64, 4096) {
         Ok(w) => {
-            let raw = w.read_word(FPGAPORTRST - page).unwrap_or(0);
+            let Some(raw) = w.read_word(FPGAPORTRST - page) else {
+                return Finding::Unknown("fpgaportrst lies outside the page mapped".into());
+            };
             if raw & FPGAPORTRST_RELEASED == FPGAPORTRST_RELEASED {
                 Finding::Good(format!("fpgaportrst {raw:#x}: the frame DMA's ports run"))
             } else {

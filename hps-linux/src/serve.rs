@@ -21,7 +21,7 @@ use hal_avalon::{Accelerator, PollTimeout, RegisterPort};
 use hps_sim::board::{self, Board};
 use hps_sim::web::Facts;
 use hps_sim::SelfTest;
-use rt_services::monitor::Code;
+use rt_services::frames::{FallbackEngine, Watchdog};
 use rt_services::{FrameRing, RowEngine, SoftwareRenderer};
 
 use crate::frame_memory::{self, DmaRing};
@@ -102,17 +102,17 @@ where
         Ok(ring) if caps.frames() => ring,
         Ok(_) => {
             let why = format!("register map version {} has no frame DMA: rendering rows", caps.version);
-            return rows(accel, report, &why);
+            return rows(accel, report, &why, true);
         }
-        Err(why) => return rows(accel, report, &why),
+        Err(why) => return rows(accel, report, &why, true),
     };
     let outcome = selftest::run(&mut accel, &mut ring, &mut SoftwareRenderer, &mut PollDelay, &PLAN);
     let detail = outcome.to_string();
     match outcome.failure().copied() {
         None => {
             let self_test = SelfTest { result: "pass", detail: format!("{detail} (frame mode into {ring:?})") };
-            let identity = Identity { name: host_name(), fpga: true, self_test_passed: true, code: Code::Ok };
-            let panel = PanelRing::new(FrameRing::new(ring, accel), true, identity);
+            let identity = Identity { name: host_name(), frames_passed: true };
+            let panel = PanelRing::new(FrameRing::new(ring, frame_engine(accel)), true, identity);
             let vga = panel.vga().to_string();
             let board = Board::new(panel, "FPGA frame DMA into the u-dma-buf ring");
             Ok((board, Facts { mode: "frames".into(), vga, ..fpga_facts(report, self_test) }))
@@ -122,14 +122,21 @@ where
                 "{detail}; row mode renders that row right: the frame path is at fault (check that the boot loader \
                  released the FPGA-to-SDRAM ports, fpgaportrst): rendering rows over the lightweight bridge"
             );
-            rows(accel, report, &why)
+            rows(accel, report, &why, false)
         }
         Some(_) => Err(SelfTest { result: "fail", detail }),
     }
 }
 
-/// Row mode on `accel` after the row self-test; `why` says why not frames.
-fn rows<P>(mut accel: Accelerator<P, PollDelay>, report: &Report, why: &str) -> Result<(Arc<Board>, Facts), SelfTest>
+/// Row mode on `accel` after the row self-test; `why` says why not frames,
+/// `by_choice` whether that is no fault (no frame memory, no frame DMA in
+/// the image) rather than a frame path that failed (code E4).
+fn rows<P>(
+    mut accel: Accelerator<P, PollDelay>,
+    report: &Report,
+    why: &str,
+    by_choice: bool,
+) -> Result<(Arc<Board>, Facts), SelfTest>
 where
     P: RegisterPort + Send + 'static,
 {
@@ -138,13 +145,36 @@ where
         return Err(self_test);
     }
     self_test.detail = format!("{}; {why}", self_test.detail);
-    // The displays show E4 (rows only), as the firmware's do.
-    let identity = Identity { name: host_name(), fpga: true, self_test_passed: true, code: Code::RowsOnly };
+    // A frame path that failed shows E4 (rows only), as the firmware's.
+    let identity = Identity { name: host_name(), frames_passed: by_choice };
     let ring = FrameRing::new(hps_sim::SharedMemory::new(RING_SLOTS), RowEngine::new(accel));
     let panel = PanelRing::new(ring, false, identity);
     let vga = panel.vga().to_string();
     let board = Board::new(panel, "FPGA rows into the ring");
     Ok((board, Facts { mode: "rows".into(), vga, ..fpga_facts(report, self_test) }))
+}
+
+/// A frame that lands no row for this long fails instead of holding its
+/// slot and every frame begun after it (the firmware's `STALL_LIMIT`).
+pub const STALL_LIMIT: Duration = Duration::from_millis(500);
+
+/// The program's clock for the watchdog.
+fn now() -> rt_services::Instant {
+    static START: std::sync::OnceLock<Instant> = std::sync::OnceLock::new();
+    let start = *START.get_or_init(Instant::now);
+    rt_services::Instant::from_millis(u64::try_from(start.elapsed().as_millis()).unwrap_or(u64::MAX))
+}
+
+type Clock = fn() -> rt_services::Instant;
+
+/// Frame mode's engine, as the firmware's: the frame DMA watched for
+/// stalls ([`STALL_LIMIT`]); after `WEDGED_AFTER` failed frames in a row it
+/// is switched off (kept for the board I/O) and the software renderer
+/// fills the ring.
+pub type FrameEngine<P> = FallbackEngine<Watchdog<Accelerator<P, PollDelay>, Clock>, RowEngine<SoftwareRenderer>>;
+
+fn frame_engine<P: RegisterPort>(accel: Accelerator<P, PollDelay>) -> FrameEngine<P> {
+    FallbackEngine::new(Some(Watchdog::new(accel, now as Clock, STALL_LIMIT)), RowEngine::new(SoftwareRenderer))
 }
 
 /// The host's name (`/proc/sys/kernel/hostname`), for the displays.
@@ -175,7 +205,9 @@ pub const TICK_EVERY: Duration = Duration::from_millis(4);
 /// every [`TICK_EVERY`] on a thread of its own, for the program's life.
 pub fn drive(board: Arc<Board>) {
     std::thread::spawn(move || loop {
-        board.tick();
+        if let Some(line) = board.tick() {
+            eprintln!("hps-linux: {line}");
+        }
         std::thread::sleep(TICK_EVERY);
     });
 }

@@ -13,6 +13,8 @@ mod support;
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Duration;
 
 use hal_avalon::map::{Csr, LW_BRIDGE_BASE, LW_BRIDGE_SIZE, VGA_CONTROL_ENABLE};
@@ -61,10 +63,11 @@ fn poke(file: &Path, at: u64, value: u32) {
 
 /// The SDRAM behind the FPGA-to-SDRAM port: the buffer's file, seen
 /// through a mapping of the device model's own at physical [`PHYS`].
-/// `answers: false` is a port held in reset (no write ever completes).
+/// `answers` false is a port held in reset (no write ever completes); the
+/// test may change it while the board runs.
 struct Sdram {
     view: MmapRaw,
-    answers: bool,
+    answers: Arc<AtomicBool>,
 }
 
 impl DmaTarget for Sdram {
@@ -81,7 +84,7 @@ impl DmaTarget for Sdram {
     }
 
     fn answers(&self) -> bool {
-        self.answers
+        self.answers.load(Ordering::Relaxed)
     }
 }
 
@@ -97,24 +100,43 @@ fn report() -> Report {
 
 /// The accelerator behind the mapped registers, its DMA into `s`'s buffer.
 fn accelerator(s: &Stand, answers: bool) -> Answered<Sdram> {
+    accelerator_with(s, Arc::new(AtomicBool::new(answers)))
+}
+
+fn accelerator_with(s: &Stand, answers: Arc<AtomicBool>) -> Answered<Sdram> {
     let (bridge, window) = through_dev_mem();
     let view = map_view(&s.sys.dev.join("udmabuf0"), 0, RING_BYTES as usize);
     let sim = SimAccelerator::with_memory(Sdram { view, answers }, BUSY_POLLS);
     Answered { port: window.into_port().unwrap(), bridge, sim }
 }
 
-/// A view of the bridge's stand-in file behind `a`: the registers as the
-/// last access left them (a write's value, or the model's answer to a
-/// read), after `a` is given away.
-fn registers(a: &Answered<Sdram>) -> impl Fn(Csr) -> u32 {
-    let view = map_view(&a.bridge.dir.path().join("mem"), LW_BRIDGE_BASE as u64, LW_BRIDGE_SIZE);
-    move |csr: Csr| {
+/// A view of the bridge's stand-in file behind an accelerator: the
+/// registers as the last access left them (a write's value, or the
+/// model's answer to a read), after the accelerator is given away.
+struct Registers(MmapRaw);
+
+impl Registers {
+    fn of(a: &Answered<Sdram>) -> Registers {
+        Registers(map_view(&a.bridge.dir.path().join("mem"), LW_BRIDGE_BASE as u64, LW_BRIDGE_SIZE))
+    }
+
+    fn word(&self, csr: Csr) -> *mut u32 {
         let at = csr.offset();
-        assert!(at + 4 <= view.len());
-        // SAFETY: in bounds, 4-byte aligned in a page-aligned mapping that
-        // lives as long as the closure; the board's thread-free calls here
-        // are done when it is read.
-        unsafe { view.as_mut_ptr().add(at).cast::<u32>().read_volatile() }
+        assert!(at + 4 <= self.0.len());
+        self.0.as_mut_ptr().wrapping_add(at).cast::<u32>()
+    }
+
+    fn get(&self, csr: Csr) -> u32 {
+        // SAFETY: in bounds (asserted), 4-byte aligned in a page-aligned
+        // mapping that lives as long as `self`; the board is called from
+        // this thread only, so no access is under way.
+        unsafe { self.word(csr).read_volatile() }
+    }
+
+    /// Put a marker where a write would land, to see whether one does.
+    fn set(&self, csr: Csr, value: u32) {
+        // SAFETY: as in `get`.
+        unsafe { self.word(csr).write_volatile(value) }
     }
 }
 
@@ -197,49 +219,108 @@ fn a_buffer_whose_device_cannot_be_opened_is_said() {
 
 /// The board's own work as on bare metal: attract mode renders into the
 /// buffer and the scan-out is pointed at the frame there; the LEDs say
-/// link, FPGA, self-test passed, attract mode. (What the displays show
-/// first is the host's address scrolling in from blank: not checked here;
-/// the policy's own tests in rt-services cover it.)
+/// link, FPGA, self-test passed, attract mode; `/status` follows live.
+/// (What the displays show first is the host's address scrolling in from
+/// blank: not checked here; the policy's own tests in rt-services cover
+/// it.)
 #[test]
 fn the_monitor_shows_attract_frames_from_the_buffer_and_lights_the_leds() {
     let s = stand(FPGAPORTRST_RELEASED);
     let ring = serve::frame_memory(&s.sys).unwrap();
     let accel = accelerator(&s, true);
-    let reg = registers(&accel);
+    let reg = Registers::of(&accel);
     let (board, facts) = serve::fpga(accel, &report(), Ok(ring)).expect("the self-test passes");
     assert_eq!(facts.vga, "starting");
+    assert_eq!(board.live().map(|l| l.vga), Some("starting"));
+    // What the self-test left in the buffer goes: a frame found there
+    // later was rendered since.
+    std::fs::write(s.sys.dev.join("udmabuf0"), vec![0u8; RING_BYTES as usize]).unwrap();
     for _ in 0..5_000 {
         board.tick();
-        if reg(Csr::VgaControl) & VGA_CONTROL_ENABLE != 0 {
+        if reg.get(Csr::VgaControl) & VGA_CONTROL_ENABLE != 0 {
             break;
         }
     }
-    assert_ne!(reg(Csr::VgaControl) & VGA_CONTROL_ENABLE, 0, "the scan-out is enabled once a frame is complete");
-    let base = reg(Csr::VgaBase);
+    assert_ne!(reg.get(Csr::VgaControl) & VGA_CONTROL_ENABLE, 0, "the scan-out is enabled once a frame is complete");
+    let base = reg.get(Csr::VgaBase);
     assert!(
         (PHYS..PHYS + RING_BYTES as u32).contains(&base) && ((base - PHYS) as usize).is_multiple_of(FRAME_BYTES),
         "VGA_BASE {base:#x} is a slot of the buffer"
     );
     let bytes = std::fs::read(s.sys.dev.join("udmabuf0")).unwrap();
     let shown = &bytes[(base - PHYS) as usize..][..FRAME_BYTES];
-    assert!(shown.iter().any(|&b| b != 0), "the frame shown was rendered into the buffer");
+    assert!(shown.iter().filter(|&&b| b != 0).count() > FRAME_BYTES / 2, "the frame shown was rendered there");
     let want = LED_LINK | LED_FPGA | LED_SELF_TEST | LED_ATTRACT;
-    assert_eq!(reg(Csr::Leds) as u16 & want, want, "LEDs {:#x}", reg(Csr::Leds));
+    assert_eq!(reg.get(Csr::Leds) as u16 & want, want, "LEDs {:#x}", reg.get(Csr::Leds));
+    let live = board.live().expect("a board with a display says how it is");
+    assert_eq!(live.vga, "on");
+    assert!(["ok", "E6"].contains(&live.code), "all well, or no address on this machine: {}", live.code);
 }
 
 /// In row mode the ring is the process's memory, which the FPGA cannot
 /// read: no scan-out, no attract mode; the LEDs and displays still run.
+/// Rows for want of frame memory are no fault (no E4 on the displays).
 #[test]
 fn rows_keep_the_scan_out_off_and_the_leds_on() {
     let s = stand(FPGAPORTRST_RELEASED);
     let accel = accelerator(&s, true);
-    let reg = registers(&accel);
+    let reg = Registers::of(&accel);
     let (board, facts) = serve::fpga(accel, &report(), Err("no buffer here".into())).expect("rows");
     assert!(facts.vga.starts_with("off: rows"), "{}", facts.vga);
+    // No row may start from here on: a write to CONTROL would replace this.
+    reg.set(Csr::Control, 0xdead_beef);
+    reg.set(Csr::VgaControl, 0);
     for _ in 0..200 {
         board.tick();
     }
-    assert_eq!(reg(Csr::VgaControl) & VGA_CONTROL_ENABLE, 0);
-    assert_eq!(reg(Csr::Leds) as u16 & (LED_FPGA | LED_ATTRACT), LED_FPGA, "LEDs {:#x}", reg(Csr::Leds));
-    assert_eq!(board.frames_begun(), 0, "no attract frames");
+    assert_eq!(reg.get(Csr::Control), 0xdead_beef, "no attract frame is rendered");
+    assert_eq!(reg.get(Csr::VgaControl) & VGA_CONTROL_ENABLE, 0);
+    assert_eq!(reg.get(Csr::Leds) as u16 & (LED_FPGA | LED_ATTRACT), LED_FPGA, "LEDs {:#x}", reg.get(Csr::Leds));
+    let code = board.live().map(|l| l.code);
+    assert!(matches!(code, Some("ok" | "E6")), "{code:?}");
+}
+
+/// A frame path that failed its self-test is E4 on the displays and in
+/// `/status`, as the firmware shows it.
+#[test]
+fn a_failed_frame_path_shows_e4() {
+    let s = stand(FPGAPORTRST_RELEASED);
+    let ring = serve::frame_memory(&s.sys).unwrap();
+    let (board, _) = serve::fpga(accelerator(&s, false), &report(), Ok(ring)).expect("rows");
+    board.tick();
+    assert_eq!(board.live().map(|l| l.code), Some("E4"));
+}
+
+/// A frame DMA that stops landing rows while the program runs fails each
+/// frame (here by the DMA's own stall error; a frame that stalls with no
+/// error is cut by the watchdog, `serve::STALL_LIMIT`) instead of holding
+/// every frame begun after it; after three in a row the accelerator is
+/// switched off (E3, said once in the log) and the software renderer
+/// serves the model's frames.
+#[test]
+fn a_frame_dma_that_stalls_later_is_cut_then_switched_off() {
+    let s = stand(FPGAPORTRST_RELEASED);
+    let ring = serve::frame_memory(&s.sys).unwrap();
+    let answers = Arc::new(AtomicBool::new(true));
+    let accel = accelerator_with(&s, answers.clone());
+    let (board, facts) = serve::fpga(accel, &report(), Ok(ring)).expect("the self-test passes");
+    let sim = HpsSim::start_board("127.0.0.1:0".parse().unwrap(), board.clone(), facts, false).unwrap();
+    let raw = [1500, 2500, 700];
+    assert!(seed_frame(sim.frame_addr(), raw) == model_frame(raw), "frames while the DMA lands them");
+    answers.store(false, Ordering::Relaxed);
+    let mut cut = 0;
+    let mut said = Vec::new();
+    for _ in 0..6 {
+        let frame = seed_frame(sim.frame_addr(), raw);
+        said.extend(board.tick());
+        if frame.len() < FRAME_BYTES {
+            cut += 1;
+            continue;
+        }
+        assert!(frame == model_frame(raw), "a whole frame is the model's");
+        break;
+    }
+    assert_eq!(cut, 3, "three stalled frames cut, then the software renderer's");
+    assert!(said.iter().any(|l| l.contains("switched off")), "{said:?}");
+    assert_eq!(board.live().map(|l| l.code), Some("E3"));
 }

@@ -271,8 +271,14 @@ fn frame_mode_without_contiguous_memory_says_what_is_missing() {
     let text = find(&s.sys.sysfs, &s.sys.dev, RING_BYTES).unwrap_err().to_string();
     assert!(text.contains("udmabuf0 (1048576 bytes at 0x3f000000): smaller than the ring's 8294400 bytes"), "{text}");
     assert!(text.contains("udmabuf1") && text.contains("past the SDRAM"), "{text}");
+    // One whose sync_mode keeps the cache on with O_SYNC: stale rows.
+    dma_buffer(&s, "udmabuf10", 0x3d00_0000, 8 << 20);
+    std::fs::write(s.sys.sysfs.join("class/u-dma-buf/udmabuf10/sync_mode"), "0\n").unwrap();
+    let text = find(&s.sys.sysfs, &s.sys.dev, RING_BYTES).unwrap_err().to_string();
+    assert!(text.contains("udmabuf10: sync_mode 0 keeps the CPU cache on"), "{text}");
     // A fitting one is found, with its device node.
     dma_buffer(&s, "udmabuf2", 0x3e00_0000, 8 << 20);
+    std::fs::write(s.sys.sysfs.join("class/u-dma-buf/udmabuf2/sync_mode"), "1\n").unwrap();
     std::fs::File::create(s.sys.dev.join("udmabuf2")).and_then(|f| f.set_len(8 << 20)).unwrap();
     let found = find(&s.sys.sysfs, &s.sys.dev, RING_BYTES).unwrap();
     assert_eq!((found.phys_addr, found.size), (0x3e00_0000, 8 << 20));

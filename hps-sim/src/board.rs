@@ -80,11 +80,27 @@ pub trait Frames: Send {
     fn hold_slots(&mut self, mask: u32);
     /// The board's own work between requests, called every few
     /// milliseconds by whoever runs the board ([`Board::tick`]); `clients`
-    /// counts the frames its services hold. Nothing by default (a board
-    /// with a display and keys runs them here).
-    fn tick(&mut self, clients: usize) {
+    /// counts the frames its services hold. A line for the log, if one is
+    /// due. Nothing by default (a board with a display and keys runs them
+    /// here).
+    fn tick(&mut self, clients: usize) -> Option<String> {
         let _ = clients;
+        None
     }
+    /// What the board says of itself now, where that changes while it
+    /// runs ([`Live`]); `None`: what it said at start holds.
+    fn live(&self) -> Option<Live> {
+        None
+    }
+}
+
+/// What a board with a display says of itself now, for `/status`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Live {
+    /// The VGA output in words.
+    pub vga: &'static str,
+    /// The code its displays show (`ok`, `E1`..`E7`).
+    pub code: &'static str,
 }
 
 impl<S: SlotSource + Send> Frames for S {
@@ -157,11 +173,17 @@ impl Board {
     }
 
     /// Let the frames do their own work ([`Frames::tick`]), under the
-    /// board's lock like every other call.
-    pub fn tick(&self) {
+    /// board's lock like every other call; the line to log, if any (to be
+    /// written after the lock is let go).
+    pub fn tick(&self) -> Option<String> {
         let mut inner = self.lock();
         let clients = inner.held.iter().sum();
-        inner.frames.tick(clients);
+        inner.frames.tick(clients)
+    }
+
+    /// What the board says of itself now ([`Frames::live`]).
+    pub fn live(&self) -> Option<Live> {
+        self.lock().frames.live()
     }
 
     /// Frames `service` holds now.

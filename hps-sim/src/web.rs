@@ -77,6 +77,9 @@ pub struct Shared {
     started: Instant,
     /// What `/status` says of the board.
     facts: Facts,
+    /// The board, when the frames are one's: what it says of itself now
+    /// ([`Board::live`]) overrides `facts`' VGA and code.
+    board: Option<Arc<Board>>,
     frames: Mutex<WebFrames>,
     /// Viewers now (the lock also orders handshakes against the cap).
     viewers: Mutex<usize>,
@@ -98,13 +101,15 @@ impl Shared {
     /// As [`new`](Self::new), the viewers' frames from `board` (within the
     /// page's quota there), `/status` saying `facts`.
     pub fn with_board(rtsp_port: u16, board: Arc<Board>, facts: Facts) -> Shared {
-        Shared::with_source(rtsp_port, WebSource::Board(board.share(Service::Web)), facts)
+        let share = board.share(Service::Web);
+        Shared { board: Some(board), ..Shared::with_source(rtsp_port, WebSource::Board(share), facts) }
     }
 
     fn with_source(rtsp_port: u16, source: WebSource, facts: Facts) -> Shared {
         Shared {
             started: Instant::now(),
             facts,
+            board: None,
             frames: Mutex::new(WebFrames { source, turns: Turns::new(), taken: [false; WEB_SOCKETS] }),
             viewers: Mutex::new(0),
             seed_clients: AtomicUsize::new(0),
@@ -353,6 +358,7 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
             connection.receive_eof();
         }
         let facts = &shared.facts;
+        let live = shared.board.as_ref().and_then(|b| b.live());
         let status_now = BoardStatus {
             uptime_s: shared.started.elapsed().as_secs(),
             renderer: &facts.renderer,
@@ -379,8 +385,8 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
                 register_map: facts.register_map,
                 fpga_build: facts.fpga_build,
                 bridges: &facts.bridges,
-                vga: &facts.vga,
-                code: if facts.self_test.result == "fail" { "E2" } else { "ok" },
+                vga: live.map_or(facts.vga.as_str(), |l| l.vga),
+                code: live.map_or(if facts.self_test.result == "fail" { "E2" } else { "ok" }, |l| l.code),
             },
         };
         let before = connection.frames_sent();

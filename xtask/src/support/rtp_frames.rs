@@ -34,7 +34,8 @@ const GIVE_UP_AFTER: Duration = Duration::from_secs(3);
 const MAX_PARTIAL: usize = 8;
 
 /// Timestamps of frames finished (whole or given up) remembered, so that
-/// their packets arriving late are known for what they are.
+/// their packets arriving late are known for what they are (with the
+/// newest finished one: anything older is late too, at any frame rate).
 const FINISHED_KEPT: usize = 32;
 
 /// The time to wait before asking again for rows still missing after a
@@ -90,6 +91,9 @@ pub struct FrameAssembly {
     partial: BTreeMap<u32, Partial>,
     /// Frames whole or given up, newest last.
     finished: VecDeque<u32>,
+    /// The newest timestamp of a finished frame: a packet older than it,
+    /// of no frame under way, is late whatever the frame rate.
+    newest_finished: Option<u32>,
     /// Rows received again after a NACK.
     pub repaired_rows: usize,
     /// Incomplete frames given up (repairs not in within
@@ -131,7 +135,8 @@ impl FrameAssembly {
         if line >= ROWS || marker != (line == ROWS - 1) {
             return Err(format!("line {line} with marker {marker}"));
         }
-        if self.finished.contains(&ts) {
+        let older_than_finished = self.newest_finished.is_some_and(|n| n.wrapping_sub(ts).wrapping_sub(1) < 1 << 31);
+        if !self.partial.contains_key(&ts) && (older_than_finished || self.finished.contains(&ts)) {
             // Without this, the packet would open the frame anew, and every
             // other row of it would be asked for until it was given up: a
             // storm of NACKs for packets the server no longer has.
@@ -188,6 +193,9 @@ impl FrameAssembly {
             self.finished.pop_front();
         }
         self.finished.push_back(ts);
+        if self.newest_finished.is_none_or(|n| ts.wrapping_sub(n).wrapping_sub(1) < 1 << 31) {
+            self.newest_finished = Some(ts);
+        }
     }
 
     /// Give up frames that waited [`GIVE_UP_AFTER`] for their repairs, and
@@ -332,5 +340,18 @@ mod tests {
         let mut a = FrameAssembly::default();
         assert!(a.take(&row(0, 0, 0)[..100], SSRC, Instant::now()).is_err());
         assert!(a.take(&row(0, 0, 0), SSRC + 1, Instant::now()).is_err());
+    }
+
+    #[test]
+    fn a_row_of_a_frame_long_finished_is_late_at_any_frame_rate() {
+        let (mut a, t0) = (FrameAssembly::default(), Instant::now());
+        assert!(send(&mut a, 1000, 90, &[], t0).is_some());
+        // More frames finished than are remembered by timestamp.
+        for k in 1..=(FINISHED_KEPT as u32 + 4) {
+            assert!(send(&mut a, 1000 + 360 * k, 90 + 90 * k, &[], t0).is_some());
+        }
+        assert!(a.take(&row(1000, 90, 5), SSRC, t0).unwrap().is_none());
+        assert_eq!(a.missing(t0 + Duration::from_secs(1)), Vec::<u32>::new());
+        assert_eq!(a.stale, 1);
     }
 }
