@@ -9,16 +9,14 @@
 
 use core::fmt::Write;
 
-use hal_avalon::board::{has_board_io, BoardIo};
+use hal_avalon::board::has_board_io;
 use hal_avalon::map::Csr;
+use hal_avalon::ring_panel::RingPanel;
 use hal_avalon::RegisterPort;
-use model::display::Layout;
-use model::{Light, ROW_BYTES};
-use rt_services::frames::Completed;
-use rt_services::monitor::{Inputs, Monitor, Panel, Refreshes, Screen, Status};
-use rt_services::{FrameSource, Instant};
+use rt_services::monitor::{Monitor, Status};
+use rt_services::Instant;
 
-use crate::render::{Frames, Ring};
+use crate::render::{Frames, Ring, RingEngine};
 
 /// The display policy, on a board whose accelerator has the VGA block.
 pub struct Display {
@@ -92,112 +90,29 @@ impl Display {
     ) {
         let Frames::Ring(ring) = frames else { return };
         if !self.scan_out {
-            self.monitor.poll_panel(now, &mut Device { ring }, status);
+            self.monitor.poll_panel(now, &mut RingPanel::new(ring, engine_port::<P>), status);
             return;
         }
-        if let Some(report) = self.monitor.poll(now, &mut Device { ring }, requests, status) {
+        if let Some(report) = self.monitor.poll(now, &mut RingPanel::new(ring, engine_port::<P>), requests, status) {
             let _ = writeln!(log, "{report}");
         }
     }
 }
 
-/// The accelerator's port behind the ring, switched off or not (or the
-/// one rendering the ring's rows in row mode), without the bus-access
-/// counting (the bench's figures are the frames').
-fn port<P: RegisterPort>(ring: &mut Ring<P>) -> Option<&mut P> {
-    if ring.engine().primary_kept().is_none() {
+/// The accelerator's port behind the ring's engine, switched off or not
+/// (or the one rendering the ring's rows in row mode), without the
+/// bus-access counting (the bench's figures are the frames').
+fn engine_port<P: RegisterPort>(engine: &mut RingEngine<P>) -> Option<&mut P> {
+    if engine.primary_kept().is_none() {
         // Kept after rows are switched off too (E3 on the displays).
-        let rows = ring.engine().fallback().rows().primary_kept()?;
+        let rows = engine.fallback().rows().primary_kept()?;
         return Some(rows.inner().accelerator().port_mut().inner_mut());
     }
-    let engine = ring.engine().primary_kept()?;
+    let engine = engine.primary_kept()?;
     Some(engine.inner().engine().port_mut().inner_mut())
 }
 
-/// The ring and its accelerator's board I/O as one device.
-struct Device<'a, P: RegisterPort> {
-    ring: &'a mut Ring<P>,
-}
-
-impl<P: RegisterPort> Device<'_, P> {
-    fn io(&mut self) -> Option<BoardIo<&mut P>> {
-        port(self.ring).map(BoardIo::checked)
-    }
-}
-
-impl<P: RegisterPort> FrameSource for Device<'_, P> {
-    type Frame = usize;
-    type Error = <Ring<P> as FrameSource>::Error;
-
-    fn begin(&mut self, light: &Light) -> Result<Option<usize>, Self::Error> {
-        self.ring.begin(light)
-    }
-
-    fn rows_ready(&mut self, frame: usize) -> Result<u16, Self::Error> {
-        self.ring.rows_ready(frame)
-    }
-
-    fn copy_row(&mut self, frame: usize, y: u16, offset: usize, out: &mut [u8]) -> usize {
-        self.ring.copy_row(frame, y, offset, out)
-    }
-
-    fn end(&mut self, frame: usize) {
-        self.ring.end(frame)
-    }
-}
-
-impl<P: RegisterPort> Screen for Device<'_, P> {
-    fn newest_complete(&self) -> Option<Completed> {
-        self.ring.newest_complete()
-    }
-
-    fn pin(&mut self, slot: usize) {
-        self.ring.pin(slot)
-    }
-
-    fn unpin(&mut self, slot: usize) {
-        self.ring.unpin(slot)
-    }
-
-    fn slot_address(&self, slot: usize) -> u32 {
-        self.ring.slot_address(slot)
-    }
-
-    fn edit_row(&mut self, slot: usize, y: u16, edit: &mut dyn FnMut(&mut [u8; ROW_BYTES])) {
-        self.ring.edit_row(slot, y, edit)
-    }
-}
-
-impl<P: RegisterPort> Panel for Device<'_, P> {
-    fn refreshes(&mut self) -> Refreshes {
-        self.io().map(|mut io| Panel::refreshes(&mut io)).unwrap_or_default()
-    }
-
-    fn show(&mut self, base: u32) {
-        if let Some(mut io) = self.io() {
-            io.show(base);
-        }
-    }
-
-    fn scan_out(&mut self, layout: Layout) {
-        if let Some(mut io) = self.io() {
-            io.enable(layout);
-        }
-    }
-
-    fn inputs(&mut self) -> Inputs {
-        self.io().map(|mut io| Panel::inputs(&mut io)).unwrap_or_default()
-    }
-
-    fn set_leds(&mut self, leds: u16) {
-        if let Some(mut io) = self.io() {
-            io.set_leds(leds);
-        }
-    }
-
-    fn set_text(&mut self, text: [u8; 6]) {
-        if let Some(mut io) = self.io() {
-            io.set_text(text);
-        }
-    }
+/// The accelerator's port behind the ring ([`engine_port`]).
+fn port<P: RegisterPort>(ring: &mut Ring<P>) -> Option<&mut P> {
+    engine_port(ring.engine())
 }

@@ -152,7 +152,7 @@ type Software = bench::TimedRows<SoftwareRenderer>;
 /// The frame DMA first; where it fails, rows rendered into the ring by the
 /// FPGA in row mode (when only the frame path failed the self-test) or by
 /// the software renderer.
-type RingEngine<P> = FallbackEngine<bench::TimedEngine<Watchdog<Accel<P>, Clock>>, RowEngine<RowSources<P>>>;
+pub type RingEngine<P> = FallbackEngine<bench::TimedEngine<Watchdog<Accel<P>, Clock>>, RowEngine<RowSources<P>>>;
 type RowSources<P> = Fallback<bench::TimedRows<PipelinedRows<Counted<P>, TimerDelay<'static>>>, Software>;
 
 /// Frame mode's ring.

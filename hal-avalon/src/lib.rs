@@ -20,6 +20,8 @@
 //!   row source (row mode) and frame engine (frame mode).
 //! * `selftest` (feature `services`): the boot-time self-test, rows and a
 //!   frame compared with the model.
+//! * `ring_panel` (feature `services`): a frame ring and the board I/O
+//!   block behind its engine as the monitor policy's device.
 //!
 //! ```
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -52,6 +54,8 @@ pub mod driver;
 pub mod map;
 pub mod mmio;
 pub mod port;
+#[cfg(feature = "services")]
+pub mod ring_panel;
 #[cfg(feature = "services")]
 pub mod selftest;
 #[cfg(feature = "sim")]

@@ -33,14 +33,14 @@ use embedded_hal::delay::DelayNs;
 
 use hal_avalon::board::{has_board_io, BoardIo};
 use hal_avalon::map::Csr;
+use hal_avalon::ring_panel::RingPanel;
 use hal_avalon::{Accelerator, RegisterPort};
 use hps_sim::board::{Failed, Frames, Live, BOARD_SLOTS};
-use model::display::Layout;
-use model::{Light, ROW_BYTES};
+use model::Light;
 use rt_services::camera::sender::SlotSource;
-use rt_services::frames::{Completed, FallbackEngine, FrameEngine, FrameMemory, FrameRing, RowEngine, Watchdog};
+use rt_services::frames::{FallbackEngine, FrameEngine, FrameMemory, FrameRing, RowEngine, Watchdog};
 use rt_services::monitor::code::Facts as CodeFacts;
-use rt_services::monitor::{Code, Inputs, Monitor, Panel, Refreshes, Screen, Status};
+use rt_services::monitor::{Code, Monitor, Status};
 use rt_services::{FrameSource, Instant};
 
 /// The frame on screen and the one waiting for vertical blanking: kept
@@ -226,7 +226,7 @@ where
         };
         let now = StdInstant::now();
         let t = Instant::from_millis(now.duration_since(self.origin).as_millis() as u64);
-        let mut device = Device { ring: &mut self.ring };
+        let mut device = RingPanel::new(&mut self.ring, E::board_port);
         let report = if !self.scan_out {
             monitor.poll_panel(t, &mut device, &status);
             None
@@ -277,93 +277,4 @@ pub fn host_address() -> Option<[u8; 4]> {
     // after this.
     unsafe { libc::freeifaddrs(list) };
     found
-}
-
-/// The ring and its accelerator's board I/O as the device the monitor
-/// policy works on (the firmware's `display::Device`).
-struct Device<'a, M: FrameMemory, E: FrameEngine<M>> {
-    ring: &'a mut Ring<M, E>,
-}
-
-impl<M: FrameMemory, E: FrameEngine<M> + BoardPort> Device<'_, M, E> {
-    fn io(&mut self) -> Option<BoardIo<&mut E::Port>> {
-        self.ring.engine().board_port().map(BoardIo::checked)
-    }
-}
-
-impl<M: FrameMemory, E: FrameEngine<M>> FrameSource for Device<'_, M, E> {
-    type Frame = usize;
-    type Error = <Ring<M, E> as FrameSource>::Error;
-
-    fn begin(&mut self, light: &Light) -> Result<Option<usize>, Self::Error> {
-        self.ring.begin(light)
-    }
-
-    fn rows_ready(&mut self, frame: usize) -> Result<u16, Self::Error> {
-        self.ring.rows_ready(frame)
-    }
-
-    fn copy_row(&mut self, frame: usize, y: u16, offset: usize, out: &mut [u8]) -> usize {
-        self.ring.copy_row(frame, y, offset, out)
-    }
-
-    fn end(&mut self, frame: usize) {
-        self.ring.end(frame)
-    }
-}
-
-impl<M: FrameMemory, E: FrameEngine<M>> Screen for Device<'_, M, E> {
-    fn newest_complete(&self) -> Option<Completed> {
-        self.ring.newest_complete()
-    }
-
-    fn pin(&mut self, slot: usize) {
-        self.ring.pin(slot)
-    }
-
-    fn unpin(&mut self, slot: usize) {
-        self.ring.unpin(slot)
-    }
-
-    fn slot_address(&self, slot: usize) -> u32 {
-        self.ring.slot_address(slot)
-    }
-
-    fn edit_row(&mut self, slot: usize, y: u16, edit: &mut dyn FnMut(&mut [u8; ROW_BYTES])) {
-        self.ring.edit_row(slot, y, edit)
-    }
-}
-
-impl<M: FrameMemory, E: FrameEngine<M> + BoardPort> Panel for Device<'_, M, E> {
-    fn refreshes(&mut self) -> Refreshes {
-        self.io().map(|mut io| Panel::refreshes(&mut io)).unwrap_or_default()
-    }
-
-    fn show(&mut self, base: u32) {
-        if let Some(mut io) = self.io() {
-            io.show(base);
-        }
-    }
-
-    fn scan_out(&mut self, layout: Layout) {
-        if let Some(mut io) = self.io() {
-            io.enable(layout);
-        }
-    }
-
-    fn inputs(&mut self) -> Inputs {
-        self.io().map(|mut io| Panel::inputs(&mut io)).unwrap_or_default()
-    }
-
-    fn set_leds(&mut self, leds: u16) {
-        if let Some(mut io) = self.io() {
-            io.set_leds(leds);
-        }
-    }
-
-    fn set_text(&mut self, text: [u8; 6]) {
-        if let Some(mut io) = self.io() {
-            io.set_text(text);
-        }
-    }
 }

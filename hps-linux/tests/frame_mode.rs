@@ -10,12 +10,9 @@
 
 mod support;
 
-use std::io::{Read, Write};
-use std::net::{SocketAddr, TcpStream};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::time::Duration;
 
 use hal_avalon::map::{Csr, LW_BRIDGE_BASE, LW_BRIDGE_SIZE, VGA_CONTROL_ENABLE};
 use hal_avalon::sim::{DmaTarget, SimAccelerator};
@@ -24,10 +21,10 @@ use hps_linux::preflight::{self, Finding, Report, System};
 use hps_linux::serve;
 use hps_sim::HpsSim;
 use memmap2::MmapRaw;
-use model::{Light, FRAME_BYTES};
+use model::FRAME_BYTES;
 use rt_services::monitor::{LED_ATTRACT, LED_FPGA, LED_LINK, LED_SELF_TEST};
 use soc::cyclone_v::{FPGAPORTRST, FPGAPORTRST_RELEASED};
-use support::{map_view, through_dev_mem, Answered, BUSY_POLLS};
+use support::{map_view, model_frame, seed_frame, through_dev_mem, Answered, BUSY_POLLS};
 use tempfile::TempDir;
 
 /// Where the stand-in buffer lies in the board's physical address space.
@@ -138,23 +135,6 @@ impl Registers {
         // SAFETY: as in `get`.
         unsafe { self.word(csr).write_volatile(value) }
     }
-}
-
-fn seed_frame(addr: SocketAddr, raw: [i32; 3]) -> Vec<u8> {
-    let mut s = TcpStream::connect(addr).expect("connect");
-    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
-    let req: Vec<u8> = raw.iter().flat_map(|v| v.to_be_bytes()).collect();
-    s.write_all(&req).unwrap();
-    let mut frame = Vec::new();
-    s.read_to_end(&mut frame).expect("the frame");
-    frame
-}
-
-fn model_frame(raw: [i32; 3]) -> Vec<u8> {
-    let mut want = vec![0u8; FRAME_BYTES];
-    let light = Light::from_raw(raw[0], raw[1], raw[2]).unwrap();
-    model::render_frame_rgb888(&light, (&mut want[..]).try_into().unwrap());
-    want
 }
 
 #[test]

@@ -13,29 +13,7 @@ use std::time::Duration;
 use hps_linux::preflight::{Finding, Report};
 use hps_linux::serve;
 use hps_sim::HpsSim;
-use model::{Light, FRAME_BYTES};
-use support::{simulated, through_dev_mem, Answered};
-
-/// A frame over the seed protocol.
-fn seed_frame(addr: SocketAddr, raw: [i32; 3]) -> Vec<u8> {
-    let mut s = TcpStream::connect(addr).expect("connect");
-    s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
-    let mut req = Vec::new();
-    for v in raw {
-        req.extend_from_slice(&v.to_be_bytes());
-    }
-    s.write_all(&req).unwrap();
-    let mut frame = Vec::new();
-    s.read_to_end(&mut frame).expect("the frame");
-    frame
-}
-
-fn model_frame(raw: [i32; 3]) -> Vec<u8> {
-    let mut want = vec![0u8; FRAME_BYTES];
-    let light = Light::from_raw(raw[0], raw[1], raw[2]).unwrap();
-    model::render_frame_rgb888(&light, (&mut want[..]).try_into().unwrap());
-    want
-}
+use support::{model_frame, seed_frame, simulated, through_dev_mem, Answered};
 
 /// `GET path` on `addr`: the answer's body.
 fn http_get(addr: SocketAddr, path: &str) -> String {

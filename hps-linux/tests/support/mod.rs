@@ -140,3 +140,24 @@ impl<M: DmaTarget> RegisterPort for Answered<M> {
         self.port.read_line(out)
     }
 }
+
+/// A frame over the seed protocol (what the server sent before it
+/// closed: short when the frame failed).
+pub fn seed_frame(addr: std::net::SocketAddr, raw: [i32; 3]) -> Vec<u8> {
+    use std::io::{Read, Write};
+    let mut s = std::net::TcpStream::connect(addr).expect("connect");
+    s.set_read_timeout(Some(std::time::Duration::from_secs(60))).unwrap();
+    let req: Vec<u8> = raw.iter().flat_map(|v| v.to_be_bytes()).collect();
+    s.write_all(&req).unwrap();
+    let mut frame = Vec::new();
+    s.read_to_end(&mut frame).expect("the frame");
+    frame
+}
+
+/// The model's frame for the raw light `raw`.
+pub fn model_frame(raw: [i32; 3]) -> Vec<u8> {
+    let mut want = vec![0u8; model::FRAME_BYTES];
+    let light = model::Light::from_raw(raw[0], raw[1], raw[2]).unwrap();
+    model::render_frame_rgb888(&light, (&mut want[..]).try_into().unwrap());
+    want
+}
