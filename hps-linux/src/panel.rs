@@ -239,6 +239,18 @@ where
         report
     }
 
+    fn shut_down(&mut self) {
+        if self.monitor.is_none() {
+            return;
+        }
+        if let Some(port) = self.ring.engine().board_port() {
+            let mut io = BoardIo::checked(port);
+            io.disable();
+            io.set_leds(0);
+            io.set_text(*b"      ");
+        }
+    }
+
     fn live(&self) -> Option<Live> {
         self.monitor.as_ref()?;
         Some(Live { vga: self.vga(), code: self.code.as_str() })

@@ -235,6 +235,10 @@ fn the_monitor_shows_attract_frames_from_the_buffer_and_lights_the_leds() {
     let live = board.live().expect("a board with a display says how it is");
     assert_eq!(live.vga, "on");
     assert!(["ok", "E6"].contains(&live.code), "all well, or no address on this machine: {}", live.code);
+    // Stopping leaves the hardware quiet: no scan-out, no lights.
+    board.shut_down();
+    assert_eq!(reg.get(Csr::VgaControl) & VGA_CONTROL_ENABLE, 0);
+    assert_eq!(reg.get(Csr::Leds), 0);
 }
 
 /// In row mode the ring is the process's memory, which the FPGA cannot

@@ -132,3 +132,25 @@ fn without_an_accelerator_it_stops_unless_told_to_fall_back_to_software() {
     let status = http_get(web, "/status");
     assert!(status.contains("\"renderer\":\"software\""), "{status}");
 }
+
+/// `systemctl stop` sends SIGTERM: the program leaves the hardware quiet
+/// and exits with success, promptly.
+#[test]
+fn sigterm_stops_the_program_cleanly() {
+    let (mut program, seed, _) =
+        start(&["--accelerator", "sim", "--listen", "127.0.0.1:0", "--rtsp", "127.0.0.1:0", "--http", "127.0.0.1:0"]);
+    let raw = LIGHTS[0];
+    assert!(seed_frame(seed, raw) == model_frame(raw));
+    let pid = libc::pid_t::try_from(program.0.id()).unwrap();
+    // SAFETY: a signal to the child this test started and still owns.
+    assert_eq!(unsafe { libc::kill(pid, libc::SIGTERM) }, 0);
+    let deadline = std::time::Instant::now() + Duration::from_secs(20);
+    let status = loop {
+        if let Some(status) = program.0.try_wait().unwrap() {
+            break status;
+        }
+        assert!(std::time::Instant::now() < deadline, "still running 20 s after SIGTERM");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(status.success(), "{status:?}");
+}

@@ -92,6 +92,9 @@ pub trait Frames: Send {
     fn live(&self) -> Option<Live> {
         None
     }
+    /// The program is stopping: leave the hardware quiet (a display off,
+    /// lights out). Nothing by default.
+    fn shut_down(&mut self) {}
 }
 
 /// What a board with a display says of itself now, for `/status`.
@@ -179,6 +182,12 @@ impl Board {
         let mut inner = self.lock();
         let clients = inner.held.iter().sum();
         inner.frames.tick(clients)
+    }
+
+    /// Leave the hardware quiet before the program stops
+    /// ([`Frames::shut_down`]).
+    pub fn shut_down(&self) {
+        self.lock().frames.shut_down()
     }
 
     /// What the board says of itself now ([`Frames::live`]).

@@ -17,6 +17,7 @@
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Duration;
 
 use clap::{Args as ClapArgs, Parser, Subcommand};
 use hps_linux::preflight::{self, Access, System};
@@ -188,7 +189,7 @@ fn run(args: ServeArgs) -> ExitCode {
     eprintln!("hps-linux: VGA: {}", facts.vga);
     serve::drive(board.clone());
     let renderer = board.renderer().to_string();
-    let mut sim = match HpsSim::start_board(args.listen, board, facts, true) {
+    let mut sim = match HpsSim::start_board(args.listen, board.clone(), facts, true) {
         Ok(sim) => sim,
         Err(e) => {
             eprintln!("hps-linux: cannot listen on {} and the next port: {e}", args.listen);
@@ -213,7 +214,41 @@ fn run(args: ServeArgs) -> ExitCode {
         sim.persistent_addr(),
         started.rtsp
     );
-    loop {
-        std::thread::park();
+    stopping::watch();
+    while !stopping::asked() {
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    // systemctl stop, or ^C: the display off and the lights out, rather
+    // than the FPGA scanning out the last frame for ever.
+    board.shut_down();
+    eprintln!("hps-linux: stopped");
+    ExitCode::SUCCESS
+}
+
+/// SIGTERM and SIGINT ask the program to stop; the main thread notices.
+mod stopping {
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    static ASKED: AtomicBool = AtomicBool::new(false);
+
+    extern "C" fn on_signal(_: libc::c_int) {
+        // Only an atomic store: async-signal-safe.
+        ASKED.store(true, Ordering::Relaxed);
+    }
+
+    /// Install the handlers.
+    pub fn watch() {
+        for signal in [libc::SIGTERM, libc::SIGINT] {
+            // SAFETY: `on_signal` is an `extern "C" fn(c_int)` that only
+            // stores to an atomic, which is async-signal-safe; replacing
+            // the default action of these two signals affects nothing
+            // else in the program.
+            unsafe { libc::signal(signal, on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t) };
+        }
+    }
+
+    /// Whether a stop was asked for.
+    pub fn asked() -> bool {
+        ASKED.load(Ordering::Relaxed)
     }
 }
