@@ -24,7 +24,7 @@ use memmap2::MmapRaw;
 use model::FRAME_BYTES;
 use rt_services::monitor::{LED_ATTRACT, LED_FPGA, LED_LINK, LED_SELF_TEST};
 use soc::cyclone_v::{FPGAPORTRST, FPGAPORTRST_RELEASED};
-use support::{map_view, model_frame, seed_frame, through_dev_mem, Answered, BUSY_POLLS};
+use support::{http_get, map_view, model_frame, seed_frame, through_dev_mem, Answered, BUSY_POLLS};
 use tempfile::TempDir;
 
 /// Where the stand-in buffer lies in the board's physical address space.
@@ -234,6 +234,11 @@ fn the_monitor_shows_attract_frames_from_the_buffer_and_lights_the_leds() {
     assert_eq!(reg.get(Csr::Leds) as u16 & want, want, "LEDs {:#x}", reg.get(Csr::Leds));
     let live = board.live().expect("a board with a display says how it is");
     assert_eq!(live.vga, "on");
+    // `/status` says it as it is now, not as it was at start.
+    let mut sim = HpsSim::start_board("127.0.0.1:0".parse().unwrap(), board.clone(), facts, false).unwrap();
+    let http = sim.start_web("127.0.0.1:0".parse().unwrap(), false).unwrap();
+    let status = http_get(http, "/status");
+    assert!(status.contains("\"vga\":\"on\""), "{status}");
     assert!(["ok", "E6"].contains(&live.code), "all well, or no address on this machine: {}", live.code);
     // Stopping leaves the hardware quiet: no scan-out, no lights.
     board.shut_down();

@@ -5,25 +5,15 @@
 
 mod support;
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::{SocketAddr, TcpStream};
+use std::io::{BufRead, BufReader};
+use std::net::SocketAddr;
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 use hps_linux::preflight::{Finding, Report};
 use hps_linux::serve;
 use hps_sim::HpsSim;
-use support::{model_frame, seed_frame, simulated, through_dev_mem, Answered};
-
-/// `GET path` on `addr`: the answer's body.
-fn http_get(addr: SocketAddr, path: &str) -> String {
-    let mut s = TcpStream::connect(addr).expect("connect");
-    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
-    write!(s, "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n").unwrap();
-    let mut answer = String::new();
-    s.read_to_string(&mut answer).unwrap();
-    answer.split_once("\r\n\r\n").map(|(_, body)| body.to_string()).unwrap_or_default()
-}
+use support::{http_get, model_frame, seed_frame, simulated, through_dev_mem, Answered};
 
 const LIGHTS: [[i32; 3]; 4] = [[3072, 4096, -2048], [-5120, 6144, 1024], [1500, 2500, 700], [0, 8192, 0]];
 

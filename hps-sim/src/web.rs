@@ -328,6 +328,9 @@ impl<S: FrameSource> FrameSource for Counted<'_, S> {
     }
 }
 
+/// How often a connection reads the board's live state for `/status`.
+const LIVE_EVERY: std::time::Duration = std::time::Duration::from_millis(250);
+
 fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
     // The cap on sockets keeps connections to WEB_SOCKETS: a place is free.
     let Some(place) = TurnPlace::take(&shared.frames) else { return };
@@ -349,6 +352,7 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
     let mut input_ended = false;
     let mut viewer = false;
     let mut stream = stream;
+    let (mut live, mut live_at) = (None, None);
     loop {
         if !pending.is_empty() {
             let n = connection.receive(&pending);
@@ -358,7 +362,12 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
             connection.receive_eof();
         }
         let facts = &shared.facts;
-        let live = shared.board.as_ref().and_then(|b| b.live());
+        // The board's own state, looked at a few times a second (not for
+        // every row sent).
+        if live_at.is_none_or(|t: Instant| t.elapsed() >= LIVE_EVERY) {
+            live_at = Some(Instant::now());
+            live = shared.board.as_ref().and_then(|b| b.live());
+        }
         let status_now = BoardStatus {
             uptime_s: shared.started.elapsed().as_secs(),
             renderer: &facts.renderer,
