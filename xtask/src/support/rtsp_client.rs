@@ -370,8 +370,9 @@ impl RtspSession {
         self.frames.take(p, self.ssrc, Instant::now())
     }
 
-    /// NACK the missing rows of marked frames, again after
-    /// [`renack_interval`] while rows are still missing.
+    /// NACK the rows [`FrameAssembly::missing`] names (each frame's again
+    /// after its interval while rows are still missing), and send a
+    /// receiver report when one is due.
     fn ask_for_missing(&mut self) -> Result<()> {
         if self.transport == Transport::Tcp {
             return Ok(()); // TCP loses nothing
