@@ -335,6 +335,16 @@ fn interleaved_and_multicast_setups_are_answered_with_their_parameters() {
     assert!(a[0].text.contains("Transport: RTP/AVPF;unicast;client_port=9000-9001;"), "{}", a[0].text);
 }
 
+/// Inside the connection the answer is plain AVP, whatever the client
+/// asked: an AVPF answer turns GStreamer's retransmission timers on, which
+/// drop rows a slow TCP reader only got late.
+#[test]
+fn an_interleaved_setup_is_answered_with_the_avp_profile() {
+    let mut r = Rig::new();
+    let a = r.ask(&request("SETUP", URL, 1, "Transport: RTP/AVPF/TCP;unicast;interleaved=0-1\r\n"));
+    assert!(a.text.contains("Transport: RTP/AVP/TCP;unicast;interleaved=0-1;"), "{}", a.text);
+}
+
 #[test]
 fn interleaved_rtcp_goes_to_its_session_and_keeps_it_alive() {
     let mut r = Rig::new();
