@@ -157,11 +157,6 @@ where
         PanelRing { ring, monitor, scan_out, identity, address, code: Code::Ok, requests: 0, origin: StdInstant::now() }
     }
 
-    /// Whether the image has the board I/O block (the monitor runs).
-    pub fn has_panel(&self) -> bool {
-        self.monitor.is_some()
-    }
-
     /// The VGA output in words, for `/status`.
     pub fn vga(&self) -> &'static str {
         match (&self.monitor, self.scan_out) {

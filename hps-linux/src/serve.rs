@@ -171,9 +171,9 @@ type Clock = fn() -> rt_services::Instant;
 /// stalls ([`STALL_LIMIT`]); after `WEDGED_AFTER` failed frames in a row it
 /// is switched off (kept for the board I/O) and the software renderer
 /// fills the ring.
-pub type FrameEngine<P> = FallbackEngine<Watchdog<Accelerator<P, PollDelay>, Clock>, RowEngine<SoftwareRenderer>>;
+pub type FrameModeEngine<P> = FallbackEngine<Watchdog<Accelerator<P, PollDelay>, Clock>, RowEngine<SoftwareRenderer>>;
 
-fn frame_engine<P: RegisterPort>(accel: Accelerator<P, PollDelay>) -> FrameEngine<P> {
+fn frame_engine<P: RegisterPort>(accel: Accelerator<P, PollDelay>) -> FrameModeEngine<P> {
     FallbackEngine::new(Some(Watchdog::new(accel, now as Clock, STALL_LIMIT)), RowEngine::new(SoftwareRenderer))
 }
 
