@@ -37,7 +37,11 @@
 //! packets stay in the stream's repair window until the frame after next
 //! begins (and at most [`MIN_REPAIR_HOLD`] after their frame's end if the
 //! stream stops): a stream holds at most two slots, the frame being sent
-//! and the one before it ([`SLOTS_PER_STREAM`]).
+//! and the one before it ([`SLOTS_PER_STREAM`]). While every output playing
+//! a stream has asked for repairs lately ([`LOSS_MEMORY`]), a frame begins
+//! only once the oldest one in the window has been repairable for
+//! [`REPAIR_ROUNDS`] NACK rounds; a stream that any output receives
+//! cleanly never waits (a lossy viewer slows only itself).
 //!
 //! A NACK's packets go again unchanged, to the output that asked (for a
 //! multicast output, to the group), oldest first and before new rows,
@@ -159,13 +163,14 @@ pub const UNREACHABLE_LIMIT: u8 = 3;
 /// second, for a request that crosses a slow or lossy path.
 pub const MIN_REPAIR_HOLD: Duration = Duration::from_secs(1);
 
-/// How long a stream counts as losing packets after a NACK asked for one
-/// of its packets: meanwhile its frames stay repairable for
-/// [`REPAIR_ROUNDS`] NACK rounds (a clean stream is never slowed).
+/// How long an output counts as losing packets after a NACK asked for one
+/// of its packets: while every output playing a stream does, the stream's
+/// frames stay repairable for [`REPAIR_ROUNDS`] NACK rounds (a clean
+/// stream is never slowed, nor one that any output receives cleanly).
 pub const LOSS_MEMORY: Duration = Duration::from_secs(2);
 
-/// NACK rounds a frame stays repairable for after its end on a stream that
-/// is losing packets, at least: at 10% loss a frame of 360 rows has a
+/// NACK rounds a frame stays repairable for after its end on a stream
+/// every output of which is losing packets, at least: at 10% loss a frame of 360 rows has a
 /// resend lost nine times in ten, so the first round is often not enough,
 /// and a NACK itself is lost one time in ten (three rounds still left one
 /// frame in twenty given up in the suite's lossy test). Six held a stream
@@ -401,9 +406,6 @@ struct Media {
     /// oldest frame in the window, which the next frame's begin drops.
     ended_at: Option<Instant>,
     oldest_ended_at: Option<Instant>,
-    /// Until when the stream counts as losing packets ([`LOSS_MEMORY`]
-    /// after a NACK asked for one).
-    lossy_until: Option<Instant>,
     /// The next frame waits until then for the oldest frame's repairs
     /// ([`Media::repairable_until`]), as the last poll found.
     repair_wait: Option<Instant>,
@@ -422,10 +424,10 @@ impl Media {
     }
 
     /// When the next frame may begin as far as repair goes: on a stream
-    /// losing packets, once the oldest frame in the window (which that
-    /// begin drops) has been held for `hold` since its end.
-    fn repairable_until(&self, now: Instant, hold: Duration) -> Option<Instant> {
-        let lossy = self.lossy_until.is_some_and(|t| now < t);
+    /// every output of which loses packets (`lossy`), once the oldest
+    /// frame in the window (which that begin drops) has been held for
+    /// `hold` since its end.
+    fn repairable_until(&self, lossy: bool, hold: Duration) -> Option<Instant> {
         self.oldest_ended_at.filter(|_| lossy).map(|t| t + hold)
     }
 
@@ -491,6 +493,9 @@ struct Output {
     seq_shift: u32,
     /// When each recent packet was resent to it.
     resends: FrameResendLog,
+    /// Until when it counts as losing packets ([`LOSS_MEMORY`] after a
+    /// NACK asked for one).
+    lossy_until: Option<Instant>,
 }
 
 impl Output {
@@ -778,7 +783,6 @@ impl<const N: usize> Camera<N> {
                     previous_first: None,
                     ended_at: None,
                     oldest_ended_at: None,
-                    lossy_until: None,
                     repair_wait: None,
                     stats: StreamStats::default(),
                     window: FrameRepairWindow::new(MIN_REPAIR_HOLD),
@@ -833,6 +837,7 @@ impl<const N: usize> Camera<N> {
                     // Some 12 KiB built once per output (at SETUP, on a
                     // 256 KiB stack on the board: memory.x).
                     resends: FrameResendLog::new(),
+                    lossy_until: None,
                 });
                 o
             }
@@ -1046,10 +1051,7 @@ impl<const N: usize> Camera<N> {
         }
         send_repairs(o, &media.window, &media.packetiser, source, sink);
         if asked {
-            let m = o.media;
-            if let Some(media) = self.media[m].as_mut() {
-                media.lossy_until = Some(now + LOSS_MEMORY);
-            }
+            o.lossy_until = Some(now + LOSS_MEMORY);
         }
         Some(session)
     }
@@ -1227,7 +1229,14 @@ impl<const N: usize> Camera<N> {
             if interval.is_some_and(|_| now < media.due) {
                 return progress;
             }
-            media.repair_wait = media.repairable_until(now, hold).filter(|&t| now < t);
+            // It waits for repairs only while every output playing it loses
+            // packets: beside one that loses nothing, waiting would make a
+            // lossy viewer's repairs everyone's frame rate (a laggard slows
+            // only itself, as below). Alone, it waits for its own.
+            let mut playing =
+                self.outputs.iter().flatten().filter(|o| o.media == mi && o.cursor != Cursor::Paused).peekable();
+            let all_lossy = playing.peek().is_some() && playing.all(|o| o.lossy_until.is_some_and(|t| now < t));
+            media.repair_wait = media.repairable_until(all_lossy, hold).filter(|&t| now < t);
             if media.repair_wait.is_some() {
                 return progress;
             }

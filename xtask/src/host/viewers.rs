@@ -65,23 +65,44 @@ fn start_hps_sim(prefix: &[&str], listen: SocketAddr, rtsp: SocketAddr, extra: &
     Ok(Guard(child))
 }
 
+/// What one viewer got.
+struct Viewed {
+    /// Whole frames a second, first frame to last.
+    fps: f64,
+    /// Rows that came after a NACK, and frames given up: where a rate
+    /// under the stream's comes from (the viewer's losses, or the stream).
+    repaired_rows: usize,
+    given_up: usize,
+}
+
+/// The viewers' rates, and their repairs where any were needed.
+fn describe(viewed: &[Viewed]) -> String {
+    let rates: Vec<String> = viewed.iter().map(|v| format!("{:.1}", v.fps)).collect();
+    let mut text = format!("{} frames/s", rates.join(", "));
+    if viewed.iter().any(|v| v.repaired_rows + v.given_up > 0) {
+        let repairs: Vec<String> = viewed.iter().map(|v| format!("{}/{}", v.repaired_rows, v.given_up)).collect();
+        text += &format!(" (rows repaired/frames given up: {})", repairs.join(", "));
+    }
+    text
+}
+
 /// `n` viewers of `paths[i % paths.len()]`, the last one `last`'s
-/// transport, each for `frames` frames; per viewer its rate (first frame to
-/// last) after checking every frame against `lights[i % lights.len()]`.
+/// transport, each for `frames` frames; what each got, after checking
+/// every frame against `lights[i % lights.len()]`.
 fn viewers(
     rtsp: SocketAddr,
     paths: &[String],
     lights: &[[f64; 3]],
     last: Transport,
     frames: usize,
-) -> Result<Vec<f64>> {
+) -> Result<Vec<Viewed>> {
     let n = paths.len();
     let handles: Vec<_> = (0..n)
         .map(|i| {
             let path = paths[i].clone();
             let want = model_frame(lights[i]);
             let transport = if i == n - 1 { last } else { Transport::Udp };
-            thread::spawn(move || -> Result<f64> {
+            thread::spawn(move || -> Result<Viewed> {
                 let want = want?;
                 // Each from an address of its own (127.0.0.10 + i): one
                 // address holds at most SESSIONS_PER_ADDRESS sessions.
@@ -96,8 +117,9 @@ fn viewers(
                     first.get_or_insert_with(Instant::now);
                 }
                 let secs = first.map_or(0.0, |t: Instant| t.elapsed().as_secs_f64());
+                let (repaired_rows, given_up) = (s.frames.repaired_rows, s.frames.given_up);
                 s.teardown()?;
-                Ok((frames - 1) as f64 / secs.max(1e-6))
+                Ok(Viewed { fps: (frames - 1) as f64 / secs.max(1e-6), repaired_rows, given_up })
             })
         })
         .collect();
@@ -127,23 +149,18 @@ pub fn run() -> Result<()> {
     let _sim = start_hps_sim(&[], listen, rtsp, &[])?;
     let fixed = [3.0, 4.0, -2.0];
     let paths = vec!["/light/3,4,-2?fps=30".to_string(); 4];
-    let rates = viewers(rtsp, &paths, &[fixed; 4], Transport::Tcp, SHARED_FRAMES)?;
-    let report: Vec<String> = rates.iter().map(|r| format!("{r:.1}")).collect();
+    let viewed = viewers(rtsp, &paths, &[fixed; 4], Transport::Tcp, SHARED_FRAMES)?;
     println!(
-        "viewers: hps-sim, four viewers of one fps=30 stream (the last inside its RTSP connection): {} frames/s, {SHARED_FRAMES} frames each byte-exact",
-        report.join(", ")
+        "viewers: hps-sim, four viewers of one fps=30 stream (the last inside its RTSP connection): {}, {SHARED_FRAMES} frames each byte-exact",
+        describe(&viewed)
     );
-    if let Some(slow) = rates.iter().find(|&&r| r < 27.0) {
-        return Err(format!("a viewer of hps-sim's fps=30 stream got {slow:.1} frames/s, under 27"));
+    if let Some(slow) = viewed.iter().find(|v| v.fps < 27.0) {
+        return Err(format!("a viewer of hps-sim's fps=30 stream got {:.1} frames/s, under 27", slow.fps));
     }
     let lights = [[3.0, 4.0, -2.0], [-3.0, 5.0, 1.0], [0.0, 8.0, -7.0], [1.5, 2.5, 0.75]];
     let paths: Vec<String> = lights.iter().map(|l| format!("/light/{},{},{}?fps=30", l[0], l[1], l[2])).collect();
-    let rates = viewers(rtsp, &paths, &lights, Transport::Udp, 20)?;
-    let report: Vec<String> = rates.iter().map(|r| format!("{r:.1}")).collect();
-    println!(
-        "viewers: hps-sim, four viewers of four lights: {} frames/s, 20 frames each byte-exact",
-        report.join(", ")
-    );
+    let viewed = viewers(rtsp, &paths, &lights, Transport::Udp, 20)?;
+    println!("viewers: hps-sim, four viewers of four lights: {}, 20 frames each byte-exact", describe(&viewed));
     multicast()
 }
 

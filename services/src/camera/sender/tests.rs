@@ -881,6 +881,38 @@ fn a_viewer_that_reads_nothing_slows_only_itself() {
     assert_eq!(late.first().map(|x| x.line()), Some(0), "back at a frame's start");
 }
 
+/// A viewer that loses packets (its NACKs say so) keeps its frames
+/// repairable only by slowing the stream while every viewer of it loses
+/// packets: beside a viewer that loses nothing, the stream keeps its rate
+/// and the lossy one gets what the window still holds (its repairs had
+/// held both to 8 frames/s, two frames per hold of four unmeasured round
+/// trips, before).
+#[test]
+fn a_lossy_viewer_slows_only_itself() {
+    let mut r = rig(ROWS);
+    let fixed = spec(Kind::Light(light(1.0)), Fps::Rate(30));
+    r.join(1, fixed, udp(6000), CLIENT, t(0));
+    r.join(2, fixed, udp(6000), CLIENT2, t(0));
+    let lossy = udp_dest(CLIENT, 6000);
+    for ms in 0..=1_000 {
+        r.settle(t(ms));
+        if ms % 20 == 10 {
+            // Row 0 of the newest frame it had whole, asked for again.
+            let rows = r.sink.rows_to(lossy);
+            let last = rows.iter().rev().find(|x| x.line() == ROWS - 1).map(|x| x.seq16().wrapping_sub(ROWS - 1));
+            if let Some(first) = last {
+                r.nack_from(CLIENT, 6001, &nack(SSRC, &[(first, 0)]), t(ms));
+            }
+        }
+    }
+    let frames = r.sink.rows_to(udp_dest(CLIENT2, 6000)).iter().filter(|x| x.line() == ROWS - 1).count();
+    assert!(frames >= 29, "the viewer that loses nothing got {frames} frames in a second");
+    let s = r.camera.stats(SessionId(1)).unwrap();
+    // Each frame's row 0 asked for (some twice within a round trip):
+    // every one still in the window, and resent.
+    assert!(s.resent >= 29 && s.unrepairable == 0, "the lossy viewer's repairs: {s:?}");
+}
+
 /// A viewer that reads, but slower than the stream (here 60% of an
 /// fps=30 stream's rows), loses whole frames and never parts of them: each
 /// frame it gets is every row of one picture, in order (a player shows a
