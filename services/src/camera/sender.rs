@@ -170,14 +170,15 @@ pub const MIN_REPAIR_HOLD: Duration = Duration::from_secs(1);
 pub const LOSS_MEMORY: Duration = Duration::from_secs(2);
 
 /// NACK rounds a frame stays repairable for after its end on a stream
-/// every output of which is losing packets, at least: at 10% loss a frame of 360 rows has a
-/// resend lost nine times in ten, so the first round is often not enough,
-/// and a NACK itself is lost one time in ten (three rounds still left one
-/// frame in twenty given up in the suite's lossy test). Six held a stream
-/// under a NACK flood from its own client to 71% of its clean rate (the
-/// suite's hostile test wants 80%); four kept 84%. At a measured LAN round
-/// trip of 1 ms the hold is 84 ms for the two frames in the window while
-/// the stream loses packets: at most 24 frames/s for a lossy viewer, exact.
+/// every output of which is losing packets, at least: at 10% loss a frame
+/// of 360 rows has a resend lost nine times in ten, so the first round is
+/// often not enough, and a NACK itself is lost one time in ten (three
+/// rounds still left one frame in twenty given up in the suite's lossy
+/// test). Six held a stream under a NACK flood from its own client to 71%
+/// of its clean rate (the suite's hostile test wants 80%); four kept 84%.
+/// At a measured LAN round trip of 1 ms the hold is 84 ms for the two
+/// frames in the window while the stream loses packets: at most 24
+/// frames/s for a viewer alone on a lossy path, exact.
 pub const REPAIR_ROUNDS: u32 = 4;
 
 /// A receiver's time to notice what is missing and ask again, added to
