@@ -18,11 +18,12 @@ use std::time::Duration;
 
 use hal_avalon::sim::{CountingDelay, Fault, SimAccelerator};
 use hal_avalon::{Accelerator, PollTimeout};
-use hps_sim::{SharedMemory, FRAME_SLOTS};
+use hps_sim::FRAME_SLOTS;
 use model::{render_frame, Light, FRAME_BYTES, ROW_BYTES};
 use rt_services::frames::fallback::WEDGED_AFTER;
 use rt_services::seed::server::{drive, Action, Mode, Session};
 use rt_services::{FallbackEngine, FrameRing, FrameSource, Instant, RowEngine, SoftwareRenderer, Watchdog};
+use rt_services_std::SharedMemory;
 
 type Clock = Rc<Cell<u64>>;
 

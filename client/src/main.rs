@@ -285,7 +285,7 @@ fn rtsp_board(server: Option<&str>, rtsp: Option<&str>) -> Result<(SocketAddr, O
             let mut board = HpsSim::start_quiet(SocketAddr::from(([127, 0, 0, 1], 0)))
                 .map_err(|e| format!("cannot start the simulated board: {e}"))?;
             let addr = board
-                .start_rtsp(SocketAddr::from(([127, 0, 0, 1], 0)), hps_sim::Device::Sim, false)
+                .start_rtsp(SocketAddr::from(([127, 0, 0, 1], 0)), false)
                 .map_err(|e| format!("cannot start the simulated board's RTSP server: {e}"))?;
             eprintln!(
                 "rt-client: no --server: the stream comes from a board simulated in this process (RTSP on \

@@ -12,8 +12,8 @@
 //!   is none.
 //! * [`panel`]: the VGA monitor, keys, switches, LEDs and displays, as on
 //!   bare metal (the firmware's policy), on the board's ring.
-//! * [`serve`]: the board the services draw from (hps-sim's
-//!   [`Board`](hps_sim::board::Board): one engine, one ring, every service
+//! * [`serve`]: the board the services draw from (rt-services-std's
+//!   [`Board`](rt_services_std::board::Board): one engine, one ring, every service
 //!   within its quota): the FPGA's frames (or rows, saying why), the
 //!   simulated accelerator, or software when told to.
 

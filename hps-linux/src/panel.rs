@@ -4,9 +4,9 @@
 //! (`rt_services::monitor`, the firmware's policy, unchanged).
 //!
 //! [`PanelRing`] is the board's frame ring with the accelerator's board
-//! I/O block beside it: hps-sim's [`Frames`] for the services, and on
+//! I/O block beside it: rt-services-std's [`Frames`] for the services, and on
 //! every [`Frames::tick`] (a thread of the program's calls
-//! [`Board::tick`](hps_sim::board::Board::tick) every few milliseconds)
+//! [`Board::tick`](rt_services_std::board::Board::tick) every few milliseconds)
 //! one step of the monitor. Only on an FPGA image whose register map has
 //! the block (version 3, hal-avalon [`has_board_io`]). The code on the
 //! displays is worked out on every step as the firmware's is
@@ -35,13 +35,13 @@ use hal_avalon::board::{has_board_io, BoardIo};
 use hal_avalon::map::Csr;
 use hal_avalon::ring_panel::RingPanel;
 use hal_avalon::{Accelerator, RegisterPort};
-use hps_sim::board::{Failed, Frames, Live, BOARD_SLOTS};
 use model::Light;
 use rt_services::camera::sender::SlotSource;
 use rt_services::frames::{FallbackEngine, FrameEngine, FrameMemory, FrameRing, RowEngine, Watchdog};
 use rt_services::monitor::code::Facts as CodeFacts;
 use rt_services::monitor::{Code, Monitor, Status};
 use rt_services::{FrameSource, Instant};
+use rt_services_std::board::{Failed, Frames, Live, BOARD_SLOTS};
 
 /// The frame on screen and the one waiting for vertical blanking: kept
 /// beside the services' quotas, as the firmware's `DISPLAY_SLOTS`.

@@ -1,4 +1,4 @@
-//! What the server renders with: a [`Board`] (hps-sim's: one engine, one
+//! What the server renders with: a [`Board`] (rt-services-std's: one engine, one
 //! ring, every service within its quota, as on bare metal) built from the
 //! accelerator behind the bridge ([`fpga`]), hal-avalon's simulated one
 //! ([`simulated`]) or the model in software ([`software`]), and what
@@ -18,11 +18,11 @@ use std::time::{Duration, Instant};
 use embedded_hal::delay::DelayNs;
 use hal_avalon::selftest::{self, Outcome, SelfTestReport, PLAN};
 use hal_avalon::{Accelerator, PollTimeout, RegisterPort};
-use hps_sim::board::{self, Board};
-use hps_sim::web::Facts;
-use hps_sim::SelfTest;
 use rt_services::frames::{FallbackEngine, Watchdog};
 use rt_services::{FrameRing, RowEngine, SoftwareRenderer};
+use rt_services_std::board::{self, Board};
+use rt_services_std::Facts;
+use rt_services_std::SelfTest;
 
 use crate::frame_memory::{self, DmaRing};
 use crate::panel::{Identity, PanelRing, RING_SLOTS};
@@ -147,7 +147,7 @@ where
     self_test.detail = format!("{}; {why}", self_test.detail);
     // A frame path that failed shows E4 (rows only), as the firmware's.
     let identity = Identity { name: host_name(), frames_passed: by_choice };
-    let ring = FrameRing::new(hps_sim::SharedMemory::new(RING_SLOTS), RowEngine::new(accel));
+    let ring = FrameRing::new(rt_services_std::SharedMemory::new(RING_SLOTS), RowEngine::new(accel));
     let panel = PanelRing::new(ring, false, identity);
     let vga = panel.vga().to_string();
     let board = Board::new(panel, "FPGA rows into the ring");
@@ -224,7 +224,7 @@ pub fn simulated() -> (Arc<Board>, Facts) {
         bridges: "not a board (simulated accelerator)".into(),
         ..facts(self_test)
     };
-    (board::simulated(hps_sim::Faults::default()), facts)
+    (board::simulated(), facts)
 }
 
 /// A board rendering with the model in software (no FPGA: asked for with

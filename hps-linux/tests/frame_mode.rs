@@ -19,10 +19,10 @@ use hal_avalon::sim::{DmaTarget, SimAccelerator};
 use hps_linux::frame_memory::RING_BYTES;
 use hps_linux::preflight::{self, Finding, Report, System};
 use hps_linux::serve;
-use hps_sim::HpsSim;
 use memmap2::MmapRaw;
 use model::FRAME_BYTES;
 use rt_services::monitor::{LED_ATTRACT, LED_FPGA, LED_LINK, LED_SELF_TEST};
+use rt_services_std::Server;
 use soc::cyclone_v::{FPGAPORTRST, FPGAPORTRST_RELEASED};
 use support::{http_get, map_view, model_frame, seed_frame, through_dev_mem, Answered, BUSY_POLLS};
 use tempfile::TempDir;
@@ -144,7 +144,7 @@ fn frames_land_in_the_dma_buffer_and_are_served_from_it() {
     let (board, facts) = serve::fpga(accelerator(&s, true), &report(), Ok(ring)).expect("the self-test passes");
     assert_eq!((facts.self_test.result, facts.mode.as_str()), ("pass", "frames"), "{}", facts.self_test.detail);
     assert!(facts.self_test.detail.contains("frame mode"), "{}", facts.self_test.detail);
-    let sim = HpsSim::start_board("127.0.0.1:0".parse().unwrap(), board, facts, false).unwrap();
+    let sim = Server::start_board("127.0.0.1:0".parse().unwrap(), board, facts, false).unwrap();
     let addr = sim.frame_addr();
     let lights = [[3072, 4096, -2048], [-5120, 6144, 1024]];
     let clients: Vec<_> = lights.iter().map(|&raw| std::thread::spawn(move || (raw, seed_frame(addr, raw)))).collect();
@@ -169,7 +169,7 @@ fn a_frame_dma_that_never_lands_falls_back_to_rows_and_says_why() {
     assert_eq!(facts.mode, "rows");
     let detail = &facts.self_test.detail;
     assert!(detail.contains("FAIL: frame mode") && detail.contains("fpgaportrst"), "{detail}");
-    let sim = HpsSim::start_board("127.0.0.1:0".parse().unwrap(), board, facts, false).unwrap();
+    let sim = Server::start_board("127.0.0.1:0".parse().unwrap(), board, facts, false).unwrap();
     let raw = [1500, 2500, 700];
     assert!(seed_frame(sim.frame_addr(), raw) == model_frame(raw), "rows give the model's frame");
 }
@@ -235,7 +235,7 @@ fn the_monitor_shows_attract_frames_from_the_buffer_and_lights_the_leds() {
     let live = board.live().expect("a board with a display says how it is");
     assert_eq!(live.vga, "on");
     // `/status` says it as it is now, not as it was at start.
-    let mut sim = HpsSim::start_board("127.0.0.1:0".parse().unwrap(), board.clone(), facts, false).unwrap();
+    let mut sim = Server::start_board("127.0.0.1:0".parse().unwrap(), board.clone(), facts, false).unwrap();
     let http = sim.start_web("127.0.0.1:0".parse().unwrap(), false).unwrap();
     let status = http_get(http, "/status");
     assert!(status.contains("\"vga\":\"on\""), "{status}");
@@ -293,7 +293,7 @@ fn a_frame_dma_that_stalls_later_is_cut_then_switched_off() {
     let answers = Arc::new(AtomicBool::new(true));
     let accel = accelerator_with(&s, answers.clone());
     let (board, facts) = serve::fpga(accel, &report(), Ok(ring)).expect("the self-test passes");
-    let sim = HpsSim::start_board("127.0.0.1:0".parse().unwrap(), board.clone(), facts, false).unwrap();
+    let sim = Server::start_board("127.0.0.1:0".parse().unwrap(), board.clone(), facts, false).unwrap();
     let raw = [1500, 2500, 700];
     assert!(seed_frame(sim.frame_addr(), raw) == model_frame(raw), "frames while the DMA lands them");
     answers.store(false, Ordering::Relaxed);

@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use hps_linux::preflight::{Finding, Report};
 use hps_linux::serve;
-use hps_sim::HpsSim;
+use rt_services_std::Server;
 use support::{http_get, model_frame, seed_frame, simulated, through_dev_mem, Answered};
 
 const LIGHTS: [[i32; 3]; 4] = [[3072, 4096, -2048], [-5120, 6144, 1024], [1500, 2500, 700], [0, 8192, 0]];
@@ -30,7 +30,7 @@ fn the_fpga_path_serves_the_models_frames_through_the_mapped_registers() {
     };
     let (board, facts) = serve::fpga(port, &report, Err("no frame memory here".into())).expect("the self-test passes");
     assert_eq!(facts.self_test.result, "pass", "{}", facts.self_test.detail);
-    let mut sim = HpsSim::start_board("127.0.0.1:0".parse().unwrap(), board.clone(), facts, false).unwrap();
+    let mut sim = Server::start_board("127.0.0.1:0".parse().unwrap(), board.clone(), facts, false).unwrap();
     let http = sim.start_web("127.0.0.1:0".parse().unwrap(), false).unwrap();
     // Two clients at once, each its own light, from the one ring.
     let addr = sim.frame_addr();

@@ -8,7 +8,7 @@ use std::io::{BufRead, BufReader, Write};
 use std::net::{SocketAddr, TcpStream, UdpSocket};
 use std::time::{Duration, Instant};
 
-use hps_sim::{Device, HpsSim};
+use hps_sim::HpsSim;
 use model::{Light, FRAME_BYTES, ROW_BYTES};
 
 const ROWS: usize = 360;
@@ -126,7 +126,7 @@ struct Stream {
 
 fn setup(url: &str) -> Stream {
     let mut sim = HpsSim::start_quiet("127.0.0.1:0".parse().unwrap()).unwrap();
-    let addr = sim.start_rtsp("127.0.0.1:0".parse().unwrap(), Device::Sim, false).unwrap();
+    let addr = sim.start_rtsp("127.0.0.1:0".parse().unwrap(), false).unwrap();
     let mut rtsp = Rtsp::connect(addr);
     let url = format!("rtsp://{addr}{url}");
     let (status, headers, _) = rtsp.request("OPTIONS", &url, &[], "");

@@ -9,7 +9,7 @@
 //! the next), RTSP/RTP on `--rtsp` (default: the listen address, port
 //! 8554) and the web page on `--http` when given, every client from one
 //! accelerator and one frame ring, as the bare-metal firmware does. The
-//! flags mean what hps-sim's do.
+//! flags mean what hps-sim's do (rt-services-std `cli`).
 //!
 //! `check` runs the checks made before the first access to the bridge and
 //! prints what it saw, or why the accelerator cannot be used (exit 1).
@@ -22,9 +22,9 @@ use std::time::Duration;
 use clap::{Args as ClapArgs, Parser, Subcommand};
 use hps_linux::preflight::{self, Access, System};
 use hps_linux::serve;
-use hps_sim::cli::ServiceArgs;
-use hps_sim::rtsp::Options;
-use hps_sim::{Device, Faults, HpsSim};
+use rt_services_std::cli::ServiceArgs;
+use rt_services_std::rtsp::Options;
+use rt_services_std::Server;
 
 #[derive(Parser)]
 #[command(
@@ -189,16 +189,16 @@ fn run(args: ServeArgs) -> ExitCode {
     eprintln!("hps-linux: VGA: {}", facts.vga);
     serve::drive(board.clone());
     let renderer = board.renderer().to_string();
-    let mut sim = match HpsSim::start_board(args.listen, board.clone(), facts, true) {
-        Ok(sim) => sim,
+    let mut server = match Server::start_board(args.listen, board.clone(), facts, true) {
+        Ok(server) => server,
         Err(e) => {
             eprintln!("hps-linux: cannot listen on {} and the next port: {e}", args.listen);
             return ExitCode::FAILURE;
         }
     };
     // The device is the board's (its camera draws from it): not used.
-    let options = Options { device: Device::Sim, verbose: true, multicast: None, faults: Faults::default() };
-    let started = match args.services.start(&mut sim, args.listen, options) {
+    let options = Options::new(true);
+    let started = match args.services.start(&mut server, args.listen, options) {
         Ok(s) => s,
         Err(e) => {
             eprintln!("hps-linux: {e}");
@@ -210,8 +210,8 @@ fn run(args: ServeArgs) -> ExitCode {
     }
     eprintln!(
         "hps-linux: {renderer}; frames on {}, persistent on {}, RTSP on rtsp://{}/light/3,4,-2 (also /orbit, /live)",
-        sim.frame_addr(),
-        sim.persistent_addr(),
+        server.frame_addr(),
+        server.persistent_addr(),
         started.rtsp
     );
     stopping::watch();

@@ -12,8 +12,9 @@ use std::net::SocketAddr;
 use std::process::ExitCode;
 
 use clap::Parser;
-use hps_sim::cli::ServiceArgs;
-use hps_sim::{rtsp::Options, Config, Device, Fault, Faults, HpsSim, RenderMode};
+use hps_sim::{Config, Device, Fault, Faults, HpsSim, RenderMode};
+use rt_services_std::cli::ServiceArgs;
+use rt_services_std::rtsp::Options;
 
 #[derive(Parser)]
 #[command(name = "hps-sim", about = "The ray tracer board simulated on the host")]
@@ -55,7 +56,7 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let options = Options { device, verbose: true, multicast: None, faults };
+    let options = Options { udp: !faults.refuse_udp, ..Options::new(true) };
     let started = match args.services.start(&mut sim, args.listen, options) {
         Ok(s) => s,
         Err(e) => {

@@ -6,8 +6,8 @@
 //! camera, [`SlotSource`]) its service runs on.
 //!
 //! `hps-linux` serves from a board whose engine is the FPGA behind the
-//! bridge (or the simulated accelerator); `hps-sim` can too
-//! ([`crate::HpsSim::start_board`]).
+//! bridge (or the simulated accelerator)
+//! ([`Server::start_board`](crate::Server::start_board)).
 
 use std::fmt;
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -294,11 +294,10 @@ impl SlotSource for Share {
 }
 
 /// A board whose engine is hal-avalon's simulated accelerator, its frame
-/// DMA writing a ring of [`BOARD_SLOTS`] in host memory (frame mode), with
-/// `faults`.
-pub fn simulated(faults: crate::Faults) -> Arc<Board> {
+/// DMA writing a ring of [`BOARD_SLOTS`] in host memory (frame mode).
+pub fn simulated() -> Arc<Board> {
     let mem = crate::SharedMemory::new(BOARD_SLOTS);
-    let sim = crate::simulated(mem.clone(), faults);
+    let sim = crate::simulated_accelerator(mem.clone());
     let engine =
         hal_avalon::Accelerator::new(sim, hal_avalon::sim::CountingDelay::default(), hal_avalon::PollTimeout::DEFAULT);
     let ring = rt_services::FrameRing::<_, _, BOARD_SLOTS>::new(mem, engine);

@@ -7,7 +7,7 @@ use std::net::{Ipv4Addr, SocketAddr};
 use rt_services::camera::sender::Multicast;
 
 use crate::rtsp::Options;
-use crate::HpsSim;
+use crate::Server;
 
 /// The camera's and the page's flags.
 #[derive(clap::Args, Debug, Clone)]
@@ -62,7 +62,7 @@ impl ServiceArgs {
     /// Start the camera (on `--rtsp`, or the `listen` address's IP with
     /// port 8554) with `options` (their multicast from these flags) and
     /// the page when `--http` is given, on `sim`.
-    pub fn start(&self, sim: &mut HpsSim, listen: SocketAddr, options: Options) -> Result<Started, String> {
+    pub fn start(&self, sim: &mut Server, listen: SocketAddr, options: Options) -> Result<Started, String> {
         let options = Options { multicast: self.multicast()?, ..options };
         let rtsp = self.rtsp.unwrap_or(SocketAddr::new(listen.ip(), rt_services::camera::rtsp::RTSP_PORT));
         let rtsp = sim.start_rtsp_with(rtsp, options).map_err(|e| format!("cannot serve RTSP on {rtsp}: {e}"))?;

@@ -1,8 +1,8 @@
-//! The board's web page on the host (`hps-sim --http ADDR:PORT`): the
+//! The board's web page on std (`--http ADDR:PORT`): the
 //! firmware's web connections (`rt_services::web::server`) on std TCP, a
 //! thread per connection (at most [`WEB_SOCKETS`]), at most
 //! [`WEB_VIEWERS`] WebSocket viewers at once, and, as on the board, one
-//! ring of [`FRAME_SLOTS`](crate::FRAME_SLOTS) frames that every viewer shares, taken in turn
+//! ring of frames that every viewer shares, taken in turn
 //! ([`Turns`]): two viewers that keep a request queued cannot hold both
 //! slots while the others wait, here as there.
 
@@ -20,10 +20,18 @@ use rt_services::web::status::{BoardStatus, Health, Identity, Viewers};
 use rt_services::web::{WEB_SOCKETS, WEB_VIEWERS};
 use rt_services::{FrameSource, Instant as ProtocolInstant};
 
-use crate::board::{Board, Failed, Service, Share};
-use crate::{
-    close_gracefully, frame_ring, spawn_reader, Config, ConnectionCap, Faults, Input, Log, SelfTest, SimFrameRing, Tail,
-};
+use crate::board::{Board, Failed, Frames, Service, Share};
+use crate::connection::{close_gracefully, spawn_reader, ConnectionCap, Input};
+use crate::{Log, OwnDevices, Tail};
+
+/// The boot self-test's outcome, as `/status` gives it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SelfTest {
+    /// `"pass"`, `"fail"` or `"skipped"`.
+    pub result: &'static str,
+    /// Its log line.
+    pub detail: String,
+}
 
 /// What `/status` says of the board besides the live figures.
 #[derive(Clone, Debug)]
@@ -50,28 +58,6 @@ pub struct Facts {
     pub self_test: SelfTest,
 }
 
-impl Facts {
-    /// hps-sim's: a simulated board running `config`.
-    pub fn simulated(config: Config, self_test: SelfTest) -> Facts {
-        Facts {
-            renderer: "simulated".into(),
-            link: "loopback".into(),
-            mode: match config.render {
-                crate::RenderMode::Frames => "frames",
-                crate::RenderMode::Rows => "rows",
-            }
-            .into(),
-            version: config.faults.version().into(),
-            register_map: Some(hal_avalon::map::ID_VERSION),
-            fpga_build: Some(0),
-            bridges: "not a board (hps-sim)".into(),
-            vga: "off: not a board (hps-sim)".into(),
-            address_from: "host".into(),
-            self_test,
-        }
-    }
-}
-
 /// What the connections share: the board's figures, and the frames.
 pub struct Shared {
     started: Instant,
@@ -92,14 +78,14 @@ pub struct Shared {
 
 impl Shared {
     /// Figures from now on; the page's RTSP URLs name `rtsp_port`; the
-    /// board runs `config` and its self-test said `self_test`.
-    pub fn new(rtsp_port: u16, config: Config, self_test: SelfTest) -> Shared {
-        let source = WebSource::Own { ring: None, faults: config.faults };
-        Shared::with_source(rtsp_port, source, Facts::simulated(config, self_test))
+    /// viewers' frames from a ring of their own that `devices` makes;
+    /// `/status` says `facts`.
+    pub fn with_own(rtsp_port: u16, devices: Arc<dyn OwnDevices>, facts: Facts) -> Shared {
+        Shared::with_source(rtsp_port, WebSource::Own { ring: None, devices }, facts)
     }
 
-    /// As [`new`](Self::new), the viewers' frames from `board` (within the
-    /// page's quota there), `/status` saying `facts`.
+    /// As [`with_own`](Self::with_own), the viewers' frames from `board`
+    /// (within the page's quota there).
     pub fn with_board(rtsp_port: u16, board: Arc<Board>, facts: Facts) -> Shared {
         let share = board.share(Service::Web);
         Shared { board: Some(board), ..Shared::with_source(rtsp_port, WebSource::Board(share), facts) }
@@ -203,8 +189,8 @@ struct WebFrames {
 
 /// Where the viewers' frames come from.
 enum WebSource {
-    /// A simulated ring of their own, made when the first frame is begun.
-    Own { ring: Option<Box<SimFrameRing>>, faults: Faults },
+    /// A ring of their own, made when the first frame is begun.
+    Own { ring: Option<Box<dyn Frames>>, devices: Arc<dyn OwnDevices> },
     /// The board's one ring.
     Board(Share),
 }
@@ -212,17 +198,14 @@ enum WebSource {
 impl WebSource {
     fn begin(&mut self, light: &model::Light) -> Result<Option<usize>, Failed> {
         match self {
-            WebSource::Own { ring, faults } => {
-                let faults = *faults;
-                ring.get_or_insert_with(|| Box::new(frame_ring(faults))).begin(light).map_err(|e| Failed(e.to_string()))
-            }
+            WebSource::Own { ring, devices } => ring.get_or_insert_with(|| devices.web_frames()).begin_frame(light),
             WebSource::Board(share) => share.begin(light),
         }
     }
 
     fn rows_ready(&mut self, frame: usize) -> Result<u16, Failed> {
         match self {
-            WebSource::Own { ring: Some(ring), .. } => ring.rows_ready(frame).map_err(|e| Failed(e.to_string())),
+            WebSource::Own { ring: Some(ring), .. } => ring.frame_rows(frame),
             WebSource::Own { ring: None, .. } => Ok(0),
             WebSource::Board(share) => share.rows_ready(frame),
         }
@@ -230,7 +213,7 @@ impl WebSource {
 
     fn copy_row(&mut self, frame: usize, y: u16, offset: usize, out: &mut [u8]) -> usize {
         match self {
-            WebSource::Own { ring: Some(ring), .. } => ring.copy_row(frame, y, offset, out),
+            WebSource::Own { ring: Some(ring), .. } => ring.copy_frame_row(frame, y, offset, out),
             WebSource::Own { ring: None, .. } => 0,
             WebSource::Board(share) => share.copy_row(frame, y, offset, out),
         }
@@ -238,7 +221,7 @@ impl WebSource {
 
     fn end(&mut self, frame: usize) {
         match self {
-            WebSource::Own { ring: Some(ring), .. } => ring.end(frame),
+            WebSource::Own { ring: Some(ring), .. } => ring.end_frame(frame),
             WebSource::Own { ring: None, .. } => {}
             WebSource::Board(share) => share.end(frame),
         }

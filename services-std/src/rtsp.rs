@@ -1,7 +1,7 @@
-//! The simulated board as a network camera: `rt_services::camera::rtsp`'s
+//! The board as a network camera on std: `rt_services::camera::rtsp`'s
 //! server and `rt_services::camera::sender`'s RTP sender on std sockets,
-//! drawing frames from one frame ring that the simulated accelerator (or
-//! the RTL) fills, as the board does.
+//! drawing frames from one frame ring (the camera's own, or its share of
+//! the board's), as the board does.
 //!
 //! One thread runs it all, polling non-blocking sockets: RTSP on TCP, RTP
 //! and RTCP on a pair of consecutive UDP ports. A row packet is its 20
@@ -25,8 +25,6 @@ use std::sync::Arc;
 use std::thread;
 use std::time::{Duration, Instant as StdInstant, SystemTime, UNIX_EPOCH};
 
-use hal_avalon::sim::CountingDelay;
-use hal_avalon::{Accelerator, PollTimeout};
 use model::{Light, ROW_BYTES};
 use rt_services::camera::frame_header::FRAME_HEADER_BYTES;
 use rt_services::camera::packetiser::Packetiser;
@@ -34,13 +32,13 @@ use rt_services::camera::random::SessionRng;
 use rt_services::camera::rtsp::{
     self, ConnId, Connection, Server, CONNECTIONS, CONNECTIONS_PER_ADDRESS, MAX_RESPONSE_BYTES, MAX_SESSIONS,
 };
-use rt_services::camera::sender::{self, Bound, Camera, Dest, Multicast, RtpSink, SlotSource, CAMERA_SLOTS};
+use rt_services::camera::sender::{self, Bound, Camera, Dest, Multicast, RtpSink, SlotSource};
 use rt_services::camera::station::Station;
 use rt_services::camera::wire::rtcp::ntp_timestamp;
 use rt_services::camera::wire::rtp::{self, RowPacket};
-use rt_services::{FrameRing, FrameSource, Instant};
+use rt_services::{FrameSource, Instant};
 
-use crate::{Device, Faults, Log, SharedMemory};
+use crate::Log;
 
 /// The light of a live stream before its first `SET_PARAMETER` (the one
 /// `rt-client` starts with).
@@ -53,14 +51,20 @@ pub const CLIENT_OUT_BYTES: usize = 256 * 1024;
 /// How the RTSP server runs.
 #[derive(Clone, Copy, Debug)]
 pub struct Options {
-    /// What renders.
-    pub device: Device,
     /// Log sessions to stderr.
     pub verbose: bool,
     /// Where multicast streams go (`None`: SETUP of multicast answers 461).
     pub multicast: Option<Multicast>,
-    /// Faults injected ([`Faults::refuse_udp`], [`Faults::wrong_pixel`]).
-    pub faults: Faults,
+    /// Whether `SETUP`s asking for RTP over UDP are taken (hps-sim's
+    /// `--fault refuse-udp` answers them 461 Unsupported Transport).
+    pub udp: bool,
+}
+
+impl Options {
+    /// Unicast UDP and interleaved, no multicast, logging if `verbose`.
+    pub fn new(verbose: bool) -> Options {
+        Options { verbose, multicast: None, udp: true }
+    }
 }
 
 /// A running RTSP server; stops when dropped.
@@ -74,40 +78,25 @@ pub struct RtspServer {
 impl RtspServer {
     /// Listen for RTSP on `addr` (port 0: any free one) and send RTP from
     /// a pair of free consecutive UDP ports on its address, as `options`
-    /// say.
-    pub fn start(addr: SocketAddr, options: Options) -> io::Result<RtspServer> {
-        if options.device == Device::Rtl && !rtl_port::available() {
-            return Err(io::Error::new(io::ErrorKind::Unsupported, rtl_port::NotBuilt));
-        }
-        RtspServer::spawn(addr, options, move |sockets, options, flag, log| match options.device {
-            Device::Sim => {
-                let mem = SharedMemory::new(CAMERA_SLOTS);
-                let sim = crate::simulated(mem.clone(), options.faults);
-                let engine = Accelerator::new(sim, CountingDelay::default(), PollTimeout::DEFAULT);
-                run(sockets, FrameRing::<_, _, CAMERA_SLOTS>::new(mem, engine), options, flag, log)
-            }
-            Device::Rtl => {
-                let mem = SharedMemory::new(CAMERA_SLOTS);
-                match rtl_port::RtlAccelerator::with_memory(mem.clone()) {
-                    Ok(rtl) => {
-                        let engine = Accelerator::new(rtl, CountingDelay::default(), PollTimeout::DEFAULT);
-                        run(sockets, FrameRing::<_, _, CAMERA_SLOTS>::new(mem, engine), options, flag, log)
-                    }
-                    Err(e) => Err(io::Error::new(io::ErrorKind::Unsupported, e)),
-                }
-            }
-        })
-    }
-
-    /// As [`start`](Self::start), drawing frames from `source` (the
-    /// board's one ring, [`crate::board`]) instead of a ring of its own;
-    /// `options.device` is not used.
+    /// say, drawing frames from `source` (a ring of the camera's own, or
+    /// its share of the board's, [`crate::board`]).
     pub fn start_on<S: SlotSource + Send + 'static>(
         addr: SocketAddr,
         options: Options,
         source: S,
     ) -> io::Result<RtspServer> {
-        RtspServer::spawn(addr, options, move |sockets, options, flag, log| run(sockets, source, options, flag, log))
+        RtspServer::start_making(addr, options, move || Ok(source))
+    }
+
+    /// As [`start_on`](Self::start_on), the source made by `make` on the
+    /// server's own thread (for a device that cannot move between
+    /// threads, the Verilated RTL); its error stops the server.
+    pub fn start_making<S: SlotSource>(
+        addr: SocketAddr,
+        options: Options,
+        make: impl FnOnce() -> io::Result<S> + Send + 'static,
+    ) -> io::Result<RtspServer> {
+        RtspServer::spawn(addr, options, move |sockets, options, flag, log| run(sockets, make()?, options, flag, log))
     }
 
     fn spawn(
@@ -395,8 +384,7 @@ fn run<S: SlotSource>(
     let (x, y, z) = LIVE_LIGHT;
     let live_light = Light::from_world(x, y, z).map_err(|e| io::Error::other(format!("{e:?}")))?;
     let rtp_port = sockets.rtp.local_addr()?.port();
-    let mut server: Server<MAX_SESSIONS> =
-        Server::new(rtsp::Config { server_ip, rtp_port, udp: !options.faults.refuse_udp });
+    let mut server: Server<MAX_SESSIONS> = Server::new(rtsp::Config { server_ip, rtp_port, udp: options.udp });
     let mut camera: Box<Camera<MAX_SESSIONS>> = Box::new(Camera::new());
     camera.configure(sender::Config {
         live_light,
