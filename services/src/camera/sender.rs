@@ -374,7 +374,8 @@ struct Frame {
     /// recorded in one run just before any of them is sent, not a look
     /// at a time (a look often lands a single row).
     recorded: u16,
-    /// When it began, and when the first output had all its rows.
+    /// When it began, and when the first output had all its rows (or all
+    /// its rows had landed while an output waited for the next frame).
     begun_at: Instant,
     done_at: Option<Instant>,
 }
@@ -1393,7 +1394,18 @@ impl<const N: usize> Camera<N> {
         record_landed(&mut media.window, &mut frame, now);
         // Outputs done with the frame, or stalled too long, wait for the next.
         let next_frame = frame.first_seq.wrapping_add(u32::from(ROWS));
-        if self.outputs.iter().flatten().any(|o| o.media == mi && o.cursor == Cursor::Sending { next: ROWS }) {
+        // The frame counts as had once an output has every row of it, or
+        // once every row landed while an output waits for the next frame
+        // (one that joined, or was cut from this one): a stream whose only
+        // reader stopped reading must not keep a joining viewer waiting for
+        // that reader's stall limit.
+        let had = frame.done_at.is_none()
+            && self.outputs.iter().flatten().any(|o| {
+                o.media == mi
+                    && (o.cursor == Cursor::Sending { next: ROWS }
+                        || (frame.landed == ROWS && matches!(o.cursor, Cursor::Waiting { .. })))
+            });
+        if had {
             frame.done_at.get_or_insert(now);
         }
         // Outputs still sending once the next frame is due (fps=N), or once

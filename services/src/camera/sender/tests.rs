@@ -881,6 +881,35 @@ fn a_viewer_that_reads_nothing_slows_only_itself() {
     assert_eq!(late.first().map(|x| x.line()), Some(0), "back at a frame's start");
 }
 
+/// The same laggard playing first, alone: a viewer joining its stream
+/// gets its first frame when the next one is due, not once the laggard is
+/// cut at its stall limit (it waited 2.3 s of `TCP_OUTPUT_STALL` for it
+/// before, on hps-sim: 21 frames/s over rt-client's 150).
+#[test]
+fn a_viewer_joining_a_laggard_s_stream_does_not_wait_for_it() {
+    let mut r = rig(ROWS);
+    let fixed = spec(Kind::Light(light(1.0)), Fps::Rate(30));
+    let laggard = Transport::Interleaved { rtp_channel: 0, rtcp_channel: 1 };
+    r.join(2, fixed, laggard, CLIENT2, t(0));
+    r.sink.blocked = Some(Dest::Interleaved { conn: ConnId(2), rtp_channel: 0, rtcp_channel: 1 });
+    for ms in 0..=500 {
+        r.settle(t(ms));
+    }
+    r.join(1, fixed, udp(6000), CLIENT, t(500));
+    let mut first = None;
+    for ms in 500..=1_500 {
+        r.settle(t(ms));
+        let whole = r.sink.rows_to(udp_dest(CLIENT, 6000)).iter().any(|x| x.line() == ROWS - 1);
+        if whole && first.is_none() {
+            first = Some(ms - 500);
+        }
+    }
+    let first = first.expect("the joining viewer got no frame in a second");
+    assert!(first <= 100, "the joining viewer's first frame came after {first} ms");
+    let frames = r.sink.rows_to(udp_dest(CLIENT, 6000)).iter().filter(|x| x.line() == ROWS - 1).count();
+    assert!(frames >= 25, "the joining viewer got {frames} frames in its first second");
+}
+
 /// A viewer that loses packets (its NACKs say so) keeps its frames
 /// repairable only by slowing the stream while every viewer of it loses
 /// packets: beside a viewer that loses nothing, the stream keeps its rate
