@@ -9,6 +9,7 @@
 //! bridge (or the simulated accelerator)
 //! ([`Server::start_board`](crate::Server::start_board)).
 
+use std::collections::VecDeque;
 use std::fmt;
 use std::sync::{Arc, Mutex, MutexGuard};
 
@@ -132,6 +133,11 @@ struct Inner {
     frames: Box<dyn Frames>,
     /// Frames each service holds now, by [`Service::index`].
     held: [usize; 3],
+    /// Each service's users waiting for a frame (their [`Share`] ids), in
+    /// the order they first asked: first come, first served.
+    waiting: [VecDeque<u64>; 3],
+    /// The next share's id.
+    next_share: u64,
     /// Frames begun so far.
     begun: u64,
 }
@@ -155,14 +161,25 @@ impl Board {
     /// described as `renderer` (e.g. `FPGA rows into the ring`).
     pub fn new(frames: impl Frames + 'static, renderer: impl Into<String>) -> Arc<Board> {
         Arc::new(Board {
-            inner: Mutex::new(Inner { frames: Box::new(frames), held: [0; 3], begun: 0 }),
+            inner: Mutex::new(Inner {
+                frames: Box::new(frames),
+                held: [0; 3],
+                waiting: Default::default(),
+                next_share: 0,
+                begun: 0,
+            }),
             renderer: renderer.into(),
         })
     }
 
     /// A share of the frames for a user of `service`.
     pub fn share(self: &Arc<Board>, service: Service) -> Share {
-        Share { board: self.clone(), service, open: Vec::new() }
+        let id = {
+            let mut inner = self.lock();
+            inner.next_share += 1;
+            inner.next_share
+        };
+        Share { board: self.clone(), service, id, open: Vec::new() }
     }
 
     /// What renders.
@@ -208,21 +225,26 @@ impl Board {
 }
 
 /// One user's view of a [`Board`]: its service's quota, every call under
-/// the board's lock. The frames it began and has not ended are ended when
-/// it is dropped, so a connection thread that panics mid-frame gives its
-/// frames back instead of shrinking its service's quota for good. A clone
-/// starts with no frames of its own.
+/// the board's lock. While the quota is full its users wait in the order
+/// they first asked, as the page's viewers take turns: one that has just
+/// ended a frame and asks again queues behind those already waiting. The
+/// frames it began and has not ended are ended when it is dropped (and
+/// its place in the queue given up), so a connection thread that panics
+/// mid-frame gives its frames back instead of shrinking its service's
+/// quota for good. A clone is a user of its own, with no frames.
 #[derive(Debug)]
 pub struct Share {
     board: Arc<Board>,
     service: Service,
+    /// This user's place in its service's queue.
+    id: u64,
     /// Frames begun through this share and not yet ended.
     open: Vec<usize>,
 }
 
 impl Clone for Share {
     fn clone(&self) -> Share {
-        Share { board: self.board.clone(), service: self.service, open: Vec::new() }
+        self.board.share(self.service)
     }
 }
 
@@ -232,6 +254,8 @@ impl Drop for Share {
         while let Some(&frame) = self.open.last() {
             self.end(frame);
         }
+        let id = self.id;
+        self.board.lock().waiting[self.service.index()].retain(|&w| w != id);
     }
 }
 
@@ -246,18 +270,23 @@ impl FrameSource for Share {
     type Frame = usize;
     type Error = Failed;
 
-    /// `Ok(None)` while the service holds its quota, or no slot is free.
+    /// `Ok(None)` while the service holds its quota, no slot is free, or
+    /// another of its users asked first and still waits (this one then
+    /// waits behind it).
     fn begin(&mut self, light: &Light) -> Result<Option<usize>, Failed> {
         let mut inner = self.board.lock();
         let i = self.service.index();
-        if inner.held[i] >= self.service.quota() {
-            return Ok(None);
-        }
-        let frame = inner.frames.begin_frame(light)?;
-        if let Some(f) = frame {
-            inner.held[i] += 1;
-            inner.begun += 1;
-            self.open.push(f);
+        let first = inner.waiting[i].front().is_none_or(|&w| w == self.id);
+        let frame = if first && inner.held[i] < self.service.quota() { inner.frames.begin_frame(light)? } else { None };
+        match frame {
+            Some(f) => {
+                inner.held[i] += 1;
+                inner.begun += 1;
+                self.open.push(f);
+                inner.waiting[i].retain(|&w| w != self.id);
+            }
+            None if !inner.waiting[i].contains(&self.id) => inner.waiting[i].push_back(self.id),
+            None => {}
         }
         Ok(frame)
     }
@@ -354,12 +383,61 @@ mod tests {
         }
         assert_eq!(b.frames_begun(), BOARD_SLOTS as u64);
         // A seed client ending its frame (one still queued: the one being
-        // rendered frees its slot only when it is done) lets another in.
+        // rendered frees its slot only when it is done) lets another in:
+        // the first that waited.
         let (i, f) = begun[SEED_FRAMES - 1];
         seeds[i].end(f);
-        assert!(seeds[5].begin(&light(5)).unwrap().is_some());
+        assert!(seeds[SEED_FRAMES].begin(&light(5)).unwrap().is_some());
         web.end(w[0]);
         assert_eq!(b.held(Service::Web), WEB_FRAMES - 1);
+    }
+
+    #[test]
+    fn seed_clients_waiting_for_the_quota_are_served_first_come_first_served() {
+        let b = board();
+        let mut holders: Vec<Share> = (0..SEED_FRAMES).map(|_| b.share(Service::Seed)).collect();
+        let held: Vec<usize> = holders.iter_mut().map(|s| s.begin(&light(0)).unwrap().unwrap()).collect();
+        // Three more clients ask, in this order, while the quota is full.
+        let mut waiting: Vec<Share> = (0..3).map(|_| b.share(Service::Seed)).collect();
+        for w in waiting.iter_mut() {
+            assert_eq!(w.begin(&light(1)).unwrap(), None, "the quota is full");
+        }
+        // A frame ends; the holder asks again at once, and so do the
+        // waiting clients, last first: the first to have asked gets it.
+        holders[0].end(held[0]);
+        assert_eq!(holders[0].begin(&light(2)).unwrap(), None, "a holder asking again queues behind");
+        assert_eq!(waiting[2].begin(&light(1)).unwrap(), None, "the third waits for the first");
+        assert_eq!(waiting[1].begin(&light(1)).unwrap(), None, "the second waits for the first");
+        let first = waiting[0].begin(&light(1)).unwrap().expect("the first to ask is served");
+        // The next frame to end goes to the second, then the third, then
+        // the holder that asked again.
+        waiting[0].end(first);
+        assert_eq!(waiting[2].begin(&light(1)).unwrap(), None);
+        assert!(waiting[1].begin(&light(1)).unwrap().is_some(), "then the second");
+        holders[1].end(held[1]);
+        assert_eq!(holders[0].begin(&light(2)).unwrap(), None);
+        assert!(waiting[2].begin(&light(1)).unwrap().is_some(), "then the third");
+        // A waiting client that goes away gives up its place.
+        let mut gone = b.share(Service::Seed);
+        assert_eq!(gone.begin(&light(3)).unwrap(), None);
+        drop(gone);
+        holders[2].end(held[2]);
+        assert!(holders[0].begin(&light(2)).unwrap().is_some(), "the holder's turn, the one gone skipped");
+    }
+
+    /// Beside the limit, the ordinary case: one client alone asks and is
+    /// served at once, frame after frame, as many as the quota holds.
+    #[test]
+    fn a_client_alone_never_waits_behind_itself() {
+        let b = board();
+        let mut s = b.share(Service::Seed);
+        for round in 0..3 {
+            let frames: Vec<usize> = (0..SEED_FRAMES).map(|i| s.begin(&light(i as i32)).unwrap().unwrap()).collect();
+            assert_eq!(s.begin(&light(99)).unwrap(), None, "round {round}: the quota");
+            for f in frames {
+                s.end(f);
+            }
+        }
     }
 
     #[test]

@@ -54,6 +54,19 @@ pub(crate) enum Input {
     End,
 }
 
+/// Shuts a connection's socket when dropped: however its serving thread
+/// ends (a panic too), the reader thread's copy of the socket then reads
+/// its end and the peer sees the connection close, instead of both
+/// waiting on a socket nobody serves.
+pub(crate) struct ShutOnDrop<'a>(pub(crate) &'a TcpStream);
+
+impl Drop for ShutOnDrop<'_> {
+    fn drop(&mut self) {
+        let _ = self.0.shutdown(Shutdown::Both);
+    }
+}
+
+/// A thread that reads `stream` and hands over what it reads, then its end.
 pub(crate) fn spawn_reader(mut stream: TcpStream) -> io::Result<Receiver<Input>> {
     let (tx, rx) = mpsc::sync_channel(64);
     thread::Builder::new().name("reader".into()).spawn(move || {

@@ -4,7 +4,7 @@
 
 use std::fmt;
 use std::net::{Shutdown, TcpListener, TcpStream};
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::RecvTimeoutError;
 use std::sync::Arc;
 use std::thread;
@@ -15,7 +15,7 @@ use rt_services::seed::server::{drive, Action, Closed, Mode, Session};
 use rt_services::{FrameSource, Instant as ProtocolInstant};
 
 use crate::board::Service;
-use crate::connection::{close_gracefully, spawn_reader, ConnectionCap, Input};
+use crate::connection::{close_gracefully, spawn_reader, ConnectionCap, Input, ShutOnDrop};
 use crate::{web, Log, Supply};
 
 #[allow(clippy::too_many_arguments)]
@@ -45,15 +45,15 @@ pub(crate) fn accept_loop(
                 let supply = supply.clone();
                 let spawned = thread::Builder::new().name(format!("client {id}")).spawn(move || {
                     let _place = place;
-                    // The page's status counts the seed clients.
-                    shared.seed_clients.fetch_add(1, Ordering::Relaxed);
+                    // The page's status counts the seed clients (also
+                    // when this thread panics: the guard counts it out).
+                    let _counted = Counted::new(&shared.seed_clients);
                     match supply {
                         Supply::Own(devices) => devices.serve_seed(stream, mode, Log::new(id, verbose)),
                         Supply::Board(board) => {
                             serve(stream, mode, &mut board.share(Service::Seed), no_clocks, Log::new(id, verbose))
                         }
                     }
-                    shared.seed_clients.fetch_sub(1, Ordering::Relaxed);
                 });
                 if let Err(e) = spawned {
                     eprintln!("[{id}] cannot start a thread: {e}");
@@ -61,6 +61,22 @@ pub(crate) fn accept_loop(
             }
             Err(e) => eprintln!("accept failed: {e}"),
         }
+    }
+}
+
+/// One connection counted in a count of clients while it lives.
+struct Counted<'a>(&'a AtomicUsize);
+
+impl<'a> Counted<'a> {
+    fn new(count: &'a AtomicUsize) -> Counted<'a> {
+        count.fetch_add(1, Ordering::Relaxed);
+        Counted(count)
+    }
+}
+
+impl Drop for Counted<'_> {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::Relaxed);
     }
 }
 
@@ -74,7 +90,7 @@ pub fn no_clocks<S>(_: &mut S) -> Option<u64> {
 /// frame then logs its clocks), else `None`. Never panics on peer
 /// behaviour.
 pub fn serve<S: FrameSource>(
-    mut stream: TcpStream,
+    stream: TcpStream,
     mode: Mode,
     frames: &mut S,
     clocks: fn(&mut S) -> Option<u64>,
@@ -95,6 +111,10 @@ pub fn serve<S: FrameSource>(
             return;
         }
     };
+    // Writes go through a shared reference (`&TcpStream` writes too), so
+    // that the guard can hold one.
+    let mut stream = &stream;
+    let _shut = ShutOnDrop(stream);
     let start = Instant::now();
     let now = || ProtocolInstant::from_millis(u64::try_from(start.elapsed().as_millis()).unwrap_or(u64::MAX));
     let mut session = Session::new(mode, now());
@@ -139,7 +159,7 @@ pub fn serve<S: FrameSource>(
                     Closed::Done => fmt::Write::write_str(&mut log, "done\n"),
                     other => fmt::Write::write_fmt(&mut log, format_args!("closing: {other}\n")),
                 };
-                close_gracefully(&stream, &input, input_ended);
+                close_gracefully(stream, &input, input_ended);
                 return;
             }
             Action::Send { .. } => {

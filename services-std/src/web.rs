@@ -21,7 +21,7 @@ use rt_services::web::{WEB_SOCKETS, WEB_VIEWERS};
 use rt_services::{FrameSource, Instant as ProtocolInstant};
 
 use crate::board::{Board, Failed, Frames, Service, Share};
-use crate::connection::{close_gracefully, spawn_reader, ConnectionCap, Input};
+use crate::connection::{close_gracefully, spawn_reader, ConnectionCap, Input, ShutOnDrop};
 use crate::{Log, OwnDevices, Tail};
 
 /// The boot self-test's outcome, as `/status` gives it.
@@ -234,26 +234,55 @@ fn lock(frames: &Mutex<WebFrames>) -> std::sync::MutexGuard<'_, WebFrames> {
 }
 
 /// One connection's view of the shared frames (each call under the lock).
-struct SharedFrames<'a>(&'a Mutex<WebFrames>);
+/// The frames it began and has not ended are ended when it is dropped,
+/// so a connection thread that panics mid-frame gives them back (on a
+/// board, to the page's quota) instead of holding them for good.
+struct SharedFrames<'a> {
+    frames: &'a Mutex<WebFrames>,
+    /// Frames begun through it and not yet ended.
+    open: Vec<usize>,
+}
+
+impl<'a> SharedFrames<'a> {
+    fn new(frames: &'a Mutex<WebFrames>) -> SharedFrames<'a> {
+        SharedFrames { frames, open: Vec::new() }
+    }
+}
+
+impl Drop for SharedFrames<'_> {
+    fn drop(&mut self) {
+        // `end` takes each out of `open`.
+        while let Some(&frame) = self.open.last() {
+            self.end(frame);
+        }
+    }
+}
 
 impl FrameSource for SharedFrames<'_> {
     type Frame = usize;
     type Error = Failed;
 
     fn begin(&mut self, light: &model::Light) -> Result<Option<usize>, Failed> {
-        lock(self.0).source.begin(light)
+        let frame = lock(self.frames).source.begin(light)?;
+        self.open.extend(frame);
+        Ok(frame)
     }
 
     fn rows_ready(&mut self, frame: usize) -> Result<u16, Failed> {
-        lock(self.0).source.rows_ready(frame)
+        lock(self.frames).source.rows_ready(frame)
     }
 
     fn copy_row(&mut self, frame: usize, y: u16, offset: usize, out: &mut [u8]) -> usize {
-        lock(self.0).source.copy_row(frame, y, offset, out)
+        lock(self.frames).source.copy_row(frame, y, offset, out)
     }
 
     fn end(&mut self, frame: usize) {
-        lock(self.0).source.end(frame)
+        let Some(k) = self.open.iter().position(|&f| f == frame) else {
+            // Not this connection's (or ended already): nothing to give back.
+            return;
+        };
+        self.open.swap_remove(k);
+        lock(self.frames).source.end(frame)
     }
 }
 
@@ -317,7 +346,7 @@ const LIVE_EVERY: std::time::Duration = std::time::Duration::from_millis(250);
 fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
     // The cap on sockets keeps connections to WEB_SOCKETS: a place is free.
     let Some(place) = TurnPlace::take(&shared.frames) else { return };
-    let mut ring = SharedFrames(&shared.frames);
+    let mut ring = SharedFrames::new(&shared.frames);
     let mut frames = Counted { frames: &mut ring, rendered: &shared.frames_rendered };
     let _ = stream.set_nodelay(true);
     let _ = stream.set_write_timeout(Some(SEND_TIMEOUT));
@@ -328,13 +357,16 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
             return;
         }
     };
+    // Writes go through a shared reference (`&TcpStream` writes too), so
+    // that the guard can hold one.
+    let mut stream = &stream;
+    let _shut = ShutOnDrop(stream);
     let start = Instant::now();
     let now = || ProtocolInstant::from_millis(u64::try_from(start.elapsed().as_millis()).unwrap_or(u64::MAX));
     let mut connection = Connection::new(now());
     let mut pending: Vec<u8> = Vec::new();
     let mut input_ended = false;
-    let mut viewer = false;
-    let mut stream = stream;
+    let mut viewer: Option<ViewerPlace<'_>> = None;
     let (mut live, mut live_at) = (None, None);
     loop {
         if !pending.is_empty() {
@@ -394,7 +426,7 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
                 }
             }
         };
-        let action = if viewer {
+        let action = if viewer.is_some() {
             let may_begin = lock(&shared.frames).turns.may_begin(place.index);
             let cx = Context {
                 now: now(),
@@ -422,7 +454,7 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
             let action = drive(&mut connection, &cx, &mut frames, &mut send, &mut log);
             if connection.is_viewer() {
                 *count += 1;
-                viewer = true;
+                viewer = Some(ViewerPlace(&shared.viewers));
                 let _ = fmt::Write::write_fmt(&mut log, format_args!("web: viewer {} of {WEB_VIEWERS}\n", *count));
             }
             action
@@ -432,7 +464,7 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
             Action::Close(reason) => {
                 let _ = fmt::Write::write_fmt(&mut log, format_args!("web: {reason}\n"));
                 if reason.graceful() {
-                    close_gracefully(&stream, &input, input_ended);
+                    close_gracefully(stream, &input, input_ended);
                 }
                 true
             }
@@ -473,10 +505,18 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
             }
         }
     }
-    // Whatever ended it, a frame it held goes back to the shared ring.
+    // Whatever ended it, a frame it held goes back to the shared ring (and
+    // a viewer's place to the count, as `viewer` drops).
     connection.abandon(&mut frames);
-    if viewer {
-        let mut count = shared.viewers.lock().unwrap_or_else(|e| e.into_inner());
+}
+
+/// A viewer's place in the count of viewers, given back on drop (also
+/// when its connection's thread panics).
+struct ViewerPlace<'a>(&'a Mutex<usize>);
+
+impl Drop for ViewerPlace<'_> {
+    fn drop(&mut self) {
+        let mut count = self.0.lock().unwrap_or_else(|e| e.into_inner());
         *count = count.saturating_sub(1);
     }
 }
