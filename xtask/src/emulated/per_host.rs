@@ -40,6 +40,7 @@ use rt_services::camera::rtsp::{CONNECTIONS_PER_ADDRESS, RECLAIM_AFTER, SESSIONS
 use super::lan::{Lan, BOARD};
 use super::lossy::Faults;
 use super::qemu_e2e::expected_frame;
+use crate::support::laggard;
 use crate::support::player::{Kind, Player};
 use crate::support::rtsp_client::RtspSession;
 use crate::support::tools::root;
@@ -239,94 +240,25 @@ fn laggard(lan: &Lan, rtsp: SocketAddr) -> Result<()> {
             s.teardown()
         })?
     };
+    let url = format!("rtsp://{BOARD}:8554{PATH}");
+    let frames = || frames.lock().map(|f| f.len()).unwrap_or(0);
     let phase = Duration::from_secs(10);
-    let rate = |during: Duration| -> Result<f64> {
-        let count = || frames.lock().map(|f| f.len()).unwrap_or(0);
-        let deadline = Instant::now() + Duration::from_secs(60);
-        while count() == 0 && Instant::now() < deadline {
-            thread::sleep(Duration::from_millis(50));
-        }
-        let (start, before) = (Instant::now(), count());
-        thread::sleep(during);
-        Ok((count() - before) as f64 / start.elapsed().as_secs_f64())
-    };
     // The first frames of a stream come while QEMU's guest and the
     // players warm up: not counted.
-    rate(Duration::from_secs(5))?;
-    // The laggard: plays inside its connection, with a small receive
-    // buffer, and never reads.
-    let start_laggard = || {
-        lan.on_host(1, move || {
-            let c =
-                socket2::Socket::new(socket2::Domain::IPV4, socket2::Type::STREAM, None).map_err(|e| e.to_string())?;
-            c.set_recv_buffer_size(4096).map_err(|e| e.to_string())?;
-            c.connect_timeout(&rtsp.into(), Duration::from_secs(5)).map_err(|e| e.to_string())?;
-            let mut c: TcpStream = c.into();
-            c.set_read_timeout(Some(Duration::from_secs(5))).map_err(|e| e.to_string())?;
-            let url = format!("rtsp://{BOARD}:8554{PATH}");
-            let setup = format!(
-                "SETUP {url}/trackID=0 RTSP/1.0\r\nCSeq: 1\r\nTransport: RTP/AVP/TCP;unicast;interleaved=0-1\r\n\r\n"
-            );
-            c.write_all(setup.as_bytes()).map_err(|e| e.to_string())?;
-            let mut head = Vec::new();
-            let mut b = [0u8; 1];
-            while !head.ends_with(b"\r\n\r\n") {
-                c.read_exact(&mut b).map_err(|e| format!("the laggard's SETUP: {e}"))?;
-                head.push(b[0]);
-            }
-            let text = String::from_utf8_lossy(&head).into_owned();
-            let session = text
-                .lines()
-                .find_map(|l| l.strip_prefix("Session: "))
-                .and_then(|s| s.split(';').next())
-                .ok_or(format!("the laggard's SETUP: {text:?}"))?
-                .to_string();
-            c.write_all(format!("PLAY {url} RTSP/1.0\r\nCSeq: 2\r\nSession: {session}\r\n\r\n").as_bytes())
-                .map_err(|e| e.to_string())?;
-            Ok(c)
-        })
-    };
-    // Rates under QEMU on a loaded machine swing by a third between
-    // phases of the same conditions (seen: 2.40 then 3.30, and 2.00 then
-    // 3.10 frames/s alone), and drift within a run: phases alternate,
-    // alone, beside the laggard, alone, beside it, alone, and the two
-    // means are compared; a miss is measured once more. A laggard that
-    // holds the stream (the defect: one frame per 3 s, or 2 frames/s of
-    // 30) misses both.
-    let mut attempt = 1;
-    loop {
-        let (mut alone, mut beside) = (vec![rate(phase)?], vec![]);
-        for _ in 0..2 {
-            let laggard = start_laggard()?;
-            beside.push(rate(phase)?);
-            drop(laggard);
-            alone.push(rate(phase)?);
-        }
-        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-        let (alone_mean, beside_mean) = (mean(&alone), mean(&beside));
-        let shown = |v: &[f64]| v.iter().map(|r| format!("{r:.2}")).collect::<Vec<_>>().join(", ");
-        println!(
-            "per-host: a UDP viewer: {} frames/s alone, {} beside a never-reading interleaved viewer of its stream \
-             (means {alone_mean:.2} and {beside_mean:.2}: {:.0}%)",
-            shown(&alone),
-            shown(&beside),
-            100.0 * beside_mean / alone_mean
-        );
-        if beside_mean >= 0.9 * alone_mean {
-            break;
-        }
-        if attempt == 2 {
-            stop.store(true, Ordering::Relaxed);
-            let _ = viewer.join();
-            return Err(format!(
-                "a never-reading viewer held a UDP viewer of its stream to {beside_mean:.2} frames/s (alone {alone_mean:.2}), twice"
-            ));
-        }
-        println!("per-host: under 90% of the rate alone: measuring once more");
-        attempt += 1;
-    }
+    let checked = laggard::rate_over(Duration::from_secs(5), &frames).and_then(|_| {
+        laggard::slows_only_itself(
+            "per-host",
+            || laggard::rate_over(phase, &frames),
+            || {
+                let url = url.clone();
+                lan.on_host(1, move || laggard::never_reading_viewer(rtsp, &url))
+            },
+        )
+    });
     stop.store(true, Ordering::Relaxed);
-    viewer.join().map_err(|_| "the viewer's thread panicked".to_string())??;
+    let joined = viewer.join().map_err(|_| "the viewer's thread panicked".to_string());
+    checked?;
+    joined??;
     Ok(())
 }
 

@@ -14,9 +14,10 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use model::Light;
 
+use crate::support::laggard;
 use crate::support::player::{Kind, Player};
 use crate::support::rtsp_client::{RtspSession, Transport};
-use crate::support::tools::root;
+use crate::support::tools::{cargo, root, step};
 use crate::support::Result;
 
 /// A child process killed when dropped.
@@ -145,6 +146,7 @@ fn free_addrs() -> Result<(SocketAddr, SocketAddr)> {
 
 /// The suite's step: shared and separate streams, then multicast.
 pub fn run() -> Result<()> {
+    step("build hps-sim and rt-client (release)", cargo(&["build", "--release", "-p", "hps-sim", "-p", "rt-client"]))?;
     let (listen, rtsp) = free_addrs()?;
     let _sim = start_hps_sim(&[], listen, rtsp, &[])?;
     let fixed = [3.0, 4.0, -2.0];
@@ -161,7 +163,44 @@ pub fn run() -> Result<()> {
     let paths: Vec<String> = lights.iter().map(|l| format!("/light/{},{},{}?fps=30", l[0], l[1], l[2])).collect();
     let viewed = viewers(rtsp, &paths, &lights, Transport::Udp, 20)?;
     println!("viewers: hps-sim, four viewers of four lights: {}, 20 frames each byte-exact", describe(&viewed));
+    laggard(rtsp)?;
     multicast()
+}
+
+/// A UDP viewer of `light/3,4,-2?fps=30` keeps 90% of its rate alone
+/// beside an interleaved viewer of the same stream that never reads (the
+/// emulated board's check is `per-host`'s). The viewer is the product's:
+/// `rt-client bench --transport rtsp`, 150 frames, its rate counted from
+/// the request on, so a viewer kept waiting to join the laggard's stream
+/// shows (it waited 2.3 s of the laggard's stall limit: 21 frames/s).
+fn laggard(rtsp: SocketAddr) -> Result<()> {
+    const PATH: &str = "/light/3,4,-2?fps=30";
+    let client = root().join("target/release/rt-client");
+    let rate = || -> Result<f64> {
+        let out = Command::new(&client)
+            .args(["bench", "--transport", "rtsp", "--rtsp", &rtsp.to_string(), "--server", &rtsp.ip().to_string()])
+            .args(["--light", "3,4,-2", "--fps", "30", "--frames", "150"])
+            .stdin(Stdio::null())
+            .output()
+            .map_err(|e| format!("{}: {e}", client.display()))?;
+        let text = String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+        if !out.status.success() {
+            return Err(format!("rt-client bench: {}", text.trim()));
+        }
+        if !text.contains("150 exact") {
+            return Err(format!("rt-client bench: not every frame exact: {}", text.trim()));
+        }
+        bench_rate(&text).ok_or(format!("rt-client bench said no rate: {}", text.trim()))
+    };
+    let url = format!("rtsp://{rtsp}{PATH}");
+    laggard::slows_only_itself("viewers: hps-sim", rate, || laggard::never_reading_viewer(rtsp, &url))
+}
+
+/// The rate in `rt-client bench`'s line `N frames in S s over RTSP: R
+/// frames/s ...`.
+fn bench_rate(text: &str) -> Option<f64> {
+    let line = text.lines().find(|l| l.contains(" over RTSP: "))?;
+    line.split(" over RTSP: ").nth(1)?.split_whitespace().next()?.parse().ok()
 }
 
 /// Network namespace of the multicast check, removed on drop.
@@ -342,4 +381,14 @@ pub fn receive(args: &ReceiveArgs) -> Result<()> {
         start.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_rate_is_read_from_rt_client_bench_s_line() {
+        let text = "150 frames in 4.93 s over RTSP: 30.4 frames/s (30.3 after the first), 15.8 MB/s\nframes: 150 exact";
+        assert_eq!(super::bench_rate(text), Some(30.4));
+        assert_eq!(super::bench_rate("no such line"), None);
+    }
 }
