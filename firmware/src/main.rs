@@ -46,6 +46,7 @@ fn main() -> ! {
     log::init(Active::UART0);
     let mut log = log::Log;
     let _ = writeln!(log, "\n\nraytracer firmware {} on {}", env!("CARGO_PKG_VERSION"), Active::NAME);
+    let _ = writeln!(log, "build: features {}", env!("FIRMWARE_FEATURES"));
     let _ = writeln!(log, "core 0 up; core 1 parked; vectors at VBAR");
     let _ = writeln!(log, "entry: {}", start::entry_state());
     TIMER.start();

@@ -22,8 +22,15 @@ pub fn elf_path() -> PathBuf {
     root().join("target").join(FIRMWARE_TARGET).join("release").join("firmware")
 }
 
+/// Where the release ELF built with `features` (comma-separated, the
+/// board first) is kept: a path of its own per feature set, so that a step
+/// holding it runs the build it asked for whatever was built after.
+pub fn elf_for(features: &str) -> PathBuf {
+    elf_path().with_file_name(format!("firmware-{}", features.replace(',', "+")))
+}
+
 /// Build the release firmware for `board` (extra features appended), with
-/// warnings as errors.
+/// warnings as errors; its ELF's own path ([`elf_for`]).
 pub fn build(board: &str, extra_features: &[&str]) -> Result<PathBuf> {
     let features = std::iter::once(board).chain(extra_features.iter().copied()).collect::<Vec<_>>().join(",");
     // Every command that boots the firmware builds it here: the target
@@ -32,7 +39,51 @@ pub fn build(board: &str, extra_features: &[&str]) -> Result<PathBuf> {
     let mut c = cargo(&["build", "--release", "-p", "firmware", "--target", FIRMWARE_TARGET, "--features", &features]);
     c.env("RUSTFLAGS", "-D warnings");
     step(&format!("build firmware ({features})"), c)?;
-    Ok(elf_path())
+    let out = elf_for(&features);
+    std::fs::copy(elf_path(), &out).map_err(|e| format!("{} -> {}: {e}", elf_path().display(), out.display()))?;
+    Ok(out)
+}
+
+/// The features firmware/Cargo.toml's `[features]` says each feature
+/// turns on besides itself.
+fn implied_features() -> Result<Vec<(String, Vec<String>)>> {
+    let manifest = root().join("firmware/Cargo.toml");
+    let text = std::fs::read_to_string(&manifest).map_err(|e| format!("{}: {e}", manifest.display()))?;
+    let section = text.split("\n[features]\n").nth(1).ok_or("firmware/Cargo.toml has no [features]")?;
+    let section = section.split("\n[").next().unwrap_or(section);
+    Ok(section
+        .lines()
+        .filter_map(|l| l.split_once('='))
+        .map(|(name, list)| {
+            let deps = list.split('"').skip(1).step_by(2).map(str::to_string).collect();
+            (name.trim().to_string(), deps)
+        })
+        .collect())
+}
+
+/// The `build: features ...` line the firmware in `elf` prints at boot,
+/// if `elf` is a build of [`build`]'s (named for its features): those
+/// features and all they imply, sorted, as the firmware's build script
+/// lists them.
+pub fn expected_build_line(elf: &Path) -> Result<Option<String>> {
+    let Some(named) = elf.file_name().and_then(|n| n.to_str()).and_then(|n| n.strip_prefix("firmware-")) else {
+        return Ok(None);
+    };
+    let implied = implied_features()?;
+    let mut features: Vec<String> = named.split('+').map(str::to_string).collect();
+    let mut i = 0;
+    while i < features.len() {
+        if let Some((_, deps)) = implied.iter().find(|(n, _)| *n == features[i]) {
+            for d in deps {
+                if !features.contains(d) {
+                    features.push(d.clone());
+                }
+            }
+        }
+        i += 1;
+    }
+    features.sort();
+    Ok(Some(format!("build: features {}", features.join(","))))
 }
 
 /// A free TCP port on 127.0.0.1 (asked from the OS, then released).
@@ -176,7 +227,7 @@ impl Guest {
     /// firmware says it listens.
     pub fn boot(elf: &Path, extra: &[&str]) -> Result<Guest> {
         let f = Forwards::free()?;
-        let mut g = Guest::start(qemu_command(elf, &f), f.single, f.persistent, extra)?;
+        let mut g = Guest::start(qemu_command(elf, &f), elf, f.single, f.persistent, extra)?;
         g.forwards = Some(f);
         Ok(g)
     }
@@ -195,10 +246,10 @@ impl Guest {
         if let Some(text) = settings {
             c.args(["-device", &settings_loader(&settings_file(text)?)]);
         }
-        Guest::start(c, 0, 0, extra)
+        Guest::start(c, elf, 0, 0, extra)
     }
 
-    fn start(mut c: Command, port_single: u16, port_persistent: u16, extra: &[&str]) -> Result<Guest> {
+    fn start(mut c: Command, elf: &Path, port_single: u16, port_persistent: u16, extra: &[&str]) -> Result<Guest> {
         let log = std::env::temp_dir().join(format!(
             "rt-firmware-uart-{}-{}.log",
             std::process::id(),
@@ -213,6 +264,14 @@ impl Guest {
             c.spawn().map_err(|e| format!("cannot start qemu-system-arm: {e} (cargo xtask test installs it)"))?;
         let mut g = Guest { child, log, port_single, port_persistent, forwards: None, address_wait: Duration::ZERO };
         g.wait_for_log("listening on TCP", Duration::from_secs(60))?;
+        // The build that answered is the one asked for.
+        if let Some(want) = expected_build_line(elf)? {
+            let uart = g.uart();
+            if !uart.lines().any(|l| l.trim_end() == want) {
+                let said = uart.lines().find(|l| l.starts_with("build: ")).unwrap_or("no build line");
+                return Err(format!("{} booted, but its UART says {said:?}, not {want:?}", elf.display()));
+            }
+        }
         // Then its address: at once when static, from slirp's DHCP server
         // within a second, link-local within 10 s.
         let listening = Instant::now();
@@ -322,13 +381,17 @@ pub struct ImageArgs {
 pub const LOAD_ADDRESS: u32 = 0x0010_0040;
 
 /// Build the DE1-SoC firmware and write `firmware.bin` (raw) and
+/// Debian's packages `image` uses: llvm-objdump (Debian's llvm: it knows
+/// the Arm encodings).
+pub const IMAGE_PACKAGES: [&str; 1] = ["llvm"];
+
 /// `firmware.img` (U-Boot legacy image, load and entry at the link address).
 pub fn image(args: &ImageArgs) -> Result<()> {
     let elf_path = build("de1-soc", &[])?;
     // The reset entry: no literal load before the L2 clean, the L2 checked
     // on every path (xtask/src/images/entry_check.rs), read with
     // llvm-objdump (Debian's llvm: it knows the Arm encodings).
-    ensure_apt_packages(&["llvm"], None)?;
+    ensure_apt_packages(&IMAGE_PACKAGES, None)?;
     super::entry_check::check_elf(&elf_path, super::entry_check::DE1_SOC_L2C)?;
     println!("reset entry: other cores parked first, constants by movw/movt, the L2C-310 checked whatever SCTLR says");
     let elf = std::fs::read(&elf_path).map_err(|e| format!("{}: {e}", elf_path.display()))?;
@@ -356,7 +419,25 @@ pub fn image(args: &ImageArgs) -> Result<()> {
 
 #[cfg(test)]
 mod tests {
-    use super::whole_lines;
+    use super::{elf_for, expected_build_line, whole_lines};
+
+    #[test]
+    fn every_feature_set_has_an_elf_of_its_own() {
+        let (a, b) = (elf_for("qemu-npcm750,sim-accelerator"), elf_for("qemu-npcm750,frame-port-fault"));
+        assert_ne!(a, b);
+        assert!(a.ends_with("firmware-qemu-npcm750+sim-accelerator"), "{}", a.display());
+    }
+
+    #[test]
+    fn the_build_line_names_what_a_feature_implies_too() {
+        // firmware/Cargo.toml: frame-port-fault turns on sim-accelerator.
+        let line = expected_build_line(&elf_for("qemu-npcm750,frame-port-fault")).unwrap();
+        assert_eq!(line.as_deref(), Some("build: features frame-port-fault,qemu-npcm750,sim-accelerator"));
+        let line = expected_build_line(&elf_for("qemu-npcm750,sim-accelerator")).unwrap();
+        assert_eq!(line.as_deref(), Some("build: features qemu-npcm750,sim-accelerator"));
+        // Not one of ours: nothing to check.
+        assert_eq!(expected_build_line(std::path::Path::new("/tmp/some.elf")).unwrap(), None);
+    }
 
     #[test]
     fn a_line_still_arriving_is_left_out() {
