@@ -100,9 +100,16 @@ enum Command {
     /// by the multicast checks).
     #[command(hide = true)]
     Receive(host::viewers::ReceiveArgs),
+    /// Install everything the suite uses (the Rust target and components,
+    /// Debian's packages with one `apt-get update`), and run nothing.
+    InstallTools,
     /// The web page in Chromium: served by hps-sim, then by the emulated
-    /// board while a hostile client attacks its port.
-    WebTest,
+    /// board while a hostile client attacks its port, then played on.
+    WebTest {
+        /// Minutes the page plays after the attack (the suite plays two).
+        #[arg(long, default_value_t = 10)]
+        minutes: u32,
+    },
     /// The web page's hostile client (run by the browser check while the
     /// page plays).
     #[command(hide = true)]
@@ -144,6 +151,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Test => suite::run(),
+        Command::InstallTools => suite::install_tools(),
         Command::Render(args) => host::model_cmds::render(&args),
         Command::Golden(args) => host::model_cmds::golden(&args),
         Command::Quality => host::model_cmds::quality(),
@@ -154,7 +162,7 @@ fn main() -> ExitCode {
         Command::Receive(args) => host::viewers::receive(&args),
         Command::HostileClient(args) => emulated::hostile::client(&args),
         Command::HostileWeb(args) => emulated::web::client(&args),
-        Command::WebTest => suite::web(),
+        Command::WebTest { minutes } => suite::web(minutes),
         Command::Hostile => suite::hostile(),
         Command::PerHost => suite::per_host(),
         Command::Addressing => suite::addressing(),

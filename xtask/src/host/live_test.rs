@@ -29,9 +29,12 @@ fn raw_light(line: &str) -> Option<[i32; 3]> {
     v.try_into().ok()
 }
 
+/// Debian's packages of the virtual X server the window runs in.
+pub const PACKAGES: [&str; 2] = ["xvfb", "xauth"];
+
 /// Run the test.
 pub fn run() -> Result<()> {
-    ensure_apt_packages(&["xvfb", "xauth"], None)?;
+    ensure_apt_packages(&PACKAGES, None)?;
     step("build rt-client (release)", cargo(&["build", "--release", "-p", "rt-client"]))?;
     let dir = root().join("target/live-test");
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;

@@ -285,8 +285,8 @@ fn uboot_source() -> Result<PathBuf> {
         let _ = fs::remove_dir_all(&dl);
         fs::create_dir_all(&dl).map_err(|e| format!("{}: {e}", dl.display()))?;
         // deb-src for bookworm, copied from the machine's Debian entry.
-        ensure_apt_source("raytracer-bookworm-src", "deb-src", "bookworm", "bookworm")?;
-        step("apt-get update", crate::support::tools::apt_get(&["update", "-q"]))?;
+        ensure_apt_source(DEB_SRC_FILE, "deb-src", "bookworm", "bookworm")?;
+        crate::support::tools::apt_update()?;
         run_in(&dl, "apt-get source u-boot (Debian bookworm)", "apt-get", &["source", "-q", "u-boot"])?;
         let tree = fs::read_dir(&dl)
             .map_err(|e| e.to_string())?
@@ -361,6 +361,10 @@ fn assemble(out: &Path, sfp: &[u8], fat: &[u8]) -> Result<()> {
     }
     fs::write(out, img).map_err(|e| format!("{}: {e}", out.display()))
 }
+
+/// The apt source file (in /etc/apt/sources.list.d) of bookworm's
+/// `deb-src` entry, for U-Boot's source.
+pub const DEB_SRC_FILE: &str = "raytracer-bookworm-src";
 
 /// The tools the image needs (Debian packages).
 pub const PACKAGES: &[&str] = &[

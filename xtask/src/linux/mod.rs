@@ -30,7 +30,7 @@ pub const TARGET: &str = "armv7-unknown-linux-gnueabihf";
 
 /// Debian's cross linker and static C library for [`TARGET`], and the
 /// device-tree compiler for the UIO overlay.
-const PACKAGES: [&str; 3] = ["gcc-arm-linux-gnueabihf", "libc6-dev-armhf-cross", "device-tree-compiler"];
+pub const PACKAGES: [&str; 3] = ["gcc-arm-linux-gnueabihf", "libc6-dev-armhf-cross", "device-tree-compiler"];
 
 /// The UIO overlay (docs/linux.md).
 const OVERLAY: &str = "hps-linux/dts/raytracer-uio.dtso";

@@ -5,10 +5,12 @@
 //! without a cycle.
 
 pub mod browser;
+pub mod laggard;
 pub mod player;
 pub mod process;
 pub mod rtp_frames;
 pub mod rtsp_client;
+pub mod timing;
 pub mod tools;
 
 /// Errors of xtask commands: one line for the user.

@@ -30,10 +30,13 @@ pub fn cargo(args: &[&str]) -> Command {
     c
 }
 
-/// Run one step, echoing it; a failure becomes an error naming the step.
+/// Run one step, echoing it and then its duration; a failure becomes an
+/// error naming the step.
 pub fn step(what: &str, mut cmd: Command) -> Result<()> {
     println!("==> {what}: {cmd:?}");
+    let started = std::time::Instant::now();
     let status = cmd.status().map_err(|e| format!("{what}: cannot start: {e}"))?;
+    println!("<== {what}: {:.1} s", started.elapsed().as_secs_f64());
     if status.success() {
         Ok(())
     } else {
@@ -118,14 +121,30 @@ pub fn apt_get(args: &[&str]) -> Command {
     c
 }
 
-/// `apt-get update`, then install `packages` (from a newer `suite` this
-/// upgrades installed ones).
-pub fn apt_install(packages: &[&str], suite: Option<&str>) -> Result<()> {
-    if packages.is_empty() {
+/// Whether this process's `apt-get update` read every source there is now
+/// (an added source clears it): one update serves every install after it.
+static APT_LISTS_FRESH: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// `apt-get update`, unless this process ran it since the last source was
+/// added.
+pub fn apt_update() -> Result<()> {
+    use std::sync::atomic::Ordering;
+    if APT_LISTS_FRESH.load(Ordering::SeqCst) {
         return Ok(());
     }
     println!("==> apt-get waits up to {APT_LOCK_TIMEOUT_S} s for the dpkg lock if another apt process holds it");
     step("apt-get update", apt_get(&["update", "-q"]))?;
+    APT_LISTS_FRESH.store(true, Ordering::SeqCst);
+    Ok(())
+}
+
+/// `apt-get update` (once, [`apt_update`]), then install `packages` (from
+/// a newer `suite` this upgrades installed ones).
+pub fn apt_install(packages: &[&str], suite: Option<&str>) -> Result<()> {
+    if packages.is_empty() {
+        return Ok(());
+    }
+    apt_update()?;
     let mut args = vec!["install", "-y", "-q", "--no-install-recommends"];
     if let Some(s) = suite {
         args.extend(["-t", s]);
@@ -259,6 +278,8 @@ pub fn ensure_apt_source(file: &str, types: &str, suite: &str, release: &str) ->
     }
     let st = child.wait().map_err(|e| e.to_string())?;
     if st.success() {
+        // apt knows nothing of it before the next update.
+        APT_LISTS_FRESH.store(false, std::sync::atomic::Ordering::SeqCst);
         Ok(())
     } else {
         Err(format!("writing {} failed ({st})", path.display()))
@@ -272,14 +293,7 @@ const QEMU_MIN: (u32, u32) = (9, 1);
 /// 10 from bookworm-backports, also when an older one is installed, and
 /// mkimage from u-boot-tools.
 pub fn ensure_qemu() -> Result<()> {
-    let qemu_ok = qemu_version().is_some_and(|v| v >= QEMU_MIN);
-    let mut wanted = Vec::new();
-    if !qemu_ok {
-        wanted.push("qemu-system-arm");
-    }
-    if !apt_installed("u-boot-tools") {
-        wanted.push("u-boot-tools");
-    }
+    let wanted = qemu_wanted();
     if wanted.is_empty() {
         return Ok(());
     }
@@ -292,6 +306,19 @@ pub fn ensure_qemu() -> Result<()> {
             QEMU_MIN.0, QEMU_MIN.1
         )),
     }
+}
+
+/// What [`ensure_qemu`] installs from bookworm-backports: QEMU unless one
+/// new enough is there, u-boot-tools unless installed.
+pub fn qemu_wanted() -> Vec<&'static str> {
+    let mut wanted = Vec::new();
+    if qemu_version().is_none_or(|v| v < QEMU_MIN) {
+        wanted.push("qemu-system-arm");
+    }
+    if !apt_installed("u-boot-tools") {
+        wanted.push("u-boot-tools");
+    }
+    wanted
 }
 
 /// `(major, minor)` of the installed `qemu-system-arm`.
