@@ -474,7 +474,7 @@ pub struct RtpStream {
     rtcp: UdpSocket,
     server_rtcp: SocketAddr,
     server_ip: IpAddr,
-    receiver: Receiver<Vec<u8>>,
+    receiver: Receiver<Vec<u8>, FRAME_BUFFERS>,
     origin: Instant,
     last_packet: Instant,
     last_keepalive: Instant,
@@ -501,9 +501,7 @@ impl RtpStream {
         let setup = client.setup(&control, rtp_port)?;
         let server_ip = client.peer()?.ip();
         client.play(url)?;
-        let receiver =
-            Receiver::new(ReceiverConfig::new(CLIENT_SSRC), [vec![0; model::FRAME_BYTES], vec![0; model::FRAME_BYTES]])
-                .map_err(|e| RtspError::Protocol(e.to_string()))?;
+        let receiver = new_receiver()?;
         let now = Instant::now();
         Ok(RtpStream {
             client,
@@ -657,6 +655,19 @@ pub fn fetch_udp_frame(addr: SocketAddr, url: &str, wait: Duration) -> Result<Ve
     frame.ok_or_else(|| RtspError::Protocol(format!("no whole frame over RTP/UDP in {} s", wait.as_secs())))
 }
 
+/// Frame buffers of the receiver: seven frames in progress and the last
+/// one handed over (4 MB). A frame then waits for its repairs while six
+/// newer ones arrive: a board that renders its next frames before it
+/// reads the NACK (the emulated board does, on its CPU) answers late, and
+/// with two buffers the frame was given up before the repair came.
+pub const FRAME_BUFFERS: usize = 8;
+
+/// The receiver every RTP path of the client takes frames from.
+fn new_receiver() -> Result<Receiver<Vec<u8>, FRAME_BUFFERS>, RtspError> {
+    Receiver::new(ReceiverConfig::new(CLIENT_SSRC), core::array::from_fn(|_| vec![0; model::FRAME_BYTES]))
+        .map_err(|e| RtspError::Protocol(e.to_string()))
+}
+
 /// One whole frame of `url` over RTP inside the RTSP connection to `addr`
 /// within `wait`; the connection is closed after it (the server then ends
 /// the session).
@@ -667,9 +678,7 @@ pub fn fetch_interleaved_frame(addr: SocketAddr, url: &str, wait: Duration) -> R
     let control = control_url(url, &sdp);
     client.setup_interleaved(&control)?;
     client.play(url)?;
-    let mut receiver =
-        Receiver::new(ReceiverConfig::new(CLIENT_SSRC), [vec![0; model::FRAME_BYTES], vec![0; model::FRAME_BYTES]])
-            .map_err(|e| RtspError::Protocol(e.to_string()))?;
+    let mut receiver = new_receiver()?;
     let start = Instant::now();
     let mut frame = None;
     while frame.is_none() && start.elapsed() < wait {
