@@ -26,6 +26,7 @@ use clap::Args;
 
 use super::qemu_e2e::{expected_frame, LIGHTS};
 use crate::images::firmware::{build, free_udp_port, Guest};
+use crate::support::tools::{cargo, step};
 use crate::support::Result;
 
 /// Per-frame fault probabilities, the same both ways.
@@ -603,7 +604,18 @@ fn rtsp_client(board: &str, frames: usize, phases: usize) -> Result<()> {
 /// the relay's faults set to each of `phases` in turn: the outcome of each
 /// phase. The boot's own pace drifts with the host's load; phases of one
 /// stream in one boot can be compared.
-pub fn run_rtsp_phases(elf: &Path, phases: &[Faults], seed: u64, frames: usize) -> Result<Vec<RtspOutcome>> {
+///
+/// Then, with `rt_client` (faults, frames), the relay's faults set to those
+/// and `rt-client bench --transport rtsp` (the product, release build)
+/// fetching that many frames of the same light inside the namespace: its
+/// counts.
+pub fn run_rtsp_phases(
+    elf: &Path,
+    phases: &[Faults],
+    seed: u64,
+    frames: usize,
+    rt_client: Option<(Faults, usize)>,
+) -> Result<(Vec<RtspOutcome>, Option<RtClientCounts>)> {
     use std::io::BufRead;
     static RUNS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
     let run = RUNS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
@@ -661,7 +673,47 @@ pub fn run_rtsp_phases(elf: &Path, phases: &[Faults], seed: u64, frames: usize) 
     }
     drop(input);
     let _ = child.wait();
-    Ok(outcomes)
+    let Some((faults, frames)) = rt_client else { return Ok((outcomes, None)) };
+    relay.set_faults(faults);
+    let client = crate::support::tools::root().join("target/release/rt-client");
+    let out = Command::new("ip")
+        .args(["netns", "exec", &ns.0])
+        .arg(&client)
+        .args(["bench", "--transport", "rtsp", "--server", "10.0.2.15", "--light", "3,4,-2", "--fps", "max"])
+        .args(["--frames", &frames.to_string()])
+        .stdin(std::process::Stdio::null())
+        .output()
+        .map_err(|e| format!("{}: {e}", client.display()))?;
+    let text = String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    let counts = RtClientCounts::parse(&text).ok_or(format!("rt-client bench through the relay: {}", text.trim()))?;
+    Ok((outcomes, Some(counts)))
+}
+
+/// What `rt-client bench --transport rtsp` counted (its `frames:` line).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RtClientCounts {
+    /// Frames whole without a repair.
+    pub exact: u64,
+    /// Frames made whole by NACK repair.
+    pub repaired: u64,
+    /// Frames handed over with rows missing.
+    pub damaged: u64,
+    /// Frames of which nothing arrived.
+    pub lost: u64,
+}
+
+impl RtClientCounts {
+    /// Frames that came whole.
+    pub fn whole(&self) -> u64 {
+        self.exact + self.repaired
+    }
+
+    /// From `frames: E exact, R repaired, D damaged, L lost; ...`.
+    fn parse(text: &str) -> Option<RtClientCounts> {
+        let line = text.lines().find_map(|l| l.trim().strip_prefix("frames: "))?;
+        let mut n = line.split([',', ';']).map(|part| part.split_whitespace().next()?.parse::<u64>().ok());
+        Some(RtClientCounts { exact: n.next()??, repaired: n.next()??, damaged: n.next()??, lost: n.next()?? })
+    }
 }
 
 // ---- Bench and suite ---------------------------------------------------------------------
@@ -780,7 +832,9 @@ pub fn suite_test() -> Result<()> {
     println!("==> RTSP through the lossy relay: clean, 2% drop (1% reorder, 1% corrupt), clean, 10% drop, clean; NACK repair");
     let clean = SCENARIOS[0].1;
     let phases = [clean, SCENARIOS[1].1, clean, SCENARIOS[2].1, clean];
-    let o = run_rtsp_phases(&sim, &phases, 7, SUITE_RTSP_FRAMES)?;
+    step("build rt-client (release)", cargo(&["build", "--release", "-p", "rt-client"]))?;
+    let (o, rt_client) =
+        run_rtsp_phases(&sim, &phases, 7, SUITE_RTSP_FRAMES, Some((SCENARIOS[2].1, RT_CLIENT_FRAMES)))?;
     for (k, name, bar) in [(1, SCENARIOS[1].0, BAR_2), (3, SCENARIOS[2].0, BAR_10)] {
         let base = RtspOutcome::mean(&o[k - 1], &o[k + 1]);
         let lossy = &o[k];
@@ -799,8 +853,29 @@ pub fn suite_test() -> Result<()> {
         );
         verdict?;
     }
+    // The product itself, through the same 10% drop in the same boot.
+    let c = rt_client.ok_or("rt-client did not run")?;
+    println!(
+        "lossy link, RTSP: 10% drop, rt-client bench: {} of {RT_CLIENT_FRAMES} frames whole ({} exact, {} repaired), {} damaged, {} lost",
+        c.whole(),
+        c.exact,
+        c.repaired,
+        c.damaged,
+        c.lost
+    );
+    if c.whole() < RT_CLIENT_WHOLE {
+        return Err(format!(
+            "rt-client through 10% drop: {} of {RT_CLIENT_FRAMES} frames whole, under {RT_CLIENT_WHOLE}",
+            c.whole()
+        ));
+    }
     Ok(())
 }
+
+/// Frames rt-client takes through the 10% drop, and how many must come
+/// whole (95%, the bar of the suite's own client at 10%).
+const RT_CLIENT_FRAMES: usize = 60;
+const RT_CLIENT_WHOLE: u64 = 57;
 
 /// RTSP frames per phase in the suite (the emulated board sends about five
 /// a second at fps=max): at 100 the 99% bar of the 2% phase allows one
@@ -865,6 +940,11 @@ mod tests {
             Some(RtspOutcome { exact: 30, given_up: 1, repaired_rows: 5, nacks: 2, stale: 3, elapsed_ms: 900 })
         );
         assert_eq!(RtspOutcome::parse("exact=x"), None);
+        let bench = "60 frames in 40.1 s over RTSP: 1.5 frames/s (1.5 after the first), 0.8 MB/s\n\
+                     frames: 41 exact, 17 repaired, 2 damaged, 0 lost; 90 NACKs for 400 rows, 3 duplicates, 1 late";
+        let c = RtClientCounts::parse(bench).unwrap();
+        assert_eq!((c.exact, c.repaired, c.damaged, c.lost, c.whole()), (41, 17, 2, 0, 58));
+        assert_eq!(RtClientCounts::parse("no counts"), None);
     }
 
     #[test]

@@ -353,7 +353,7 @@ pub struct ReceiveArgs {
 
 /// Which rows of `f` differ from `want`'s, and which of them came after a
 /// NACK: what a wrong frame's diagnosis starts from.
-fn wrong_rows(f: &crate::support::rtp_frames::Frame, want: &[u8]) -> String {
+fn wrong_rows(f: &crate::support::rtsp_client::Frame, want: &[u8]) -> String {
     let row = model::ROW_BYTES;
     let wrong: Vec<usize> =
         (0..want.len() / row).filter(|&y| f.bytes[y * row..(y + 1) * row] != want[y * row..(y + 1) * row]).collect();

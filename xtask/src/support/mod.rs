@@ -8,7 +8,6 @@ pub mod browser;
 pub mod laggard;
 pub mod player;
 pub mod process;
-pub mod rtp_frames;
 pub mod rtsp_client;
 pub mod timing;
 pub mod tools;

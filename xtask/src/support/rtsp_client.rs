@@ -1,17 +1,64 @@
 //! A small RTSP/RTP client for the suite's checks of the network camera
 //! (the emulated board, the lossy relay, hps-sim): it sets a stream up as a
 //! player does, over UDP, inside the RTSP connection (interleaved) or from
-//! a multicast group, gathers frames by timestamp, asks for missing rows
-//! with generic NACKs (RFC 4585) once a frame's marker arrived, and counts
-//! what came by repair. Strict: anything off-spec in a packet is an error.
+//! a multicast group, and takes its frames from the product's receiver
+//! (`rt_services::camera::receiver`, rt-client's, with as many frame
+//! buffers), which asks for missing rows with generic NACKs (RFC 4585)
+//! and counts what came by repair: the suite tests the receiver users run.
+//! Strict: anything off-spec in a packet is an error.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::{Ipv4Addr, SocketAddr, TcpStream, UdpSocket};
 use std::time::{Duration, Instant};
 
-use super::rtp_frames::{Frame, FrameAssembly};
+use rt_services::camera::receiver::{
+    Quality, ReceivedFrame, Receiver, ReceiverConfig, ReceiverCounts, Verdict, MAX_NACK_BYTES,
+};
+use rt_services::camera::wire::rtp::HEADER_BYTES;
+
 use super::Result;
+
+/// Frame buffers of the receiver: rt-client's (`rt_client::rtsp::FRAME_BUFFERS`,
+/// a binary crate the suite cannot import): seven frames in progress.
+pub const FRAME_BUFFERS: usize = 8;
+
+/// The SSRC this client's RTCP (reports, NACKs) goes out with.
+const OUR_SSRC: u32 = 0x0bad_cafe;
+
+/// A whole frame (exact, or repaired by NACK).
+pub struct Frame {
+    /// Its RTP timestamp.
+    pub timestamp: u32,
+    /// 518,400 bytes.
+    pub bytes: Vec<u8>,
+    /// The rows that came after a NACK asked for them.
+    pub repaired: Vec<usize>,
+}
+
+/// What the receiver counted so far, in the suite's words.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Tally {
+    /// Rows that came after a NACK asked for them.
+    pub repaired_rows: usize,
+    /// Frames given up with rows still missing (handed over damaged, and
+    /// not returned by [`RtspSession::next_frame`]).
+    pub given_up: usize,
+    /// Packets of frames already handed over: a repair asked for twice, or
+    /// a row that came after its frame was given up.
+    pub stale: usize,
+    /// A line to ignore the first time it arrives (a loss made on
+    /// purpose, for the repair to fill).
+    pub drop_once: Option<usize>,
+}
+
+impl Tally {
+    fn update(&mut self, c: &ReceiverCounts) {
+        self.repaired_rows = c.rows_repaired as usize;
+        self.given_up = c.damaged as usize;
+        self.stale = c.late as usize;
+    }
+}
 
 /// How the stream's packets come.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -49,10 +96,18 @@ pub struct RtspSession {
     /// When the last receiver report went (they keep the session alive,
     /// as a player's do).
     last_report: Instant,
+    /// When the session began: the receiver's clock counts from it.
+    started: Instant,
     /// Datagrams on a multicast group that were not this stream's.
     pub foreign: usize,
-    /// The frames being put together, and their counts.
-    pub frames: FrameAssembly,
+    /// The product's receiver: frames put together, repairs asked for.
+    receiver: Receiver<Vec<u8>, FRAME_BUFFERS>,
+    /// Whole frames handed over and not yet returned.
+    ready: VecDeque<Frame>,
+    /// The newest extended sequence number received.
+    highest: Option<u32>,
+    /// What the receiver counted.
+    pub frames: Tally,
     /// NACK datagrams sent.
     pub nacks: usize,
 }
@@ -119,8 +174,16 @@ impl RtspSession {
             npt_ticks: 0,
             group: None,
             last_report: Instant::now(),
+            started: Instant::now(),
             foreign: 0,
-            frames: FrameAssembly::default(),
+            receiver: Receiver::new(
+                ReceiverConfig::new(OUR_SSRC),
+                core::array::from_fn(|_| vec![0; model::FRAME_BYTES]),
+            )
+            .map_err(|e| e.to_string())?,
+            ready: VecDeque::new(),
+            highest: None,
+            frames: Tally::default(),
             nacks: 0,
         };
         let url = s.url.clone();
@@ -205,7 +268,7 @@ impl RtspSession {
 
     /// The newest extended sequence number received.
     pub fn highest_seq(&self) -> u32 {
-        self.frames.highest_seq()
+        self.highest.unwrap_or(0)
     }
 
     fn request(&mut self, method: &str, url: &str, headers: &[(&str, &str)], body: &str) -> Result<(Headers, String)> {
@@ -269,50 +332,66 @@ impl RtspSession {
     }
 
     /// The next whole frame (rows repaired by NACK where lost), within
-    /// `timeout`.
+    /// `timeout`; frames given up on the way are counted
+    /// ([`Tally::given_up`]), not returned.
     pub fn next_frame(&mut self, timeout: Duration) -> Result<Frame> {
         let deadline = Instant::now() + timeout;
         let mut buf = [0u8; 2048];
         loop {
+            if let Some(frame) = self.ready.pop_front() {
+                return Ok(frame);
+            }
             let now = Instant::now();
             if now >= deadline {
                 return Err(format!("no whole frame within {timeout:?}"));
             }
             if self.transport == Transport::Tcp {
-                if let Some(frame) = self.next_interleaved(&mut buf)? {
-                    return Ok(frame);
-                }
-                continue;
-            }
-            self.rtp.set_read_timeout(Some(Duration::from_millis(50))).map_err(|e| e.to_string())?;
-            match self.rtp.recv(&mut buf) {
-                // A group is open to any sender on the network: what is not
-                // this stream's RTP is someone else's, not the server's fault.
-                Ok(n) if matches!(self.transport, Transport::Multicast(_)) && !self.is_ours(&buf[..n]) => {
-                    self.foreign += 1;
-                }
-                Ok(n) => {
-                    if let Some(frame) = self.take(&buf[..n])? {
-                        return Ok(frame);
+                self.next_interleaved(&mut buf)?;
+            } else {
+                // Wake for the receiver's timers too (a NACK due, a frame
+                // to give up).
+                let timers = self.receiver_deadline().map_or(Duration::from_millis(50), |d| {
+                    d.saturating_duration_since(now).clamp(Duration::from_millis(1), Duration::from_millis(50))
+                });
+                self.rtp.set_read_timeout(Some(timers)).map_err(|e| e.to_string())?;
+                match self.rtp.recv(&mut buf) {
+                    // A group is open to any sender on the network: what is
+                    // not this stream's RTP is someone else's, not the
+                    // server's fault.
+                    Ok(n) if matches!(self.transport, Transport::Multicast(_)) && !self.is_ours(&buf[..n]) => {
+                        self.foreign += 1;
                     }
+                    Ok(n) => self.take(&buf[..n])?,
+                    Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {}
+                    Err(e) => return Err(format!("RTP: {e}")),
                 }
-                Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
-                    self.frames.give_up(Instant::now())
-                }
-                Err(e) => return Err(format!("RTP: {e}")),
             }
+            let (now, ready) = (self.clock(), &mut self.ready);
+            self.receiver.poll(now, |f| keep_whole(ready, f));
+            self.frames.update(&self.receiver.counts());
             self.ask_for_missing()?;
         }
     }
 
-    /// One interleaved packet from the connection (RTCP on channel 1 is
-    /// skipped); a frame if it completed one.
-    fn next_interleaved(&mut self, buf: &mut [u8; 2048]) -> Result<Option<Frame>> {
+    /// The receiver's clock: milliseconds since the session began.
+    fn clock(&self) -> rt_services::Instant {
+        rt_services::Instant::from_millis(u64::try_from(self.started.elapsed().as_millis()).unwrap_or(u64::MAX))
+    }
+
+    /// When the receiver's next timer runs out, on the wall clock.
+    fn receiver_deadline(&self) -> Option<Instant> {
+        let at = self.receiver.deadline()?;
+        Some(self.started + Duration::from_millis(at.millis()))
+    }
+
+    /// One interleaved packet from the connection, if one came (RTCP on
+    /// channel 1 is skipped), to the receiver.
+    fn next_interleaved(&mut self, buf: &mut [u8; 2048]) -> Result<()> {
         let mut head = [0u8; 4];
         match self.reader.read_exact(&mut head) {
             Ok(()) => {}
             Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => {
-                return Ok(None)
+                return Ok(())
             }
             Err(e) => return Err(format!("interleaved: {e}")),
         }
@@ -328,7 +407,7 @@ impl RtspSession {
         read.map_err(|e| format!("interleaved packet: {e}"))?;
         match head[1] {
             0 => self.take(&buf[..len]),
-            _ => Ok(None),
+            _ => Ok(()),
         }
     }
 
@@ -365,40 +444,82 @@ impl RtspSession {
         p.len() >= 12 && p[0] >> 6 == 2 && p[8..12] == self.ssrc.to_be_bytes()
     }
 
-    /// One RTP packet; a frame if it completed one.
-    fn take(&mut self, p: &[u8]) -> Result<Option<Frame>> {
-        self.frames.take(p, self.ssrc, Instant::now())
+    /// One RTP packet, checked and handed to the receiver (frames it
+    /// finishes wait in `ready`).
+    fn take(&mut self, p: &[u8]) -> Result<()> {
+        // What the receiver does not check, the suite does: the SSRC the
+        // SETUP answer announced, and the marker on the last row alone.
+        if p.len() < HEADER_BYTES || p[8..12] != self.ssrc.to_be_bytes() {
+            return Err(format!("not this stream's packet ({} bytes, SSRC {:02x?})", p.len(), p.get(8..12)));
+        }
+        let be16 = |i: usize| u16::from_be_bytes([p[i], p[i + 1]]);
+        let (seq, line, marker) = (u32::from(be16(12)) << 16 | u32::from(be16(2)), be16(16), p[1] & 0x80 != 0);
+        if marker != (line == rt_services::frames::ROWS - 1) {
+            return Err(format!("line {line} with marker {marker}"));
+        }
+        if self.highest.is_none_or(|h| seq.wrapping_sub(h) < 1 << 31) {
+            self.highest = Some(seq);
+        }
+        if self.frames.drop_once == Some(usize::from(line)) {
+            self.frames.drop_once = None;
+            return Ok(());
+        }
+        let now = self.clock();
+        let ready = &mut self.ready;
+        let verdict = self.receiver.receive(now, p, |f| keep_whole(ready, f));
+        self.frames.update(&self.receiver.counts());
+        match verdict {
+            Verdict::Ignored(why) => Err(format!("not a row packet of this stream: {why:?} ({} bytes)", p.len())),
+            Verdict::Accepted | Verdict::Duplicate | Verdict::Late => Ok(()),
+        }
     }
 
-    /// NACK the rows [`FrameAssembly::missing`] names (each frame's again
-    /// after its interval while rows are still missing), and send a
-    /// receiver report when one is due.
+    /// Send the NACK the receiver has due (each frame's again after its
+    /// interval while rows are still missing), and a receiver report when
+    /// one is due.
     fn ask_for_missing(&mut self) -> Result<()> {
         if self.transport == Transport::Tcp {
             return Ok(()); // TCP loses nothing
         }
-        if self.last_report.elapsed() >= Duration::from_millis(2_500) {
-            self.last_report = Instant::now();
-            let mut rr = [0u8; rt_services::camera::wire::rtcp::RECEIVER_REPORT_BYTES];
-            if rt_services::camera::wire::rtcp::write_receiver_report(0x0bad_cafe, self.ssrc, 0, 0, &mut rr).is_ok() {
-                self.rtcp.send_to(&rr, self.server_rtcp).map_err(|e| format!("RR: {e}"))?;
-            }
-        }
-        let lost = self.frames.missing(Instant::now());
-        for chunk in lost.chunks(200) {
-            let mut d = vec![0x81, 205];
-            d.extend_from_slice(&(2 + chunk.len() as u16).to_be_bytes());
-            d.extend_from_slice(&0x0bad_cafe_u32.to_be_bytes());
-            d.extend_from_slice(&self.ssrc.to_be_bytes());
-            for &s in chunk {
-                d.extend_from_slice(&(s as u16).to_be_bytes());
-                d.extend_from_slice(&0u16.to_be_bytes());
-            }
-            self.rtcp.send_to(&d, self.server_rtcp).map_err(|e| format!("NACK: {e}"))?;
+        self.report()?;
+        let mut nack = [0u8; MAX_NACK_BYTES];
+        if let Some(len) = self.receiver.write_nack(self.clock(), &mut nack) {
+            self.rtcp.send_to(&nack[..len], self.server_rtcp).map_err(|e| format!("NACK: {e}"))?;
             self.nacks += 1;
         }
         Ok(())
     }
+}
+
+impl RtspSession {
+    /// Send a receiver report every 2.5 s: it keeps the session alive. Its
+    /// LSR and DLSR are 0 (no round trip measured), so the server keeps
+    /// its default round trip, 50 ms: rt-client's carry the sender
+    /// reports' times, and from those the emulated board measures a round
+    /// trip far shorter than the time its repairs take on its CPU, and
+    /// its repair window closes before they come (through the lossy
+    /// relay's 10% drop: 140 rows unrepairable, 91.7% of frames whole).
+    fn report(&mut self) -> Result<()> {
+        use rt_services::camera::wire::rtcp;
+        if self.last_report.elapsed() < Duration::from_millis(2_500) {
+            return Ok(());
+        }
+        self.last_report = Instant::now();
+        let mut rr = [0u8; rtcp::RECEIVER_REPORT_BYTES];
+        if rtcp::write_receiver_report(OUR_SSRC, self.ssrc, 0, 0, &mut rr).is_ok() {
+            self.rtcp.send_to(&rr, self.server_rtcp).map_err(|e| format!("RR: {e}"))?;
+        }
+        Ok(())
+    }
+}
+
+/// Keep a frame the receiver handed over if it came whole.
+fn keep_whole(ready: &mut VecDeque<Frame>, f: ReceivedFrame<'_>) {
+    if f.quality == Quality::Damaged {
+        return;
+    }
+    let repaired = (0..rt_services::frames::ROWS).filter(|&y| f.repaired.contains(y)).map(usize::from).collect();
+    ready.push_back(Frame { timestamp: f.timestamp, bytes: f.pixels.to_vec(), repaired });
 }
 
 fn field(h: &Headers, name: &str) -> Result<String> {
