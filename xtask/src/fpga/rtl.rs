@@ -107,28 +107,20 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
 
     let golden = write_goldens(&out, lights)?;
     let bin = build_cosim(&root, &out, &files, args.lanes)?;
-    let mut sim = Command::new(&bin);
-    sim.arg("+verilator+rand+reset+2").arg("+verilator+seed+7");
-    sim.arg("--extra").arg(&golden.extra);
-    for f in &golden.frames {
-        sim.arg("--frame").arg(f);
-    }
-    vga_args(&mut sim, &write_display_maps(&out)?);
-    step(&format!("co-simulation, LANES={}, {} frames", args.lanes, golden.frames.len()), sim)?;
-    // Frame mode again under other random stalls and delays: every slave
-    // behaviour, the aborts and the stalls meet other handshake orders.
-    let first = golden.frames.first().ok_or("no golden frame for the extra runs")?;
-    for seed in EXTRA_MEMORY_SEEDS {
-        let mut sim = Command::new(&bin);
-        sim.arg("+verilator+rand+reset+2").arg("+verilator+seed+7").arg("--dma-only");
-        sim.arg("--mem-seed").arg(seed.to_string()).arg("--frame").arg(first);
-        step(&format!("co-simulation, frame mode only, memory seed {seed}"), sim)?;
-    }
-
-    if !args.no_estimate {
-        ensure_yowasp()?;
-        estimate(&root, &out, &files, args.lanes)?;
-    }
+    // The resource estimate (Yosys, single-threaded, minutes) beside the
+    // co-simulations (single-threaded too): two cores, two jobs at once.
+    std::thread::scope(|s| {
+        let estimate = (!args.no_estimate).then(|| {
+            s.spawn(|| -> Result<()> {
+                ensure_yowasp()?;
+                estimate(&root, &out, &files, args.lanes)
+            })
+        });
+        let simulated = cosimulate(&bin, &golden, &out, args.lanes);
+        let estimated =
+            estimate.map_or(Ok(()), |e| e.join().map_err(|_| "the estimate's thread panicked".to_string())?);
+        simulated.and(estimated)
+    })?;
 
     // The Platform Designer component's top (the full AXI3 signal set) and
     // the Quartus files against each other: last, so the RTL's own checks
@@ -142,6 +134,28 @@ fn run_with(args: &RtlArgs, lights: usize) -> Result<()> {
     step("verilator lint, rt_accel (Platform Designer component top)", accel)?;
     super::quartus_check::run(&root)?;
     println!("xtask rtl: all steps passed");
+    Ok(())
+}
+
+/// The co-simulations: every golden frame on `bin` (LANES=`lanes`), then
+/// frame mode again under other random stalls and delays (every slave
+/// behaviour, the aborts and the stalls meet other handshake orders).
+fn cosimulate(bin: &Path, golden: &Goldens, out: &Path, lanes: u32) -> Result<()> {
+    let mut sim = Command::new(bin);
+    sim.arg("+verilator+rand+reset+2").arg("+verilator+seed+7");
+    sim.arg("--extra").arg(&golden.extra);
+    for f in &golden.frames {
+        sim.arg("--frame").arg(f);
+    }
+    vga_args(&mut sim, &write_display_maps(out)?);
+    step(&format!("co-simulation, LANES={lanes}, {} frames", golden.frames.len()), sim)?;
+    let first = golden.frames.first().ok_or("no golden frame for the extra runs")?;
+    for seed in EXTRA_MEMORY_SEEDS {
+        let mut sim = Command::new(bin);
+        sim.arg("+verilator+rand+reset+2").arg("+verilator+seed+7").arg("--dma-only");
+        sim.arg("--mem-seed").arg(seed.to_string()).arg("--frame").arg(first);
+        step(&format!("co-simulation, frame mode only, memory seed {seed}"), sim)?;
+    }
     Ok(())
 }
 
@@ -494,25 +508,34 @@ fn estimate(root: &Path, out: &Path, files: &[String], lanes: u32) -> Result<()>
     fs::create_dir_all(&syn).map_err(|e| format!("{}: {e}", syn.display()))?;
     let rel_files: Vec<String> = files.iter().map(|f| format!("fpga/rtl/{f}")).collect();
     let files = rel_files.join(" ");
-    let shell = yosys_stat(
-        root,
-        &format!("yosys synth_intel_alm -family cyclonev: rt_top, LANES={lanes}, lanes as black boxes"),
-        &format!("shell-lanes{lanes}"),
-        &format!(
-            "read_slang -j 1 --best-effort-hierarchy --top rt_top -G LANES={lanes} {files}; \
-             blackbox rt_lane*; hierarchy -top rt_top; synth_intel_alm -family cyclonev -top rt_top; \
-             write_json target/rtl/syn/shell-lanes{lanes}.json"
-        ),
-    )?;
-    let lane = yosys_stat(
-        root,
-        "yosys synth_intel_alm -family cyclonev: one rt_lane (about 3 minutes)",
-        "lane",
-        &format!(
-            "read_slang -j 1 --top rt_lane {files}; synth_intel_alm -family cyclonev -top rt_lane; \
-             write_json target/rtl/syn/lane.json"
-        ),
-    )?;
+    // The shell and the lane are synthesised at once (each run is
+    // single-threaded).
+    let (shell, lane) = std::thread::scope(|s| {
+        let shell = s.spawn(|| {
+            yosys_stat(
+                root,
+                &format!("yosys synth_intel_alm -family cyclonev: rt_top, LANES={lanes}, lanes as black boxes"),
+                &format!("shell-lanes{lanes}"),
+                &format!(
+                    "read_slang -j 1 --best-effort-hierarchy --top rt_top -G LANES={lanes} {files}; \
+                     blackbox rt_lane*; hierarchy -top rt_top; synth_intel_alm -family cyclonev -top rt_top; \
+                     write_json target/rtl/syn/shell-lanes{lanes}.json"
+                ),
+            )
+        });
+        let lane = yosys_stat(
+            root,
+            "yosys synth_intel_alm -family cyclonev: one rt_lane (about 3 minutes)",
+            "lane",
+            &format!(
+                "read_slang -j 1 --top rt_lane {files}; synth_intel_alm -family cyclonev -top rt_lane; \
+                 write_json target/rtl/syn/lane.json"
+            ),
+        );
+        let shell = shell.join().map_err(|_| "the shell's synthesis thread panicked".to_string());
+        (shell, lane)
+    });
+    let (shell, lane) = (shell??, lane?);
     // Timing evidence without Quartus: the deepest register-to-register
     // paths, per stage of the lane and per block of the shell.
     let worst = super::depth::print_report("one rt_lane", &syn.join("lane.json"))?.max(super::depth::print_report(
