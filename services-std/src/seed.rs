@@ -3,7 +3,7 @@
 //! [`SEED_SOCKETS`](rt_services::seed::SEED_SOCKETS) at once.
 
 use std::fmt;
-use std::net::{Shutdown, TcpListener, TcpStream};
+use std::net::{TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::mpsc::RecvTimeoutError;
 use std::sync::Arc;
@@ -166,8 +166,7 @@ pub fn serve<S: FrameSource>(
                 let what = if write_failed { "vanished mid-frame; frame aborted" } else { "stopped taking data" };
                 let _ = fmt::Write::write_fmt(&mut log, format_args!("client {what}\n"));
                 session.abandon(frames);
-                // The reader thread's socket is a copy: end it too.
-                let _ = stream.shutdown(Shutdown::Both);
+                // The guard shuts the socket, the reader thread's copy too.
                 return;
             }
             // The simulated accelerator moves on with every status read:

@@ -182,7 +182,7 @@ fn run_timed(t: &mut Timings) -> Result<()> {
 pub fn viewers() -> Result<()> {
     ensure_qemu()?;
     ensure_apt_packages(&crate::support::player::PLAYER_PACKAGES, None)?;
-    step("build hps-sim (release)", cargo(&["build", "--release", "-p", "hps-sim"]))?;
+    // host::viewers::run builds hps-sim and rt-client itself.
     println!("==> many viewers of hps-sim");
     crate::host::viewers::run()?;
     let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
