@@ -436,6 +436,7 @@ fn orbit_rtsp(args: &RunArgs, out: Option<PathBuf>, show: bool) -> Result<(), St
             .map_err(|e| e.to_string())?;
     }
     let counts = stream.counts();
+    let repair_delay = stream.repair_delay();
     if let Err(e) = stream.close() {
         eprintln!("rt-client: {e}");
     }
@@ -448,18 +449,21 @@ fn orbit_rtsp(args: &RunArgs, out: Option<PathBuf>, show: bool) -> Result<(), St
     let steady = first_at.map(|f| last_at.duration_since(f).as_secs_f64()).filter(|&s| s > 0.0 && got > 1);
     println!(
         "{got} frames in {elapsed:.2} s over RTSP: {:.1} frames/s ({} after the first), {:.1} MB/s\n\
-         frames: {} exact, {} repaired, {} damaged, {} lost; {} NACKs for {} rows, {} duplicates, {} late",
+         frames: {} exact, {} repaired, {} damaged ({} crowded out by newer frames), {} lost; \
+         {} NACKs for {} rows, {} duplicates, {} late; repairs took {}",
         got as f64 / elapsed,
         steady.map_or("-".into(), |s| format!("{:.1}", (got - 1) as f64 / s)),
         got as f64 * model::FRAME_BYTES as f64 / elapsed / 1e6,
         counts.exact,
         counts.repaired,
         counts.damaged,
+        counts.crowded_out,
         counts.lost,
         counts.nacks,
         counts.rows_nacked,
         counts.duplicates,
         counts.late,
+        repair_delay.map_or("-".into(), |d| format!("{} ms", d.as_millis())),
     );
     finish_sink(sink)
 }

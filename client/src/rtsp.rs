@@ -526,6 +526,12 @@ impl RtpStream {
         self.receiver.counts()
     }
 
+    /// How long repairs took to come after a NACK, as the receiver
+    /// estimates it (none before the first repair).
+    pub fn repair_delay(&self) -> Option<std::time::Duration> {
+        self.receiver.repair_delay()
+    }
+
     fn clock(&self) -> rt_services::Instant {
         rt_services::Instant::from_millis(self.origin.elapsed().as_millis() as u64)
     }

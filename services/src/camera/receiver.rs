@@ -216,6 +216,9 @@ pub struct ReceiverCounts {
     pub rows_filled: u64,
     /// Sequence jumps too large to count lost frames across.
     pub resyncs: u64,
+    /// Damaged frames handed over before their repair wait ended, because
+    /// a newer frame needed their buffer.
+    pub crowded_out: u64,
 }
 
 /// A set of a frame's rows, one bit each.
@@ -628,8 +631,12 @@ impl<B: AsRef<[u8]> + AsMut<[u8]>, const N: usize> Receiver<B, N> {
         while let Some(i) = self.oldest() {
             let Some(a) = self.slots[i] else { break };
             let given_up = a.closed.is_some_and(|c| now >= c.give_up);
-            if !(force || given_up || a.received.is_full()) {
+            let whole = a.received.is_full();
+            if !(force || given_up || whole) {
                 break;
+            }
+            if force && !given_up && !whole {
+                self.counts.crowded_out += 1;
             }
             force = false;
             self.finish(i, deliver);

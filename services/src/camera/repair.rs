@@ -395,6 +395,15 @@ impl<const N: usize> ResendLog<N> {
         }
     }
 
+    /// How long before `now` packet `seq` last went again, if it did (and
+    /// the log still remembers it).
+    pub fn since(&self, seq: u32, now: Instant) -> Option<Duration> {
+        match self.at[seq as usize % N] {
+            Some((s, ms)) if s == seq => Some(Duration::from_millis(u64::from((now.millis() as u32).wrapping_sub(ms)))),
+            _ => None,
+        }
+    }
+
     /// Packet `seq` went again at `now`.
     pub fn resent(&mut self, seq: u32, now: Instant) {
         self.at[seq as usize % N] = Some((seq, now.millis() as u32));
@@ -703,6 +712,8 @@ mod tests {
         assert!(!log.may_resend(7, Instant::from_millis(39), rtt));
         assert!(log.may_resend(7, Instant::from_millis(40), rtt));
         assert!(log.may_resend(7 + REPAIR_ENTRIES as u32, Instant::from_millis(1), rtt), "another packet");
+        assert_eq!(log.since(7, Instant::from_millis(65)), Some(Duration::from_millis(65)));
+        assert_eq!(log.since(7 + REPAIR_ENTRIES as u32, Instant::from_millis(65)), None, "never resent");
     }
 
     #[test]

@@ -498,9 +498,33 @@ struct Output {
     /// Until when it counts as losing packets ([`LOSS_MEMORY`] after a
     /// NACK asked for one).
     lossy_until: Option<Instant>,
+    /// How long after a resend its receiver asks for the same packet again
+    /// (a NACK round as its receiver runs it, which may be far longer than
+    /// the round trip its reports measure), once it has.
+    nack_round: Option<Duration>,
 }
 
 impl Output {
+    /// Packet `seq`, resent to it `since` ago, was asked for again: a
+    /// sample of its NACK round. The estimate goes halfway up to a longer
+    /// sample at once and an eighth of the way down to a shorter one (a
+    /// resend lost again is the case the hold is for; a receiver asking
+    /// at once, as a flood does, shortens nothing below the round trip).
+    fn asked_again(&mut self, since: Duration) {
+        let sample = since.min(MAX_ROUND_TRIP);
+        self.nack_round = Some(match self.nack_round {
+            None => sample,
+            Some(d) if sample > d => (d + sample) / 2,
+            Some(d) => (d * 7 + sample) / 8,
+        });
+    }
+
+    /// One NACK round for it: the measured round trip and a receiver's
+    /// reaction, or the round its receiver was seen to take, the longer.
+    fn repair_round(&self) -> Duration {
+        (self.round_trip + NACK_REACTION).max(self.nack_round.unwrap_or(Duration::ZERO))
+    }
+
     /// Packet `p` as this output numbers it.
     fn numbered(&self, p: RowPacket) -> RowPacket {
         RowPacket { seq: p.seq.wrapping_sub(self.seq_shift), ..p }
@@ -840,6 +864,7 @@ impl<const N: usize> Camera<N> {
                     // 256 KiB stack on the board: memory.x).
                     resends: FrameResendLog::new(),
                     lossy_until: None,
+                    nack_round: None,
                 });
                 o
             }
@@ -1038,9 +1063,16 @@ impl<const N: usize> Camera<N> {
         let mut asked = false;
         for seq in NackRequests::new(datagram, media.packetiser.ssrc(), media.packetiser.highest_seq()) {
             asked = true;
-            if media.window.lookup(seq).is_none() {
+            let held = media.window.lookup(seq).is_some();
+            let may_resend = o.resends.may_resend(seq, now, o.round_trip);
+            // Asked again, a round trip or more after it went again: a
+            // round of its receiver's (sooner is a duplicate, not a round).
+            if let Some(since) = o.resends.since(seq, now).filter(|_| held && may_resend) {
+                o.asked_again(since);
+            }
+            if !held {
                 o.stats.unrepairable += 1;
-            } else if !o.resends.may_resend(seq, now, o.round_trip) {
+            } else if !may_resend {
                 // Resent (or queued to be) within the round trip.
                 o.stats.too_soon += 1;
             } else if room > 0 && o.repairs.push_back(seq).is_ok() {
@@ -1059,8 +1091,9 @@ impl<const N: usize> Camera<N> {
     }
 
     /// How long stream `media`'s frames stay repairable after their end
-    /// while it loses packets: [`REPAIR_ROUNDS`] NACK rounds over its
-    /// slowest output's round trip, at most [`MAX_FRAME_HOLD`]. The window
+    /// while it loses packets: [`REPAIR_ROUNDS`] NACK rounds of its
+    /// slowest output (its round trip, or how long its receiver was seen
+    /// to take to ask again, the longer), at most [`MAX_FRAME_HOLD`]. The window
     /// keeps two frames, so on a stream whose frames take less than this,
     /// a frame waits (the repair window is sized by time, not frames).
     fn frame_hold(&self, media: usize) -> Duration {
@@ -1069,10 +1102,10 @@ impl<const N: usize> Camera<N> {
             .iter()
             .flatten()
             .filter(|o| o.media == media)
-            .map(|o| o.round_trip)
+            .map(Output::repair_round)
             .max()
-            .unwrap_or(DEFAULT_ROUND_TRIP);
-        ((round + NACK_REACTION) * REPAIR_ROUNDS).min(MAX_FRAME_HOLD)
+            .unwrap_or(DEFAULT_ROUND_TRIP + NACK_REACTION);
+        (round * REPAIR_ROUNDS).min(MAX_FRAME_HOLD)
     }
 
     /// The host at `to` answered a packet of the stream with SSRC `ssrc` to

@@ -689,6 +689,12 @@ pub fn run_rtsp_phases(
             .output()
             .map_err(|e| format!("{}: {e}", client.display()))?;
         let text = String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+        for line in text.lines().filter(|l| !l.trim().is_empty()) {
+            println!("lossy link, rt-client: {}", line.trim());
+        }
+        if let Some(report) = guest.uart().lines().rfind(|l| l.starts_with("camera: session")) {
+            println!("lossy link, the board: {report}");
+        }
         runs.push(RtClientCounts::parse(&text).ok_or(format!("rt-client bench through the relay: {}", text.trim()))?);
     }
     Ok((outcomes, runs))
@@ -885,14 +891,14 @@ pub fn suite_test() -> Result<()> {
 }
 
 /// Frames rt-client takes through the 10% drop, and how many must come
-/// whole. Not the issue's 57 (95%, the suite client's bar): rt-client's
-/// receiver reports carry LSR and DLSR, from which the emulated board
-/// measures a round trip far shorter than its repairs take on its CPU, and
-/// its repair window closes before some of them come (59 and 56 of 60 in
-/// two suites, 16 rows unrepairable in the second). 50 holds the receiver's
-/// gain: with two buffers rt-client had 39.
+/// whole: 95%, the suite client's bar. rt-client's receiver reports carry
+/// LSR and DLSR, from which the emulated board measures a round trip far
+/// shorter than its receiver's NACK rounds; the sender holds a frame for
+/// the rounds its receiver was seen to take (`camera::sender`), without
+/// which some repairs came after the frame left (56 of 60, 16 rows
+/// unrepairable).
 const RT_CLIENT_FRAMES: usize = 60;
-const RT_CLIENT_WHOLE: u64 = 50;
+const RT_CLIENT_WHOLE: u64 = 57;
 
 /// RTSP frames per phase in the suite (the emulated board sends about five
 /// a second at fps=max): at 100 the 99% bar of the 2% phase allows one
@@ -958,7 +964,7 @@ mod tests {
         );
         assert_eq!(RtspOutcome::parse("exact=x"), None);
         let bench = "60 frames in 40.1 s over RTSP: 1.5 frames/s (1.5 after the first), 0.8 MB/s\n\
-                     frames: 41 exact, 17 repaired, 2 damaged, 0 lost; 90 NACKs for 400 rows, 3 duplicates, 1 late";
+                     frames: 41 exact, 17 repaired, 2 damaged (1 crowded out by newer frames), 0 lost; 90 NACKs for 400 rows, 3 duplicates, 1 late; repairs took 12 ms";
         let c = RtClientCounts::parse(bench).unwrap();
         assert_eq!((c.exact, c.repaired, c.damaged, c.lost, c.whole()), (41, 17, 2, 0, 58));
         assert_eq!(RtClientCounts::parse("no counts"), None);

@@ -664,6 +664,35 @@ fn the_frame_before_stays_repairable_and_the_one_before_that_does_not() {
     assert_eq!(r.ring.held().count_ones(), 2);
 }
 
+/// A receiver that asks again slower than its round trip says (one whose
+/// reports measure a short round trip but which spaces its NACKs by the
+/// time repairs took to come, as `camera::receiver` does) gets the hold
+/// its NACK rounds need: four of its rounds, not four round trips. A
+/// receiver asking again at once shortens nothing.
+#[test]
+fn the_hold_follows_how_long_a_receiver_takes_to_ask_again() {
+    let mut r = rig(ROWS);
+    r.play(1, Kind::Light(light(1.0)), Fps::Rate(10), t(0));
+    r.settle(t(0));
+    r.settle(t(100));
+    let first = (65_500u32) as u16;
+    r.nack_from(CLIENT, 6001, &nack(SSRC, &[(first, 0)]), t(110));
+    // A flood's re-ask, 1 ms later: too soon to resend, no longer round.
+    r.nack_from(CLIENT, 6001, &nack(SSRC, &[(first, 0)]), t(111));
+    r.settle(t(200));
+    let by_round_trip = (DEFAULT_ROUND_TRIP + NACK_REACTION) * REPAIR_ROUNDS;
+    assert_eq!(r.camera.next_deadline(), Some(t(0) + by_round_trip));
+    // Asked again 90 ms after the resend: its rounds take 90 ms.
+    r.nack_from(CLIENT, 6001, &nack(SSRC, &[(first, 0)]), t(200));
+    assert_eq!(r.camera.stats(SessionId(1)).unwrap().resent, 2);
+    r.settle(t(201));
+    assert_eq!(r.camera.next_deadline(), Some(t(0) + Duration::from_millis(90) * REPAIR_ROUNDS));
+    // However slow, a frame is held MAX_FRAME_HOLD at most.
+    r.nack_from(CLIENT, 6001, &nack(SSRC, &[(first, 0)]), t(450));
+    r.settle(t(451));
+    assert_eq!(r.camera.next_deadline(), Some(t(0) + MAX_FRAME_HOLD));
+}
+
 #[test]
 fn a_stopped_stream_keeps_its_frames_for_the_hold_then_lets_them_go() {
     let mut r = rig(ROWS);
