@@ -377,9 +377,10 @@ fn measure_multicast(frames: usize, n: usize) -> Result<Measured> {
     let (qemu_port, relay_port) = (free_udp_port()?, free_udp_port()?);
     let udp = std::net::UdpSocket::bind(("127.0.0.1", relay_port)).map_err(|e| e.to_string())?;
     let remote = std::net::SocketAddr::from(([127, 0, 0, 1], qemu_port));
-    let _relay = Relay::start(udp, remote, tap_file, Faults::default(), 1)?;
+    let relay = Relay::start(udp, remote, tap_file, Faults::default(), 1)?;
     let netdev = crate::images::firmware::dgram_netdev(qemu_port, relay_port);
-    let mut g = Guest::boot_netdev(&elf, &netdev, &["-icount", "shift=0"])?;
+    let [trace, events] = relay.qemu_args();
+    let mut g = Guest::boot_netdev(&elf, &netdev, &["-icount", "shift=0", trace, events])?;
     g.wait_for_log("link up", Duration::from_secs(120))?;
     let from = g.uart().len();
     let xtask = std::env::current_exe().map_err(|e| e.to_string())?;

@@ -64,7 +64,7 @@ pub fn run(elf: &Path) -> Result<()> {
     let udp = UdpSocket::bind(("127.0.0.1", relay_port)).map_err(|e| e.to_string())?;
     let relay = Relay::start(udp, SocketAddr::from(([127, 0, 0, 1], qemu_port)), tap_file, Faults::default(), 1)?;
     let netdev = crate::images::firmware::dgram_netdev(qemu_port, relay_port);
-    let mut guest = Guest::boot_netdev(elf, &netdev, &[])?;
+    let mut guest = Guest::boot_netdev(elf, &netdev, &relay.qemu_args())?;
     guest.wait_for_log("link up", Duration::from_secs(30))?;
     let fail = |g: &Guest, e: String| {
         let uart = g.uart();

@@ -155,7 +155,8 @@ impl Lan {
                 (Some(text.as_str()), server)
             }
         };
-        let mut guest = Guest::boot_netdev_with(elf, &netdev, settings, extra)?;
+        let args: Vec<&str> = relay.qemu_args().into_iter().chain(extra.iter().copied()).collect();
+        let mut guest = Guest::boot_netdev_with(elf, &netdev, settings, &args)?;
         guest.wait_for_log("link up", Duration::from_secs(120))?;
         Ok(Lan { guest, relay, others: Vec::new(), hosts: named, dhcp, switch })
     }
@@ -172,7 +173,7 @@ impl Lan {
         let udp = UdpSocket::bind(("127.0.0.1", relay_port)).map_err(|e| e.to_string())?;
         let relay = Relay::start(udp, SocketAddr::from(([127, 0, 0, 1], qemu_port)), tap_file, Faults::default(), 2)?;
         let netdev = crate::images::firmware::dgram_netdev(qemu_port, relay_port);
-        let mut guest = Guest::boot_netdev_with(elf, &netdev, Some(settings), &[])?;
+        let mut guest = Guest::boot_netdev_with(elf, &netdev, Some(settings), &relay.qemu_args())?;
         guest.wait_for_log("link up", Duration::from_secs(120))?;
         self.others.push((guest, relay));
         let last = self.others.len() - 1;

@@ -17,13 +17,14 @@ use std::net::{SocketAddr, TcpStream, UdpSocket};
 use std::os::fd::AsRawFd;
 use std::path::Path;
 use std::process::Command;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
 use clap::Args;
 
+use super::mac_filter::FilterFollower;
 use super::qemu_e2e::{expected_frame, LIGHTS};
 use crate::images::firmware::{build, free_udp_port, Guest};
 use crate::support::tools::{cargo, step};
@@ -61,6 +62,9 @@ pub struct Counts {
     /// TCP data segments from the firmware whose sequence number it had
     /// sent before: its retransmissions.
     pub retransmitted: u64,
+    /// Frames to the board its MAC's frame filter, as programmed, drops
+    /// ([`super::mac_filter`]).
+    pub filtered: u64,
 }
 
 /// SplitMix64: small, seeded, good enough to pick faults.
@@ -145,7 +149,11 @@ pub struct Relay {
     counts: Arc<Mutex<Counts>>,
     multicast: Arc<Mutex<std::collections::HashMap<u32, u32>>>,
     threads: Vec<JoinHandle<()>>,
+    mac_trace: [String; 2],
 }
+
+/// Numbers the relays' MAC trace files.
+static TRACE_SEQ: AtomicU32 = AtomicU32::new(0);
 
 /// The RTP packet a frame from the board carries to a multicast group
 /// (Ethernet destination 01-00-5E-..., IPv4, UDP, RTP): its 16-bit
@@ -202,7 +210,15 @@ impl Relay {
                 }
             }));
         }
-        // Peer to guest.
+        // Peer to guest, through the board's MAC filter as its firmware
+        // programmed it (QEMU's model has none).
+        let trace = std::env::temp_dir().join(format!(
+            "rt-gmac-{}-{}.trace",
+            std::process::id(),
+            TRACE_SEQ.fetch_add(1, Ordering::Relaxed)
+        ));
+        let mut mac = FilterFollower::new(trace);
+        let mac_trace = mac.qemu_args();
         {
             let (stop, counts, shared) = (stop.clone(), counts.clone(), shared.clone());
             let mut dir = Direction { faults, rng: Rng(seed ^ 0x5555_5555_5555_5555), held: None };
@@ -210,9 +226,17 @@ impl Relay {
                 let mut buf = vec![0u8; 65536];
                 while !stop.load(Ordering::Relaxed) {
                     match tap_r.read(&mut buf) {
-                        Ok(n) if n > 0 => {
+                        Ok(n) if n >= 6 => {
                             let frame = buf[..n].to_vec();
                             let Ok(mut c) = counts.lock() else { return };
+                            mac.catch_up();
+                            let mut destination = [0u8; 6];
+                            destination.copy_from_slice(&frame[..6]);
+                            if !mac.filter.passes(destination) {
+                                c.frames += 1;
+                                c.filtered += 1;
+                                continue;
+                            }
                             dir.faults = shared.lock().map(|f| *f).unwrap_or(dir.faults);
                             for f in dir.pass(frame, &mut c) {
                                 let _ = udp2.send_to(&f, qemu);
@@ -223,7 +247,13 @@ impl Relay {
                 }
             }));
         }
-        Ok(Relay { stop, faults: shared, counts, multicast, threads })
+        Ok(Relay { stop, faults: shared, counts, multicast, threads, mac_trace })
+    }
+
+    /// The QEMU arguments that let the relay see the board's MAC
+    /// registers: every guest behind a relay is booted with them.
+    pub fn qemu_args(&self) -> [&str; 2] {
+        [&self.mac_trace[0], &self.mac_trace[1]]
     }
 
     /// Apply `faults` from now on.
@@ -444,7 +474,7 @@ pub fn run_with_rtsp(
     let udp = UdpSocket::bind(("127.0.0.1", relay_port)).map_err(|e| e.to_string())?;
     let relay = Relay::start(udp, SocketAddr::from(([127, 0, 0, 1], qemu_port)), tap_file, faults, seed)?;
     let netdev = crate::images::firmware::dgram_netdev(qemu_port, relay_port);
-    let guest = Guest::boot_netdev(elf, &netdev, &[])?;
+    let guest = Guest::boot_netdev(elf, &netdev, &relay.qemu_args())?;
     let exe = std::env::current_exe().map_err(|e| e.to_string())?;
     let out = Command::new("ip")
         .args(["netns", "exec", &ns.0])
@@ -628,7 +658,7 @@ pub fn run_rtsp_phases(
     let first = phases.first().copied().unwrap_or_default();
     let relay = Relay::start(udp, SocketAddr::from(([127, 0, 0, 1], qemu_port)), tap_file, first, seed)?;
     let netdev = crate::images::firmware::dgram_netdev(qemu_port, relay_port);
-    let guest = Guest::boot_netdev(elf, &netdev, &[])?;
+    let guest = Guest::boot_netdev(elf, &netdev, &relay.qemu_args())?;
     let exe = std::env::current_exe().map_err(|e| e.to_string())?;
     let mut child = Command::new("ip")
         .args(["netns", "exec", &ns.0])

@@ -16,6 +16,7 @@ pub mod entropy;
 pub mod hostile;
 pub mod lan;
 pub mod lossy;
+pub mod mac_filter;
 pub mod names;
 pub mod per_host;
 pub mod qemu_e2e;
