@@ -23,6 +23,7 @@
 pub mod csum;
 pub mod desc;
 pub mod device;
+pub mod filter;
 pub mod mac;
 pub mod phy;
 pub mod regs;
@@ -31,6 +32,7 @@ pub mod split;
 pub mod sync;
 pub mod wait;
 
+pub use filter::MulticastFilter;
 pub use mac::{Dwmac, Error, Stats};
 pub use ring::{DmaArea, RX_RING, TX_RING};
 pub use split::{SplitError, SplitSeq};

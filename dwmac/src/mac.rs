@@ -21,6 +21,7 @@ use arbitrary_int::u6;
 use embedded_hal::delay::DelayNs;
 
 use crate::desc::{self, ChecksumInsertion, DescFormat, OWN};
+use crate::filter::MulticastFilter;
 use crate::phy::{self, Link, Mdio, MdioTimeout, PhyConfig, PhyError, PhyId, Speed};
 use crate::regs::{gmii_access, BusMode, DmaStatus, MacConfig, OpMode, Regs};
 use crate::ring::{DmaArea, BUFFER_SIZE, RX_RING, TX_RING};
@@ -208,6 +209,9 @@ pub struct Dwmac<'a, S, D> {
     pub(crate) rx: RxState,
     pub(crate) tx: TxState,
     delay: D,
+    /// The multicast frames the filter passes (written again on every
+    /// link change, and by [`set_multicast`](Self::set_multicast)).
+    multicast: MulticastFilter,
 }
 
 impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
@@ -222,6 +226,7 @@ impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
             rx: RxState::default(),
             tx: TxState::new(),
             delay,
+            multicast: MulticastFilter::new(),
         }
     }
 
@@ -270,8 +275,24 @@ impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
         regs.set_op_mode(OpMode::DEFAULT.with_tsf(true).with_rsf(true).with_sr(true).with_st(true));
     }
 
-    /// Configure the MAC for `link` (speed, duplex; frame filter 0: own
-    /// address and broadcast) with transmitter and receiver on, or turn
+    /// Let the multicast frames `filter` names through the MAC's frame
+    /// filter, and no others ([`crate::filter`]): the hash table first,
+    /// then the filter register that turns it on.
+    pub fn set_multicast(&mut self, filter: MulticastFilter) {
+        self.multicast = filter;
+        let regs = &self.shared.regs;
+        regs.set_hash_table(filter.bins());
+        regs.set_frame_filter(filter.frame_filter());
+    }
+
+    /// The multicast frames the filter passes.
+    pub fn multicast(&self) -> MulticastFilter {
+        self.multicast
+    }
+
+    /// Configure the MAC for `link` (speed, duplex; the frame filter: own
+    /// address, broadcast and the multicast groups of
+    /// [`set_multicast`](Self::set_multicast)) with transmitter and receiver on, or turn
     /// both off while there is no link, as Linux's `stmmac_mac_link_up` /
     /// `stmmac_mac_link_down` do.
     ///
@@ -288,7 +309,8 @@ impl<'a, S: DmaSync, D: DelayNs> Dwmac<'a, S, D> {
     /// the link comes up").
     pub fn set_link(&mut self, link: Option<Link>) {
         let regs = &self.shared.regs;
-        regs.set_frame_filter(0);
+        regs.set_hash_table(self.multicast.bins());
+        regs.set_frame_filter(self.multicast.frame_filter());
         regs.set_config(mac_config(link));
         if link.is_some() {
             regs.clear_status(DmaStatus::DEFAULT.with_ru(true));

@@ -188,16 +188,28 @@ pub struct DmaRegisters {
     pub hw_feature: RO<HwFeature>,
 }
 
-/// Words between the MAC and DMA register groups.
-const GAP_WORDS: usize = (0x1000 - size_of::<MacRegisters>()) / 4;
+/// The hash table's offset (Cyclone V HPS TRM, EMAC `Hash_Table_Reg0`).
+pub const HASH_TABLE_OFFSET: usize = 0x500;
+
+/// Words between the MAC registers and the hash table.
+const GAP_WORDS: usize = (HASH_TABLE_OFFSET - size_of::<MacRegisters>()) / 4;
+
+/// Words between the hash table and the DMA registers.
+const GAP2_WORDS: usize = (0x1000 - HASH_TABLE_OFFSET - 32) / 4;
 
 /// The whole register block, 0x0000 up to (not including) 0x105C.
 #[repr(C)]
 pub struct RegisterBlock {
     /// GMAC registers.
     pub mac: MacRegisters,
-    // 0x0048..0x1000: MMC counters, more address registers, timestamping.
+    // 0x0048..0x0500: more address registers, MMC counters, L3/L4 filters.
     _reserved: [u32; GAP_WORDS],
+    /// 0x0500..0x0520 `Hash_Table_Reg0..7`: the 256-bin multicast hash
+    /// (the Cyclone V's; the 64-bin registers at 0x08/0x0C are reserved
+    /// there). QEMU's npcm-gmac stores the writes and filters nothing.
+    pub hash_table: [RW<u32>; 8],
+    // 0x0520..0x1000: VLAN hash, timestamping, more address registers.
+    _reserved2: [u32; GAP2_WORDS],
     /// DMA registers.
     pub dma: DmaRegisters,
 }
@@ -213,6 +225,7 @@ const _: () = {
     assert!(offset_of!(MacRegisters, version) == 0x20);
     assert!(offset_of!(MacRegisters, address0_high) == 0x40);
     assert!(offset_of!(MacRegisters, address0_low) == 0x44);
+    assert!(offset_of!(RegisterBlock, hash_table) == HASH_TABLE_OFFSET);
     assert!(offset_of!(RegisterBlock, dma) == 0x1000);
     assert!(offset_of!(DmaRegisters, tx_poll_demand) == 0x04);
     assert!(offset_of!(DmaRegisters, rx_poll_demand) == 0x08);
@@ -260,6 +273,12 @@ impl Regs {
         // SAFETY: as in `mac`.
         unsafe { &self.block.as_ref().dma }
     }
+
+    /// The multicast hash table registers.
+    pub fn hash_table(&self) -> &[RW<u32>; 8] {
+        // SAFETY: as in `mac`.
+        unsafe { &self.block.as_ref().hash_table }
+    }
 }
 
 // The driver's register writes, one method each, so the unsafe stores of
@@ -277,6 +296,14 @@ impl Regs {
     pub fn set_frame_filter(&self, value: u32) {
         // SAFETY: see above.
         unsafe { self.mac().frame_filter.write(value) }
+    }
+
+    /// Write the multicast hash table.
+    pub fn set_hash_table(&self, bins: [u32; 8]) {
+        for (reg, value) in self.hash_table().iter().zip(bins) {
+            // SAFETY: see above.
+            unsafe { reg.write(value) }
+        }
     }
 
     /// Start an MDIO access (with `gmii_data` written first for a write).

@@ -307,6 +307,35 @@ fn link_changes_program_speed_and_duplex() {
     assert_eq!(rig.regs.0[MAC_CONFIG], mac_config(Some(gig)).raw_value(), "the newest link wins");
 }
 
+/// The frame filter and hash table as the driver leaves them: before any
+/// group, HPF alone (own unicast and broadcast: every multicast frame
+/// dropped on the board); with mDNS and all-hosts joined, HMC|HPF and
+/// their bins (192: `Hash_Table_Reg6` bit 0; 128: `Hash_Table_Reg4` bit
+/// 0), kept across link changes.
+#[test]
+fn the_multicast_filter_is_programmed_and_survives_link_changes() {
+    const FRAME_FILTER: usize = 0x04 / 4;
+    const HASH: usize = 0x500 / 4;
+    let mut rig = Rig::new(QEMU_HW_FEATURE);
+    let mut mac = rig.mac(true);
+    started(&mut mac);
+    let gig = Some(Link { speed: Speed::M1000, full_duplex: true });
+    mac.set_link(gig);
+    drop(mac);
+    assert_eq!(rig.regs.0[FRAME_FILTER], 0x400);
+    assert_eq!(rig.regs.0[HASH..HASH + 8], [0; 8]);
+    let mut mac = rig.mac(true);
+    let mut filter = crate::MulticastFilter::new();
+    filter.add_group(smoltcp::wire::Ipv4Address::new(224, 0, 0, 251));
+    filter.add_group(smoltcp::wire::Ipv4Address::new(224, 0, 0, 1));
+    mac.set_multicast(filter);
+    mac.set_link(None);
+    mac.set_link(gig);
+    drop(mac);
+    assert_eq!(rig.regs.0[FRAME_FILTER], 0x404);
+    assert_eq!(rig.regs.0[HASH..HASH + 8], [0, 0, 0, 0, 1, 0, 1, 0]);
+}
+
 #[test]
 fn link_up_resumes_receive_and_link_down_leaves_it() {
     let mut rig = Rig::new(QEMU_HW_FEATURE);

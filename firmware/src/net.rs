@@ -12,7 +12,7 @@ use core::sync::atomic::{AtomicBool, Ordering};
 
 use dwmac::phy::LinkMonitor;
 use dwmac::regs::Regs;
-use dwmac::{DmaArea, Dwmac};
+use dwmac::{DmaArea, Dwmac, MulticastFilter};
 use hal_avalon::RegisterPort;
 use rt_services::address::assign::{Addressing, LinkNotes};
 use rt_services::address::settings::{AddressMode, HostName, Settings};
@@ -25,6 +25,7 @@ use rt_services::frames::Quota;
 use rt_services::mdns::responder::{Services, MDNS_GROUP};
 use rt_services::mdns::service::{MdnsBuffers, MdnsService};
 use rt_services::monitor::code::{hps_led, Code};
+use rt_services::multicast::Membership;
 use rt_services::seed::service::{FrameService, SocketBuffers};
 use rt_services::snoop::SynWatch;
 use rt_services::web::service::{SocketBuffers as WebBuffers, WebService};
@@ -240,12 +241,12 @@ pub fn run<B: Board, P: RegisterPort>(
     let mut syns = SynWatch::new([FRAME_PORT, PERSISTENT_PORT, WEB_PORT]);
     // NAME.local and the services, by mDNS / DNS-SD on 224.0.0.251:5353.
     let services = Services { http: WEB_PORT, rtsp: RTSP_PORT, rtsp_path: "/orbit", seed: FRAME_PORT };
+    // The multicast groups the board is in (IGMP, and the MAC's filter).
+    let mut membership = Membership::new();
     let mdns_buffers = MDNS_BUFFERS.try_take().ok_or(TAKEN_TWICE)?;
     let mut mdns = match MdnsService::new(&mut sockets, mdns_buffers, host_name, services, timer.ticks()) {
         Ok(m) => {
-            if let Err(e) = iface.join_multicast_group(MDNS_GROUP) {
-                let _ = writeln!(log, "mdns: cannot join {MDNS_GROUP}: {e:?}");
-            }
+            membership.want(MDNS_GROUP);
             Some(m)
         }
         Err(e) => {
@@ -351,6 +352,8 @@ pub fn run<B: Board, P: RegisterPort>(
     let mut display = Display::probe(frames, &mut log);
     let mut requests = 0u32;
     let mut link_up = false;
+    // How many times the link came up (a new one means new IGMP reports).
+    let mut link_ups = 0u32;
     // The address the displays show (0.0.0.0 until there is one).
     let mut address = [0u8; 4];
     log::flush();
@@ -376,6 +379,7 @@ pub fn run<B: Board, P: RegisterPort>(
         if let Some(change) = link.poll(now_us, &mut mac) {
             mac.set_link(change);
             link_up = change.is_some();
+            link_ups = link_ups.wrapping_add(u32::from(link_up));
             link_text.clear();
             let _ = match change {
                 Some(l) => write!(link_text, "{l}"),
@@ -420,6 +424,15 @@ pub fn run<B: Board, P: RegisterPort>(
                     let _ = writeln!(log, "net: address lost (lease ended); asking again");
                 }
             }
+        }
+        // The groups: joined (and reported) with an address and a link,
+        // reported again on a new one; the MAC passes what they need.
+        let address_now = addressing.current().map(|a| a.address);
+        membership.update(address_now, link_up.then_some(link_ups), &mut iface, &mut log);
+        if membership.take_changed() {
+            let mut filter = MulticastFilter::new();
+            membership.filter_groups().for_each(|g| filter.add_group(g));
+            mac.set_multicast(filter);
         }
         let learners = &mut (&mut peers, (&mut link_notes, &mut syns));
         iface.poll(now, &mut Snoop { inner: &mut mac, peers: learners }, &mut sockets);
@@ -468,7 +481,7 @@ pub fn run<B: Board, P: RegisterPort>(
             let mut counted = Counting { frames: &mut *frames, begun: &mut requests, ended: &mut ended };
             let entropy = arrivals.value() ^ timer.ticks();
             crate::bench::camera(|| c.poll(now, &mut sockets, &mut peers, &mut counted, &mut tx, entropy, &mut log));
-            groups.sync(c.camera(), &mut iface, &mut log);
+            groups.sync(c.camera(), &mut membership, &mut log);
         }
         // The fault code and the HPS LED's blinks, ten times a second (not
         // on every turn: the frame path's instruction count, bench-fw).

@@ -36,6 +36,7 @@ pub mod camera;
 pub mod frames;
 pub mod mdns;
 pub mod monitor;
+pub mod multicast;
 pub mod orbit;
 pub mod seed;
 #[cfg(feature = "smoltcp")]

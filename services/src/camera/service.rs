@@ -508,11 +508,12 @@ fn read_rtcp<S: SlotSource, T: RowTransmitter>(
     }
 }
 
-/// The multicast groups the interface has joined for the camera: each
-/// group a multicast stream goes to, so that receivers' RTCP sent to the
-/// group reaches the board through a switch that snoops IGMP (smoltcp
-/// sends the reports and answers queries). Call [`sync`](Self::sync) after
-/// each camera poll; it works only when the camera's outputs changed.
+/// The multicast groups the camera wants the board in: each group a
+/// multicast stream goes to, so that receivers' RTCP sent to the group
+/// reaches the board through a switch that snoops IGMP. It names them to
+/// the board's [`Membership`](crate::multicast::Membership), which joins
+/// and reports them. Call [`sync`](Self::sync) after each camera poll; it
+/// works only when the camera's outputs changed.
 pub struct GroupMembership {
     joined: heapless::Vec<Ipv4Addr, MAX_SESSIONS>,
     seen: Option<u32>,
@@ -529,11 +530,11 @@ impl GroupMembership {
         &self.joined
     }
 
-    /// Join the groups `camera` sends to and leave the others.
+    /// Want the groups `camera` sends to and no others of the camera's.
     pub fn sync<const N: usize>(
         &mut self,
         camera: &Camera<N>,
-        iface: &mut smoltcp::iface::Interface,
+        groups: &mut crate::multicast::Membership,
         log: &mut impl Write,
     ) {
         if self.seen == Some(camera.output_changes()) {
@@ -543,27 +544,17 @@ impl GroupMembership {
         let wanted = |a: &Ipv4Addr| camera.multicast_groups().any(|g| g.addr == *a);
         while let Some(i) = self.joined.iter().position(|a| !wanted(a)) {
             let a = self.joined.swap_remove(i);
-            match iface.leave_multicast_group(a) {
-                Ok(()) => {
-                    let _ = writeln!(log, "camera: left multicast group {a}");
-                }
-                Err(e) => {
-                    let _ = writeln!(log, "camera: leaving multicast group {a}: {e:?}");
-                }
-            }
+            groups.unwant(a);
+            let _ = writeln!(log, "camera: left multicast group {a}");
         }
         for g in camera.multicast_groups() {
             if self.joined.contains(&g.addr) {
                 continue;
             }
-            match iface.join_multicast_group(g.addr) {
-                Ok(()) if self.joined.push(g.addr).is_ok() => {
-                    let _ = writeln!(log, "camera: joined multicast group {}", g.addr);
-                }
-                Ok(()) => {}
-                Err(e) => {
-                    let _ = writeln!(log, "camera: joining multicast group {}: {e:?}", g.addr);
-                }
+            if groups.want(g.addr) && self.joined.push(g.addr).is_ok() {
+                let _ = writeln!(log, "camera: joined multicast group {}", g.addr);
+            } else {
+                let _ = writeln!(log, "camera: joining multicast group {}: no room", g.addr);
             }
         }
     }

@@ -150,6 +150,31 @@ pub struct Relay {
     multicast: Arc<Mutex<std::collections::HashMap<u32, u32>>>,
     threads: Vec<JoinHandle<()>>,
     mac_trace: [String; 2],
+    igmp: Arc<Mutex<Vec<Igmp>>>,
+}
+
+/// An IGMPv2 message the board sent (RFC 2236 section 2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Igmp {
+    /// A membership report (type 0x16) for the group.
+    Report(std::net::Ipv4Addr),
+    /// A leave group message (type 0x17) for the group.
+    Leave(std::net::Ipv4Addr),
+}
+
+/// The IGMPv2 report or leave `frame` carries (Ethernet, IPv4 protocol 2).
+fn igmp_of(frame: &[u8]) -> Option<Igmp> {
+    if frame.len() < 14 + 20 + 8 || frame[12..14] != [0x08, 0x00] || frame[23] != 2 {
+        return None;
+    }
+    let ihl = usize::from(frame[14] & 0x0f) * 4;
+    let igmp = frame.get(14 + ihl..14 + ihl + 8)?;
+    let group = std::net::Ipv4Addr::new(igmp[4], igmp[5], igmp[6], igmp[7]);
+    match igmp[0] {
+        0x16 => Some(Igmp::Report(group)),
+        0x17 => Some(Igmp::Leave(group)),
+        _ => None,
+    }
 }
 
 /// Numbers the relays' MAC trace files.
@@ -177,6 +202,7 @@ impl Relay {
         let shared: SharedFaults = Arc::new(Mutex::new(faults));
         let counts = Arc::new(Mutex::new(Counts::default()));
         let multicast = Arc::new(Mutex::new(std::collections::HashMap::new()));
+        let igmp = Arc::new(Mutex::new(Vec::new()));
         udp.set_read_timeout(Some(Duration::from_millis(50))).map_err(|e| e.to_string())?;
         let udp2 = udp.try_clone().map_err(|e| e.to_string())?;
         let mut tap_w = tap.try_clone().map_err(|e| e.to_string())?;
@@ -186,6 +212,7 @@ impl Relay {
         // Guest to peer.
         {
             let (stop, counts, multicast, shared) = (stop.clone(), counts.clone(), multicast.clone(), shared.clone());
+            let igmp = igmp.clone();
             let mut dir = Direction { faults, rng: Rng(seed), held: None };
             threads.push(thread::spawn(move || {
                 let mut seen: HashSet<(u16, u16, u32)> = HashSet::new();
@@ -195,6 +222,9 @@ impl Relay {
                     let frame = buf[..n].to_vec();
                     if let (Some(seq), Ok(mut m)) = (multicast_rtp(&frame), multicast.lock()) {
                         *m.entry(seq).or_insert(0) += 1;
+                    }
+                    if let (Some(message), Ok(mut m)) = (igmp_of(&frame), igmp.lock()) {
+                        m.push(message);
                     }
                     let Ok(mut c) = counts.lock() else { return };
                     dir.faults = shared.lock().map(|f| *f).unwrap_or(dir.faults);
@@ -247,7 +277,7 @@ impl Relay {
                 }
             }));
         }
-        Ok(Relay { stop, faults: shared, counts, multicast, threads, mac_trace })
+        Ok(Relay { stop, faults: shared, counts, multicast, threads, mac_trace, igmp })
     }
 
     /// The QEMU arguments that let the relay see the board's MAC
@@ -267,6 +297,11 @@ impl Relay {
     /// each sequence number went.
     pub fn multicast_packets(&self) -> std::collections::HashMap<u32, u32> {
         self.multicast.lock().map(|m| m.clone()).unwrap_or_default()
+    }
+
+    /// The IGMP messages the board sent so far, in order.
+    pub fn igmp(&self) -> Vec<Igmp> {
+        self.igmp.lock().map(|m| m.clone()).unwrap_or_default()
     }
 
     /// What happened so far.

@@ -86,17 +86,17 @@ impl MacFilter {
                 self.frame_filter = value;
                 return;
             }
-            o if (HASH_TABLE..HASH_TABLE + 32).contains(&o) && o % 4 == 0 => {
+            o if (HASH_TABLE..HASH_TABLE + 32).contains(&o) && o.is_multiple_of(4) => {
                 self.hash[((o - HASH_TABLE) / 4) as usize] = value;
                 return;
             }
-            o if (ADDRESSES_LOW..ADDRESSES_LOW + 16 * 8).contains(&o) && o % 4 == 0 => {
+            o if (ADDRESSES_LOW..ADDRESSES_LOW + 16 * 8).contains(&o) && o.is_multiple_of(4) => {
                 let k = (o - ADDRESSES_LOW) / 4;
-                (k as usize / 2, k % 2 == 0)
+                (k as usize / 2, k.is_multiple_of(2))
             }
-            o if (ADDRESSES_HIGH..ADDRESSES_HIGH + 112 * 8).contains(&o) && o % 4 == 0 => {
+            o if (ADDRESSES_HIGH..ADDRESSES_HIGH + 112 * 8).contains(&o) && o.is_multiple_of(4) => {
                 let k = (o - ADDRESSES_HIGH) / 4;
-                (16 + k as usize / 2, k % 2 == 0)
+                (16 + k as usize / 2, k.is_multiple_of(2))
             }
             _ => return,
         };

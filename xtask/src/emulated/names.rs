@@ -16,9 +16,13 @@ use std::time::Duration;
 
 use super::addressing::{exchange, seed_frame};
 use super::lan::{Addressing, Lan};
+use super::lossy::Igmp;
 use super::qemu_e2e::expected_frame;
 use crate::support::tools::root;
 use crate::support::Result;
+
+/// mDNS's group (RFC 6762 section 3).
+const MDNS_GROUP: Ipv4Addr = Ipv4Addr::new(224, 0, 0, 251);
 
 /// Debian packages the check runs: the independent mDNS browser and
 /// FFmpeg.
@@ -48,6 +52,12 @@ pub fn run(elf: &Path) -> Result<()> {
     lan.guest
         .wait_for_line(0, "mdns: raytracer.local is this board's", Duration::from_secs(30))
         .map_err(|e| lan.with_uart(e))?;
+    // Its membership in 224.0.0.251 reported once it had the address (a
+    // switch that snoops IGMP forwards the group's queries to it).
+    let reports = |lan: &Lan| lan.relay.igmp().iter().filter(|m| **m == Igmp::Report(MDNS_GROUP)).count();
+    if reports(&lan) == 0 {
+        return Err(lan.with_uart(format!("no IGMP report for {MDNS_GROUP} from the board: {:?}", lan.relay.igmp())));
+    }
     // The first frame by name: the seed service found by browsing, its
     // instance resolved, a frame from it.
     let found = browse(&lan, "1")?;
@@ -145,19 +155,96 @@ pub fn run(elf: &Path) -> Result<()> {
     }
     println!("names: from each, by the address its name resolved to: a seed frame and FFmpeg's RTSP frame byte-exact, the page for Host: NAME.local");
 
+    // Long after the boot announcements (whose host records live 120 s in
+    // a peer's cache), both names and services are still found: by
+    // answers to queries, which reach a board only through its MAC's
+    // multicast filter (xtask/src/emulated/mac_filter.rs).
+    if let Some(wait) = AFTER_ANNOUNCEMENTS.checked_sub(started.elapsed()) {
+        std::thread::sleep(wait);
+    }
+    let found = browse_hosts(&lan, "2", &["raytracer.local", "raytracer-2.local"])?;
+    for (name, address) in [("raytracer", a), ("raytracer-2", b)] {
+        let host = format!("{name}.local");
+        let answered =
+            found["hosts"][&host].as_array().is_some_and(|l| l.iter().any(|x| x == address.to_string().as_str()));
+        let listed = found["_raytracer._tcp.local."]
+            .as_array()
+            .is_some_and(|l| l.iter().any(|e| e["name"] == format!("{name}._raytracer._tcp.local.").as_str()));
+        if !answered || !listed {
+            return Err(lan.with_uart(format!(
+                "{:.0} s after boot, {host} ({address}) answered {answered}, its service listed {listed}: {found}",
+                started.elapsed().as_secs_f64()
+            )));
+        }
+    }
+    println!(
+        "names: {:.0} s after boot (announcements long aged out): a one-shot query for each name answered with its address, both services browsed",
+        started.elapsed().as_secs_f64()
+    );
+    // An IGMP general query (as a router or snooping switch sends every
+    // 125 s) answered with a report for the group.
+    let before = reports(&lan);
+    let out = lan
+        .command(0, "/usr/bin/python3")
+        .args(["-c", IGMP_QUERY])
+        .output()
+        .map_err(|e| format!("the IGMP query: {e}"))?;
+    if !out.status.success() {
+        return Err(format!("the IGMP query: {}", String::from_utf8_lossy(&out.stderr)));
+    }
+    let asked = std::time::Instant::now();
+    while reports(&lan) == before && asked.elapsed() < Duration::from_secs(5) {
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    if reports(&lan) == before {
+        return Err(lan.with_uart(format!(
+            "no IGMP report for {MDNS_GROUP} within 5 s of a general query: {:?}",
+            lan.relay.igmp()
+        )));
+    }
+    println!(
+        "names: IGMP: the board reported {MDNS_GROUP} once addressed, and again {:.1} s after a general query",
+        asked.elapsed().as_secs_f64()
+    );
     Ok(())
 }
+
+/// An IGMPv2 general query (RFC 2236 section 2: type 0x11, maximum
+/// response time 1 s, group 0) to 224.0.0.1, sent from a host of the LAN.
+const IGMP_QUERY: &str = r#"
+import socket, struct
+def checksum(b):
+    s = sum(struct.unpack(">%dH" % (len(b) // 2), b))
+    s = (s & 0xffff) + (s >> 16)
+    return ~(s + (s >> 16)) & 0xffff
+q = struct.pack(">BBH4s", 0x11, 10, 0, bytes(4))
+q = struct.pack(">BBH4s", 0x11, 10, checksum(q), bytes(4))
+s = socket.socket(socket.AF_INET, socket.SOCK_RAW, socket.IPPROTO_IGMP)
+s.setsockopt(socket.IPPROTO_IP, socket.IP_MULTICAST_TTL, 1)
+s.sendto(q, ("224.0.0.1", 0))
+"#;
+
+/// How long after the first board's start the names are looked up again:
+/// past the 120 s a host record's announcement lives in a cache (RFC 6762
+/// section 10).
+const AFTER_ANNOUNCEMENTS: Duration = Duration::from_secs(130);
 
 /// What tests/mdns/browse.py (python-zeroconf) finds from host 0 in
 /// `seconds`.
 fn browse(lan: &Lan, seconds: &str) -> Result<serde_json::Value> {
+    browse_hosts(lan, seconds, &[])
+}
+
+/// [`browse`], and the addresses a one-shot query for each of `hosts`
+/// brings back (under `"hosts"`).
+fn browse_hosts(lan: &Lan, seconds: &str, hosts: &[&str]) -> Result<serde_json::Value> {
     let script = root().join("tests/mdns/browse.py");
-    let out = lan
-        .command(0, "/usr/bin/python3")
-        .arg(&script)
-        .args(["--seconds", seconds])
-        .output()
-        .map_err(|e| format!("{}: {e}", script.display()))?;
+    let mut command = lan.command(0, "/usr/bin/python3");
+    command.arg(&script).args(["--seconds", seconds]);
+    if !hosts.is_empty() {
+        command.arg("--hosts").args(hosts);
+    }
+    let out = command.output().map_err(|e| format!("{}: {e}", script.display()))?;
     let text = String::from_utf8_lossy(&out.stdout).into_owned();
     if !out.status.success() {
         return Err(lan.with_uart(format!("browse.py failed: {text}{}", String::from_utf8_lossy(&out.stderr))));
