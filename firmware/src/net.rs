@@ -376,6 +376,7 @@ pub fn run<B: Board, P: RegisterPort>(
     loop {
         let iteration = crate::bench::Iteration::start(mac_moved(&mac));
         let now_us = timer.now_us();
+        let now = Instant::from_micros(i64::try_from(now_us).unwrap_or(i64::MAX));
         if let Some(change) = link.poll(now_us, &mut mac) {
             mac.set_link(change);
             link_up = change.is_some();
@@ -388,13 +389,17 @@ pub fn run<B: Board, P: RegisterPort>(
             match change {
                 Some(l) => {
                     let _ = writeln!(log, "link up: {l}");
+                    // Perhaps on another network: the name is probed and
+                    // announced again (the address, by `addressing`).
+                    if let Some(m) = &mut mdns {
+                        m.link_up(now);
+                    }
                 }
                 None => {
                     let _ = writeln!(log, "link down (waiting for the cable or the partner)");
                 }
             }
         }
-        let now = Instant::from_micros(i64::try_from(now_us).unwrap_or(i64::MAX));
         // The address and the name are looked after when a frame for them
         // arrived (ARP, DHCP, mDNS: `LinkNotes`) or one of their timers is
         // due, at least once a HOUSEKEEPING_US; not on every turn, which

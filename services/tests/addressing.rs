@@ -97,6 +97,8 @@ struct Board {
     /// Every change `poll` reported, with its time (ms).
     changes: Vec<(i64, Option<Assignment>)>,
     now: i64,
+    /// The cable is in: frames go both ways and `poll` is told so.
+    link: bool,
 }
 
 static OPTIONS: [DhcpOption<'static>; 1] = [DhcpOption { kind: 12, data: HOST_NAME }];
@@ -108,7 +110,7 @@ impl Board {
         let iface = Interface::new(config, &mut wire, Instant::from_millis(0));
         let mut sockets = SocketSet::new(Vec::new());
         let addressing = Addressing::new(mode, BOARD_MAC, &mut sockets, &OPTIONS);
-        Board { wire, iface, sockets, addressing, notes: LinkNotes::new(), changes: Vec::new(), now: 0 }
+        Board { wire, iface, sockets, addressing, notes: LinkNotes::new(), changes: Vec::new(), now: 0, link: true }
     }
 
     /// Run in 10 ms steps until `until_ms`, the network answering.
@@ -116,12 +118,20 @@ impl Board {
         while self.now < until_ms {
             let now = Instant::from_millis(self.now);
             self.iface.poll(now, &mut Snoop { inner: &mut self.wire, peers: &mut self.notes }, &mut self.sockets);
-            if let Some(change) =
-                self.addressing.poll(now, true, &mut self.iface, &mut self.sockets, &mut self.notes, &mut self.wire)
-            {
+            if let Some(change) = self.addressing.poll(
+                now,
+                self.link,
+                &mut self.iface,
+                &mut self.sockets,
+                &mut self.notes,
+                &mut self.wire,
+            ) {
                 self.changes.push((self.now, change));
             }
             while let Some(frame) = self.wire.from_board.pop_front() {
+                if !self.link {
+                    continue;
+                }
                 for answer in net.answer(self.now, &frame) {
                     self.wire.to_board.push_back(answer);
                 }
@@ -377,4 +387,55 @@ fn a_static_address_is_set_at_once_and_nothing_is_asked_of_the_network() {
     assert_eq!(board.changes[0].0, 0, "from the first turn");
     assert!(net.names.is_empty(), "no DHCP");
     assert!(net.arp.iter().all(|(_, s, _)| !s.is_unspecified()), "no probes: {:?}", net.arp);
+}
+
+/// The cable out for `ms`, then in again (a board carried elsewhere).
+fn replug(board: &mut Board, net: &mut Network, ms: i64) {
+    board.link = false;
+    board.run(net, board.now + ms);
+    board.link = true;
+}
+
+/// A board moved from a router's LAN to a cable straight to a laptop (no
+/// DHCP server there): its lease is worth nothing, and it has a link-local
+/// address within 15 s of the link coming up; carried back, a lease
+/// within 15 s again (a DISCOVER at link-up, not after smoltcp's 10 s).
+#[test]
+fn a_board_moved_to_a_network_without_dhcp_and_back_takes_an_address_there_within_15_s() {
+    let mut net = Network::new(Some(Ipv4Addr::new(10, 0, 2, 15)));
+    let mut board = Board::new(AddressMode::Automatic);
+    board.run(&mut net, 3_000);
+    assert_eq!(board.addressing.current().map(|a| a.origin), Some(Origin::Dhcp));
+    let mut laptop = Network::new(None);
+    replug(&mut board, &mut laptop, 2_000);
+    let plugged = board.now;
+    board.run(&mut laptop, plugged + 15_000);
+    let (at, a) = board.changes.iter().rev().find_map(|(t, c)| c.map(|a| (*t, a))).expect("an address");
+    assert_eq!(a.origin, Origin::LinkLocal, "{:?}", board.changes);
+    assert!(at - plugged <= 15_000, "{} ms after the link came up", at - plugged);
+    assert_eq!(board.iface_address(), Some((a.address, 16)), "the lease is gone");
+    replug(&mut board, &mut net, 2_000);
+    let plugged = board.now;
+    board.run(&mut net, plugged + 15_000);
+    let a = board.addressing.current().expect("leased again");
+    assert_eq!((a.address, a.origin), (Ipv4Addr::new(10, 0, 2, 15), Origin::Dhcp), "{:?}", board.changes);
+    let leased_at = board.changes.iter().rev().find(|(_, c)| c.is_some_and(|a| a.origin == Origin::Dhcp));
+    assert!(leased_at.is_some_and(|(t, _)| t - plugged < 2_000), "at once, not after 10 s: {:?}", board.changes);
+}
+
+/// A link-local address held when the link comes back is probed again
+/// before use (three probes for it after the link came up) and kept
+/// where nobody has it.
+#[test]
+fn a_link_local_address_is_probed_again_when_the_link_comes_back() {
+    let mut net = Network::new(None);
+    let mut board = Board::new(AddressMode::Automatic);
+    board.run(&mut net, 10_000);
+    let held = board.addressing.current().expect("link-local").address;
+    replug(&mut board, &mut net, 1_000);
+    let plugged = board.now;
+    board.run(&mut net, plugged + 10_000);
+    let probes = net.arp.iter().filter(|(t, s, a)| *t >= plugged && s.is_unspecified() && *a == held).count();
+    assert_eq!(probes, 3, "{:?}", net.arp);
+    assert_eq!(board.addressing.current().map(|a| (a.address, a.origin)), Some((held, Origin::LinkLocal)));
 }

@@ -313,3 +313,21 @@ fn after_the_claim_another_host_claiming_the_name_sends_it_back_to_probing() {
     r.receive(ms(6_000), PEER, &echo.build_bytes_vec().unwrap());
     assert!(r.is_claimed());
 }
+
+/// The link came up again (perhaps on another network): the name is
+/// probed three times and announced twice anew (RFC 6762 section 8), and
+/// the name may be lost there; without an address, nothing is sent.
+#[test]
+fn a_link_that_comes_up_again_means_probing_and_announcing_anew() {
+    let mut r = claimed();
+    r.link_up(ms(6_000));
+    assert!(!r.is_claimed(), "probing again");
+    let sent = run(&mut r, 6_000, 9_000);
+    let probes = sent.iter().filter(|(_, _, p)| !p.has_flags(PacketFlag::RESPONSE)).count();
+    let announcements = sent.iter().filter(|(_, _, p)| p.has_flags(PacketFlag::RESPONSE)).count();
+    assert_eq!((probes, announcements), (3, 2), "{:?}", sent.iter().map(|s| s.0).collect::<Vec<_>>());
+    assert!(r.is_claimed());
+    let mut r = responder();
+    r.link_up(ms(0));
+    assert!(run(&mut r, 0, 3_000).is_empty(), "silent without an address");
+}

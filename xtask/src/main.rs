@@ -132,6 +132,10 @@ enum Command {
     /// Two boards on one virtual LAN, found by name: mDNS probing and
     /// renaming, DNS-SD browsed with python-zeroconf, frames by name.
     Names,
+    /// A board carried to a network without DHCP (its cable out and in)
+    /// and back: found by name at a link-local address, then at its lease,
+    /// within 15 s each.
+    Moved,
     /// `rt-client doctor` against hps-sim and the emulated board, healthy
     /// and with five faults injected: each must be named.
     Doctor,
@@ -167,6 +171,7 @@ fn main() -> ExitCode {
         Command::PerHost => suite::per_host(),
         Command::Addressing => suite::addressing(),
         Command::Names => suite::names(),
+        Command::Moved => suite::moved(),
         Command::Doctor => suite::doctor(),
         Command::LossyTest => support::tools::ensure_qemu().and_then(|()| emulated::lossy::suite_test()),
         Command::EntropyTest => support::tools::ensure_qemu()

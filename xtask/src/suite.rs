@@ -194,7 +194,7 @@ pub fn viewers() -> Result<()> {
 fn many_viewers(elf: &std::path::Path) -> Result<()> {
     ensure_apt_packages(&crate::support::player::PLAYER_PACKAGES, None)?;
     ensure_apt_packages(&crate::emulated::viewers::RELAY_PACKAGES, None)?;
-    step("build rt-client (release)", cargo(&["build", "--release", "-p", "rt-client"]))?;
+    crate::support::tools::build_host_programs()?;
     println!("==> many viewers of the emulated board ({})", elf.display());
     crate::emulated::viewers::run(elf)?;
     println!("==> players through a relay (tools/rtsp-relay.py) from one session of the emulated board");
@@ -250,7 +250,24 @@ fn addressing_on(elf: &std::path::Path) -> Result<()> {
     ensure_apt_packages(&crate::emulated::lan::PACKAGES, None)?;
     println!("==> the board's address on networks it was not built for ({})", elf.display());
     crate::emulated::addressing::run(elf)?;
-    names_on(elf)
+    // The cable moved while the names wait for their announcements to age
+    // out (their boards paused meanwhile).
+    names_on(elf, || moved_on(elf))
+}
+
+/// `cargo xtask moved`: a board carried to a network without DHCP and
+/// back, found by name on each.
+pub fn moved() -> Result<()> {
+    ensure_qemu()?;
+    let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
+    ensure_apt_packages(&crate::emulated::lan::PACKAGES, None)?;
+    ensure_apt_packages(&crate::emulated::names::PACKAGES, None)?;
+    moved_on(&elf)
+}
+
+fn moved_on(elf: &std::path::Path) -> Result<()> {
+    println!("==> a board carried to a network without DHCP and back, found by name on each ({})", elf.display());
+    crate::emulated::moved::run(elf)
 }
 
 /// `cargo xtask doctor`: the doctor names what is wrong, and ticks what
@@ -266,14 +283,14 @@ pub fn names() -> Result<()> {
     ensure_qemu()?;
     let elf = crate::images::firmware::build("qemu-npcm750", &["sim-accelerator"])?;
     ensure_apt_packages(&crate::emulated::lan::PACKAGES, None)?;
-    names_on(&elf)
+    names_on(&elf, || Ok(()))
 }
 
-fn names_on(elf: &std::path::Path) -> Result<()> {
+fn names_on(elf: &std::path::Path, meanwhile: impl FnOnce() -> Result<()>) -> Result<()> {
     ensure_apt_packages(&crate::emulated::names::PACKAGES, None)?;
-    step("build rt-client (release)", cargo(&["build", "--release", "-p", "rt-client"]))?;
+    crate::support::tools::build_host_programs()?;
     println!("==> two boards on one LAN, found by name (mDNS, DNS-SD) ({})", elf.display());
-    crate::emulated::names::run(elf)
+    crate::emulated::names::run(elf, meanwhile)
 }
 
 fn per_host_on(elf: &std::path::Path) -> Result<()> {

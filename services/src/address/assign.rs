@@ -116,6 +116,8 @@ pub struct Addressing {
     current: Option<Assignment>,
     /// Leases taken (the first, and each change at renewal or rebinding).
     leases: u32,
+    /// The link as the last poll saw it.
+    link_was_up: bool,
 }
 
 impl Addressing {
@@ -145,6 +147,7 @@ impl Addressing {
             link_local: LinkLocal::new(mac),
             current: None,
             leases: 0,
+            link_was_up: false,
         }
     }
 
@@ -161,6 +164,19 @@ impl Addressing {
     /// Link-local conflicts met.
     pub fn link_local_conflicts(&self) -> u32 {
         self.link_local.conflicts()
+    }
+
+    /// The link came up, at boot or perhaps on another network (a cable
+    /// moved from a router to a laptop): DHCP starts over with a DISCOVER
+    /// now (a lease from another network is worth nothing here; smoltcp's
+    /// client cannot ask for the old address by INIT-REBOOT, RFC 2131
+    /// section 3.2), and a link-local address is probed again before use.
+    fn link_came_up(&mut self, t: Instant, sockets: &mut SocketSet<'_>) {
+        if let Some(handle) = self.dhcp {
+            sockets.get_mut::<dhcpv4::Socket>(handle).reset();
+            self.lease = None;
+        }
+        self.link_local.link_up(t);
     }
 
     /// When [`poll`](Self::poll) must run next without a frame for it: the
@@ -183,6 +199,10 @@ impl Addressing {
         device: &mut D,
     ) -> Option<Option<Assignment>> {
         let t = Instant::from_millis(u64::try_from(now.total_millis()).unwrap_or(0));
+        if link_up && !self.link_was_up {
+            self.link_came_up(t, sockets);
+        }
+        self.link_was_up = link_up;
         if let Some(handle) = self.dhcp {
             match sockets.get_mut::<dhcpv4::Socket>(handle).poll() {
                 Some(dhcpv4::Event::Configured(c)) => {

@@ -131,6 +131,22 @@ impl LinkLocal {
         self.owed = false;
     }
 
+    /// The link came up again, perhaps on another network (a cable
+    /// moved): an address held, or being probed, is probed again from the
+    /// start before it is used (RFC 5227 section 2.1: probe whenever the
+    /// link may have changed; RFC 3927 section 2.1 keeps the same address
+    /// where it is free).
+    pub fn link_up(&mut self, now: Instant) {
+        let candidate = match self.state {
+            State::Claimed { address, .. } => address,
+            State::Probing { candidate, .. } => candidate,
+            State::Stopped => return,
+        };
+        let wait = self.between(Duration::ZERO, PROBE_WAIT);
+        self.owed = false;
+        self.state = State::Probing { candidate, sent: 0, next: now + wait };
+    }
+
     /// Whether a claim is under way or held.
     pub fn is_running(&self) -> bool {
         self.state != State::Stopped

@@ -235,6 +235,19 @@ impl Responder {
         };
     }
 
+    /// The link came up again, perhaps on another network: with an
+    /// address, the name is probed and announced again (RFC 6762 section
+    /// 8: on a link change a responder must probe and announce anew; the
+    /// name may be taken there).
+    pub fn link_up(&mut self, now: Instant) {
+        if self.address.is_none() {
+            return;
+        }
+        self.pending = None;
+        self.unicast.clear();
+        self.state = self.first_probe(now);
+    }
+
     fn first_probe(&mut self, now: Instant) -> State {
         let jitter = Duration::from_millis(self.rng.next_u64() % 251);
         State::Probing { sent: 0, next: now + jitter }

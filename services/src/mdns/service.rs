@@ -86,6 +86,11 @@ impl MdnsService {
         self.responder.set_address(millis(now), address);
     }
 
+    /// The link came up again ([`Responder::link_up`]).
+    pub fn link_up(&mut self, now: NetInstant) {
+        self.responder.link_up(millis(now));
+    }
+
     /// Take what arrived, send what is due, log name changes.
     pub fn poll(&mut self, now: NetInstant, sockets: &mut SocketSet<'_>, log: &mut impl Write) {
         let t = millis(now);

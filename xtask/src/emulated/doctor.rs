@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use crate::images::firmware::{self, Guest};
 use crate::support::process::{free_ports, start_server, Guard};
-use crate::support::tools::{cargo, root, step};
+use crate::support::tools::root;
 use crate::support::Result;
 
 /// What one doctor run printed, and whether it passed.
@@ -118,7 +118,7 @@ fn guest_args(g: &Guest) -> Result<Vec<String>> {
 /// Run the step: hps-sim healthy and with four faults, then the emulated
 /// board healthy and with its frame path at fault.
 pub fn run() -> Result<()> {
-    step("build hps-sim and rt-client (release)", cargo(&["build", "--release", "-p", "hps-sim", "-p", "rt-client"]))?;
+    crate::support::tools::build_host_programs()?;
     let started = Instant::now();
 
     let (sim, args) = hps_sim(&[], "healthy")?;

@@ -16,6 +16,7 @@ use std::net::{Ipv4Addr, SocketAddr, UdpSocket};
 use std::os::fd::AsRawFd;
 use std::path::Path;
 use std::process::Command;
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::thread;
 use std::time::Duration;
 
@@ -28,6 +29,9 @@ pub const BOARD: Ipv4Addr = Ipv4Addr::new(10, 0, 2, 15);
 
 /// The board's MAC (QEMU's default for the npcm750-evb's first GMAC).
 const BOARD_MAC: &str = "52:54:00:12:34:56";
+
+/// Numbers this process's LANs.
+static LAN_SEQ: AtomicU32 = AtomicU32::new(0);
 
 /// How the board on a [`Lan`] takes its address.
 #[derive(Clone, Debug)]
@@ -107,7 +111,9 @@ impl Lan {
     /// `addressing` says.
     pub fn boot_addressed(elf: &Path, hosts: usize, extra: &[&str], addressing: Addressing) -> Result<Lan> {
         lossy::available().map_err(|why| format!("the virtual LAN needs network namespaces: {why}"))?;
-        let id = std::process::id() % 100_000;
+        // This process's LANs told apart (two may be up at once: `moved`
+        // runs while `names` waits); interface names stay within 15 bytes.
+        let id = format!("{}{}", std::process::id() % 100_000, LAN_SEQ.fetch_add(1, Ordering::Relaxed) % 10);
         let tap = format!("rtlan{id}");
         let tap_file = open_tap(&tap)?;
         let switch = Namespace::new(&format!("rtlan{id}"), &tap)?;
@@ -164,7 +170,7 @@ impl Lan {
     /// Boot another board on the switch with `settings`, and wait for its
     /// link and address.
     pub fn add_board(&mut self, elf: &Path, settings: &str) -> Result<&mut Guest> {
-        let tap = format!("rtlan{}b{}", std::process::id() % 100_000, self.others.len() + 1);
+        let tap = format!("{}b{}", self.switch.0, self.others.len() + 1);
         let tap_file = open_tap(&tap)?;
         let sw = self.switch.0.clone();
         ip(&["link", "set", &tap, "netns", &sw])?;
@@ -186,6 +192,20 @@ impl Lan {
         self.dhcp = None;
         self.dhcp = Some(dnsmasq(&self.switch.0, mac, address)?);
         Ok(())
+    }
+
+    /// Stop the LAN's DHCP server: a network without one (a cable straight
+    /// to a laptop).
+    pub fn stop_dhcp(&mut self) {
+        self.dhcp = None;
+    }
+
+    /// Make host `k` a laptop on a cable of its own: only a link-local
+    /// address, 169.254.200.(1 + k)/16 (its 10.0.2.x address removed).
+    pub fn make_link_local_only(&self, k: usize) -> Result<()> {
+        ip(&["-n", self.host(k), "addr", "flush", "dev", "eth0"])?;
+        self.add_link_local(k)?;
+        ip(&["-n", self.host(k), "route", "replace", "224.0.0.0/4", "dev", "eth0"])
     }
 
     /// Give host `k` an address in 169.254/16 too, for a board with a

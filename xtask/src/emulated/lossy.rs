@@ -27,7 +27,6 @@ use clap::Args;
 use super::mac_filter::FilterFollower;
 use super::qemu_e2e::{expected_frame, LIGHTS};
 use crate::images::firmware::{build, free_udp_port, Guest};
-use crate::support::tools::{cargo, step};
 use crate::support::Result;
 
 /// Per-frame fault probabilities, the same both ways.
@@ -908,7 +907,7 @@ pub fn suite_test() -> Result<()> {
     println!("==> RTSP through the lossy relay: clean, 2% drop (1% reorder, 1% corrupt), clean, 10% drop, clean; NACK repair");
     let clean = SCENARIOS[0].1;
     let phases = [clean, SCENARIOS[1].1, clean, SCENARIOS[2].1, clean];
-    step("build rt-client (release)", cargo(&["build", "--release", "-p", "rt-client"]))?;
+    crate::support::tools::build_host_programs()?;
     let (o, rt_client) = run_rtsp_phases(
         &sim,
         &phases,

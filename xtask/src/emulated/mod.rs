@@ -17,6 +17,7 @@ pub mod hostile;
 pub mod lan;
 pub mod lossy;
 pub mod mac_filter;
+pub mod moved;
 pub mod names;
 pub mod per_host;
 pub mod qemu_e2e;

@@ -30,7 +30,7 @@ pub const PACKAGES: [&str; 2] = ["python3-zeroconf", "ffmpeg"];
 
 /// The light of every frame asked for (the seed frames' too,
 /// `addressing::seed_frame`).
-const LIGHT: [i32; 3] = [3 << 10, 4 << 10, -(2 << 10)];
+pub(crate) const LIGHT: [i32; 3] = [3 << 10, 4 << 10, -(2 << 10)];
 
 fn settings(mac: &str) -> String {
     format!("# cargo xtask names\nip=dhcp\nhostname=raytracer\nmac={mac}\n")
@@ -42,8 +42,10 @@ fn address_of(uart: &str) -> Option<Ipv4Addr> {
     line.strip_prefix("net: address ")?.split('/').next()?.parse().ok()
 }
 
-/// Run the check against the firmware `elf` (a frame-mode build).
-pub fn run(elf: &Path) -> Result<()> {
+/// Run the check against the firmware `elf` (a frame-mode build); while
+/// it waits for the announcements to age out, with both boards paused,
+/// `meanwhile` runs.
+pub fn run(elf: &Path, meanwhile: impl FnOnce() -> Result<()>) -> Result<()> {
     let first = Addressing::Settings { text: settings("02:de:1c:00:35:0a"), dhcp: Some(Ipv4Addr::new(10, 0, 2, 77)) };
     let started = std::time::Instant::now();
     let mut lan = Lan::boot_addressed(elf, 1, &[], first)?;
@@ -159,6 +161,14 @@ pub fn run(elf: &Path) -> Result<()> {
     // a peer's cache), both names and services are still found: by
     // answers to queries, which reach a board only through its MAC's
     // multicast filter (xtask/src/emulated/mac_filter.rs).
+    let both = |paused: bool| -> Result<()> {
+        lan.guest.pause(paused)?;
+        lan.others.iter().try_for_each(|(g, _)| g.pause(paused))
+    };
+    both(true)?;
+    let outcome = meanwhile();
+    both(false)?;
+    outcome?;
     if let Some(wait) = AFTER_ANNOUNCEMENTS.checked_sub(started.elapsed()) {
         std::thread::sleep(wait);
     }

@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::support::tools::{cargo, ensure_apt_packages, root, step};
+use crate::support::tools::{ensure_apt_packages, root};
 use crate::support::Result;
 
 /// Drags, the wheel, keys and the automatic orbit, then quit.
@@ -35,7 +35,7 @@ pub const PACKAGES: [&str; 2] = ["xvfb", "xauth"];
 /// Run the test.
 pub fn run() -> Result<()> {
     ensure_apt_packages(&PACKAGES, None)?;
-    step("build rt-client (release)", cargo(&["build", "--release", "-p", "rt-client"]))?;
+    crate::support::tools::build_host_programs()?;
     let dir = root().join("target/live-test");
     std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let (script, last) = (dir.join("session.txt"), dir.join("last.png"));

@@ -26,7 +26,7 @@ use model::{Light, FRAME_BYTES, HEIGHT, ROW_BYTES, WIDTH};
 use rt_services::camera::rtsp::StreamSpec;
 
 use crate::support::process::{free_ports, start_server, Guard};
-use crate::support::tools::{cargo, ensure_apt_packages, root, step};
+use crate::support::tools::{ensure_apt_packages, root};
 use crate::support::Result;
 
 /// The Debian packages of `gst-launch-1.0`, `rtspsrc` (plugins-good, with
@@ -53,7 +53,7 @@ const DISCONT: u32 = 0x40;
 /// Run the step.
 pub fn run() -> Result<()> {
     ensure_apt_packages(&GSTREAMER_PACKAGES, None)?;
-    step("build hps-sim (release)", cargo(&["build", "--release", "-p", "hps-sim"]))?;
+    crate::support::tools::build_host_programs()?;
     let started = Instant::now();
     let dir = root().join("target/players");
     fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;

@@ -17,7 +17,7 @@ use model::Light;
 use crate::support::laggard;
 use crate::support::player::{Kind, Player};
 use crate::support::rtsp_client::{RtspSession, Transport};
-use crate::support::tools::{cargo, root, step};
+use crate::support::tools::root;
 use crate::support::Result;
 
 /// A child process killed when dropped.
@@ -149,7 +149,7 @@ fn free_addrs() -> Result<(SocketAddr, SocketAddr)> {
 
 /// The suite's step: shared and separate streams, then multicast.
 pub fn run() -> Result<()> {
-    step("build hps-sim and rt-client (release)", cargo(&["build", "--release", "-p", "hps-sim", "-p", "rt-client"]))?;
+    crate::support::tools::build_host_programs()?;
     let (listen, rtsp) = free_addrs()?;
     let _sim = start_hps_sim(&[], listen, rtsp, &[])?;
     let fixed = [3.0, 4.0, -2.0];

@@ -11,13 +11,13 @@ use std::time::Instant;
 
 use crate::support::browser::{check_page, ensure_browser, pages_share, PageCheck};
 use crate::support::process::{free_ports, start_server};
-use crate::support::tools::{cargo, root, step};
+use crate::support::tools::root;
 use crate::support::Result;
 
 /// Run the step.
 pub fn run() -> Result<()> {
     ensure_browser()?;
-    step("build hps-sim (release)", cargo(&["build", "--release", "-p", "hps-sim"]))?;
+    crate::support::tools::build_host_programs()?;
     let started = Instant::now();
     let dir = root().join("target/web/hps-sim");
     fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;

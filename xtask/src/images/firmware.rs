@@ -255,7 +255,10 @@ impl Guest {
             std::process::id(),
             LOG_SEQ.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
         ));
-        c.args(["-display", "none", "-monitor", "none", "-serial"]).arg(format!("file:{}", log.display()));
+        // The monitor on a socket of its own: `set_link` ([`Guest::set_link`]).
+        let monitor = log.with_extension("monitor");
+        c.args(["-display", "none", "-monitor"]).arg(format!("unix:{},server=on,wait=off", monitor.display()));
+        c.arg("-serial").arg(format!("file:{}", log.display()));
         c.args(extra);
         c.stdin(Stdio::null())
             .stdout(Stdio::null())
@@ -288,6 +291,50 @@ impl Guest {
         let mut log = String::from_utf8_lossy(&bytes).into_owned();
         log.truncate(whole_lines(&log).len());
         log
+    }
+
+    /// Take the board's cable out (`false`) or put it back (`true`):
+    /// QEMU's `set_link` on the MAC's back end (`id=n0`), which the PHY's
+    /// link status shows (QEMU hw/net/npcm_gmac.c, `gmac_set_link`).
+    pub fn set_link(&self, up: bool) -> Result<()> {
+        self.monitor(if up { "set_link n0 on" } else { "set_link n0 off" })
+    }
+
+    /// Stop the guest's CPU (`true`) or let it go on: a board nobody talks
+    /// to for a while costs the host nothing meanwhile (the firmware polls,
+    /// so an idle guest takes a whole core).
+    pub fn pause(&self, paused: bool) -> Result<()> {
+        self.monitor(if paused { "stop" } else { "cont" })
+    }
+
+    /// Run `command` on QEMU's human monitor and wait until it has run.
+    fn monitor(&self, command: &str) -> Result<()> {
+        use std::io::{Read, Write};
+        let path = self.log.with_extension("monitor");
+        let mut s = std::os::unix::net::UnixStream::connect(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        s.set_read_timeout(Some(Duration::from_secs(5))).map_err(|e| e.to_string())?;
+        let mut said = Vec::new();
+        let prompt = |s: &mut std::os::unix::net::UnixStream, said: &mut Vec<u8>| -> Result<()> {
+            let mut buf = [0u8; 512];
+            let start = said.len();
+            while !String::from_utf8_lossy(&said[start..]).contains("(qemu)") {
+                let n = s.read(&mut buf).map_err(|e| format!("QEMU's monitor: {e}"))?;
+                if n == 0 {
+                    return Err("QEMU's monitor closed".into());
+                }
+                said.extend_from_slice(&buf[..n]);
+            }
+            Ok(())
+        };
+        prompt(&mut s, &mut said)?;
+        s.write_all(format!("{command}\n").as_bytes()).map_err(|e| format!("QEMU's monitor: {e}"))?;
+        // The command's echo, then the next prompt: it has run.
+        prompt(&mut s, &mut said)?;
+        let text = String::from_utf8_lossy(&said).into_owned();
+        if text.contains("not found") || text.contains("Error") {
+            return Err(format!("QEMU's monitor, {command:?}: {text}"));
+        }
+        Ok(())
     }
 
     /// Wait until a line of the UART log contains `needle`.
@@ -326,6 +373,7 @@ impl Drop for Guest {
         let _ = self.child.wait();
         let _ = std::fs::remove_file(&self.log);
         let _ = std::fs::remove_file(self.log.with_extension("stderr"));
+        let _ = std::fs::remove_file(self.log.with_extension("monitor"));
     }
 }
 

@@ -354,6 +354,13 @@ pub fn ensure_yowasp() -> Result<()> {
     Ok(())
 }
 
+/// Build hps-sim and rt-client (release) together, as every step that
+/// runs either does: built apart, their shared dependencies get different
+/// features and the second build compiles them again (25 s of the suite).
+pub fn build_host_programs() -> Result<()> {
+    step("build hps-sim and rt-client (release)", cargo(&["build", "--release", "-p", "hps-sim", "-p", "rt-client"]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
