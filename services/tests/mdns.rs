@@ -331,3 +331,61 @@ fn a_link_that_comes_up_again_means_probing_and_announcing_anew() {
     r.link_up(ms(0));
     assert!(run(&mut r, 0, 3_000).is_empty(), "silent without an address");
 }
+
+/// An answer claiming `name` (A 10.0.2.16), as another host would send.
+fn claiming(name: &str) -> Vec<u8> {
+    let mut answer = Packet::new_reply(0);
+    answer.set_flags(PacketFlag::AUTHORITATIVE_ANSWER);
+    answer.answers.push(ResourceRecord::new(
+        Name::new_unchecked(name),
+        CLASS::IN,
+        120,
+        RData::A(Ipv4Addr::new(10, 0, 2, 16).into()),
+    ));
+    answer.build_bytes_vec().unwrap()
+}
+
+/// A response from a port other than 5353 is not a responder's (RFC 6762
+/// section 6: silently ignored): one forged datagram neither renames a
+/// probing board nor sends a claimed one back to probing.
+#[test]
+fn a_response_from_another_port_than_5353_changes_nothing() {
+    let forger = SocketAddrV4::new(*PEER.ip(), 40_000);
+    let mut r = responder();
+    r.set_address(ms(0), Some(BOARD));
+    run(&mut r, 0, 260);
+    r.receive(ms(300), forger, &claiming("raytracer.local"));
+    assert_eq!((r.take_event(), r.name()), (None, "raytracer"));
+    run(&mut r, 300, 5_000);
+    assert!(r.is_claimed());
+    r.receive(ms(5_000), forger, &claiming("raytracer.local"));
+    assert!(r.is_claimed(), "still claimed");
+    r.receive(ms(5_000), PEER, &claiming("raytracer.local"));
+    assert!(!r.is_claimed(), "the same from port 5353 is a conflict");
+}
+
+/// A host that answers for every name the board tries: after fifteen
+/// conflicts within ten seconds each new probe waits five seconds (RFC
+/// 6762 section 8.1), rather than a rename every 250 ms for ever.
+#[test]
+fn fifteen_conflicts_in_ten_seconds_slow_the_probes_to_one_every_five_seconds() {
+    let mut r = responder();
+    r.set_address(ms(0), Some(BOARD));
+    let mut t = 0;
+    let mut gaps = Vec::new();
+    for _ in 0..17 {
+        // Up to the name's first probe, answered at once.
+        let from = t;
+        while run(&mut r, t, t).is_empty() {
+            t += 10;
+            assert!(t - from < 6_000, "no probe");
+        }
+        gaps.push(t - from);
+        t += 10;
+        let name = format!("{}.local", r.name());
+        r.receive(ms(t), PEER, &claiming(&name));
+    }
+    assert_eq!(r.conflicts, 17);
+    assert!(gaps[1..15].iter().all(|&g| g <= 260), "the first fifteen at once: {gaps:?}");
+    assert!(gaps[15..].iter().all(|&g| g >= 5_000), "then five seconds each: {gaps:?}");
+}

@@ -55,6 +55,13 @@ const LEGACY_TTL: u32 = 10;
 
 /// Time between probes (RFC 6762 section 8.1).
 const PROBE_INTERVAL: Duration = Duration::from_millis(250);
+/// Conflicts within [`CONFLICT_WINDOW`] after which each new probe series
+/// waits [`CONFLICT_BACKOFF`] (RFC 6762 section 8.1: fifteen in any ten
+/// seconds, then at least five seconds before each further attempt), so a
+/// host answering for every name cannot make the board rename in a loop.
+const CONFLICT_BURST: usize = 15;
+const CONFLICT_WINDOW: Duration = Duration::from_secs(10);
+const CONFLICT_BACKOFF: Duration = Duration::from_secs(5);
 /// Probes sent.
 const PROBES: u8 = 3;
 /// Time between announcements (section 8.3).
@@ -181,6 +188,8 @@ pub struct Responder {
     event: Option<NameEvent>,
     /// Conflicts met (renames).
     pub conflicts: u32,
+    /// When the last [`CONFLICT_BURST`] conflicts came.
+    recent_conflicts: heapless::Deque<Instant, CONFLICT_BURST>,
 }
 
 impl Responder {
@@ -200,6 +209,7 @@ impl Responder {
             unicast: heapless::Deque::new(),
             event: None,
             conflicts: 0,
+            recent_conflicts: heapless::Deque::new(),
         }
     }
 
@@ -313,11 +323,18 @@ impl Responder {
             return;
         }
         let Ok(msg) = Message::parse(bytes) else { return };
+        // RFC 6762 section 6: a response not from port 5353 is silently
+        // ignored (nor is a probe, section 8.1, from another port one):
+        // one forged datagram from any program must not rename the board.
+        let from_responder = from.port() == MDNS_PORT;
+        if msg.header.is_response() && !from_responder {
+            return;
+        }
         if msg.header.is_response() {
             self.response(now, &msg, address);
         } else if self.is_claimed() {
             self.query(now, from, &msg, address);
-        } else if matches!(self.state, State::Probing { .. }) {
+        } else if matches!(self.state, State::Probing { .. }) && from_responder {
             self.rival_probe(now, &msg, address);
         }
     }
@@ -373,6 +390,14 @@ impl Responder {
         self.name = name;
         self.event = Some(NameEvent::Conflict);
         self.state = self.first_probe(now);
+        if self.recent_conflicts.is_full() {
+            self.recent_conflicts.pop_front();
+        }
+        let _ = self.recent_conflicts.push_back(now);
+        let burst = self.recent_conflicts.front().is_some_and(|&first| now < first + CONFLICT_WINDOW);
+        if self.recent_conflicts.is_full() && burst {
+            self.state = State::Probing { sent: 0, next: now + CONFLICT_BACKOFF };
+        }
     }
 
     /// A query: answer what it asks for that its known answers do not
