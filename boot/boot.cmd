@@ -23,13 +23,17 @@ else
 	echo raytracer: no raytracer.rbf: the firmware renders in software
 fi
 # The board's settings (docs/networking.md): raytracer.txt, handed to the
-# firmware at 0x04900000 (firmware/memory.x, HANDOFF): "RTCF", the length,
-# the text. The header is cleared first and its word written last, so that
-# no earlier boot's copy is taken for this one's.
+# firmware at 0x04900000 (firmware/memory.x, HANDOFF): "RTCF", the file's
+# length, the text, at most 0xff8 bytes of it (the 4 KiB area less the
+# header: a longer file must not overwrite what follows; the firmware reads
+# what fits and says the file is too long). The header is cleared first
+# and its word written last, so that no earlier boot's copy is taken for
+# this one's.
 mw.l 0x04900000 0
 if test -e ${devtype} ${devnum}:${distro_bootpart} raytracer.txt; then
-	load ${devtype} ${devnum}:${distro_bootpart} 0x04900008 raytracer.txt
+	size ${devtype} ${devnum}:${distro_bootpart} raytracer.txt
 	mw.l 0x04900004 ${filesize}
+	load ${devtype} ${devnum}:${distro_bootpart} 0x04900008 raytracer.txt 0xff8
 	mw.l 0x04900000 0x46435452
 	echo raytracer: settings from raytracer.txt (${filesize} bytes, hex)
 else

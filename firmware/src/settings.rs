@@ -23,9 +23,10 @@ unsafe extern "C" {
     static __handoff: u8;
 }
 
-/// The settings text handed over, if the header is there and its length
-/// fits the area.
-fn handed_over(area: &mut [u8; HANDOFF_BYTES]) -> Option<&[u8]> {
+/// The settings text handed over and the file's length, if the header is
+/// there: the text as far as the area holds it (boot.cmd loads at most
+/// that much, and writes the file's whole length).
+fn handed_over(area: &mut [u8; HANDOFF_BYTES]) -> Option<(&[u8], usize)> {
     let base = &raw const __handoff;
     for (i, byte) in area.iter_mut().enumerate() {
         // SAFETY: within the 4 KiB memory.x reserves at `__handoff`, mapped
@@ -37,14 +38,14 @@ fn handed_over(area: &mut [u8; HANDOFF_BYTES]) -> Option<&[u8]> {
     if word(0) != MAGIC {
         return None;
     }
-    let len = usize::try_from(word(4)).ok().filter(|l| *l <= HANDOFF_BYTES - 8)?;
-    Some(&area[8..8 + len])
+    let len = usize::try_from(word(4)).unwrap_or(usize::MAX);
+    Some((&area[8..8 + len.min(HANDOFF_BYTES - 8)], len))
 }
 
 /// Read and log the settings (and every line that could not be used).
 pub fn load(log: &mut impl Write) -> Settings {
     let mut area = [0u8; HANDOFF_BYTES];
-    let Some(text) = handed_over(&mut area) else {
+    let Some((text, length)) = handed_over(&mut area) else {
         let _ = writeln!(
             log,
             "settings: none handed over (raytracer.txt): DHCP, then link-local; name {}",
@@ -52,8 +53,8 @@ pub fn load(log: &mut impl Write) -> Settings {
         );
         return Settings::default();
     };
-    let settings = Settings::parse(text);
-    let _ = writeln!(log, "settings: raytracer.txt, {} bytes", text.len());
+    let settings = Settings::parse_handed(text, length);
+    let _ = writeln!(log, "settings: raytracer.txt, {length} bytes");
     for p in &settings.problems {
         let _ = writeln!(log, "settings: raytracer.txt {p}: ignored");
     }

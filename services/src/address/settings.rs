@@ -1,8 +1,9 @@
 //! The board's settings file: `raytracer.txt` on the card's FAT partition,
 //! which boot.cmd hands to the firmware (docs/networking.md, "Settings").
 //!
-//! One `key=value` a line, `#` starts a comment line, blank lines are
-//! ignored: the text format U-Boot's `env import -t` reads too. Keys:
+//! One `key=value` a line; `#` starts a comment, on a line of its own or
+//! after a value; blank lines are ignored; a UTF-8 byte order mark (as
+//! Windows Notepad may write) is skipped. Keys:
 //!
 //! | key        | value                                  | default                      |
 //! |------------|----------------------------------------|------------------------------|
@@ -11,9 +12,11 @@
 //! | `hostname` | 1-63 of `a-z`, `0-9`, `-`              | [`DEFAULT_HOST_NAME`]        |
 //! | `mac`      | `xx:xx:xx:xx:xx:xx`, unicast           | the board's ([`Settings::mac`]) |
 //!
-//! A line the parser cannot use is skipped and named in
-//! [`Settings::problems`], so that the board says what it ignored (on the
-//! UART and its status page) instead of refusing to start.
+//! A line the parser cannot use (a bad byte costs its line only) is
+//! skipped and named in [`Settings::problems`], so that the board says
+//! what it ignored (on the UART and its status page) instead of refusing
+//! to start. A file longer than the hand-off area ([`Settings::parse_handed`])
+//! is read as far as it fits, and named as too long.
 //!
 //! [`DEFAULT_HOST_NAME`]: crate::DEFAULT_HOST_NAME
 
@@ -62,8 +65,14 @@ pub enum ProblemKind {
     NotKeyValue,
     /// A key this firmware does not know.
     UnknownKey,
-    /// `ip` is neither `dhcp` nor `A.B.C.D/N` with N at most 32.
+    /// `ip` is neither `dhcp` nor `A.B.C.D/N` with N from 1 to 32 and an
+    /// address a host can have (not 0.0.0.0, loopback, multicast or
+    /// broadcast).
     BadAddress,
+    /// `gateway` is not on the static address's network.
+    GatewayOutsideSubnet,
+    /// The file is longer than the firmware reads: its end was not read.
+    TooLong,
     /// `gateway` is not an IPv4 address.
     BadGateway,
     /// `gateway` without a static `ip`: DHCP brings its own.
@@ -81,12 +90,14 @@ impl fmt::Display for Problem {
         let why = match self.kind {
             ProblemKind::NotKeyValue => "not key=value",
             ProblemKind::UnknownKey => "unknown key (ip, gateway, hostname, mac)",
-            ProblemKind::BadAddress => "ip must be dhcp or A.B.C.D/N",
+            ProblemKind::BadAddress => "ip must be dhcp or A.B.C.D/N (N 1-32; not 0.0.0.0, 127.x, multicast)",
+            ProblemKind::GatewayOutsideSubnet => "gateway is not on the ip's network",
+            ProblemKind::TooLong => "the file is longer than the 4088 bytes read: the rest ignored",
             ProblemKind::BadGateway => "gateway must be A.B.C.D",
             ProblemKind::GatewayWithoutStaticAddress => "gateway needs a static ip (DHCP gives its own)",
             ProblemKind::BadHostName => "hostname: 1-63 of a-z, 0-9 and -, not starting or ending with -",
             ProblemKind::BadMac => "mac must be xx:xx:xx:xx:xx:xx, unicast, not zero",
-            ProblemKind::NotText => "the file is not UTF-8 text",
+            ProblemKind::NotText => "not UTF-8 text",
         };
         write!(f, "line {}: {why}", self.line)
     }
@@ -123,16 +134,19 @@ impl Settings {
     /// Read the file's bytes. Never fails: what cannot be used is named in
     /// [`problems`](Self::problems) and left at its default.
     pub fn parse(bytes: &[u8]) -> Settings {
+        let bytes = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes);
         let mut s = Settings::default();
-        let Ok(text) = core::str::from_utf8(bytes) else {
-            s.note(0, ProblemKind::NotText);
-            return s;
-        };
         let mut gateway: Option<(u16, Ipv4Addr)> = None;
-        for (i, line) in text.lines().enumerate() {
+        for (i, line) in bytes.split(|&b| b == b'\n').enumerate() {
             let n = u16::try_from(i + 1).unwrap_or(u16::MAX);
-            let line = line.trim();
-            if line.is_empty() || line.starts_with('#') {
+            let Ok(line) = core::str::from_utf8(line) else {
+                s.note(n, ProblemKind::NotText);
+                continue;
+            };
+            // A comment runs to the end of the line, after a value too (no
+            // value has a `#`).
+            let line = line.split('#').next().unwrap_or("").trim();
+            if line.is_empty() {
                 continue;
             }
             let Some((key, value)) = line.split_once('=') else {
@@ -162,10 +176,30 @@ impl Settings {
         }
         if let Some((n, g)) = gateway {
             match &mut s.address {
-                AddressMode::Static { gateway, .. } => *gateway = Some(g),
+                AddressMode::Static { address, prefix_len, gateway } => {
+                    let mask = u32::MAX.checked_shl(32 - u32::from(*prefix_len)).unwrap_or(0);
+                    if u32::from(*address) & mask == u32::from(g) & mask && g != *address {
+                        *gateway = Some(g);
+                    } else {
+                        s.note(n, ProblemKind::GatewayOutsideSubnet);
+                    }
+                }
                 AddressMode::Automatic => s.note(n, ProblemKind::GatewayWithoutStaticAddress),
             }
         }
+        s
+    }
+
+    /// Read the first `bytes` of a file `length` bytes long (the hand-off
+    /// area holds 4088): a file cut short is read up to its last whole
+    /// line and named as too long.
+    pub fn parse_handed(bytes: &[u8], length: usize) -> Settings {
+        if length <= bytes.len() {
+            return Settings::parse(&bytes[..length]);
+        }
+        let whole = bytes.iter().rposition(|&b| b == b'\n').map_or(0, |end| end + 1);
+        let mut s = Settings::parse(&bytes[..whole]);
+        s.note(0, ProblemKind::TooLong);
         s
     }
 
@@ -180,13 +214,11 @@ fn parse_address(value: &str) -> Option<AddressMode> {
         return Some(AddressMode::Automatic);
     }
     let (address, len) = value.split_once('/')?;
-    let prefix_len = len.parse().ok().filter(|l| *l <= 32)?;
+    let prefix_len = len.parse().ok().filter(|l| (1..=32).contains(l))?;
     let address: Ipv4Addr = address.parse().ok()?;
-    (!address.is_unspecified() && !address.is_multicast() && !address.is_broadcast()).then_some(AddressMode::Static {
-        address,
-        prefix_len,
-        gateway: None,
-    })
+    let host =
+        !address.is_unspecified() && !address.is_loopback() && !address.is_multicast() && !address.is_broadcast();
+    host.then_some(AddressMode::Static { address, prefix_len, gateway: None })
 }
 
 /// `value` as a host name, lower-cased, if it is one DNS label of letters,
@@ -254,6 +286,56 @@ mod tests {
         assert_eq!(Settings::parse(b"ip=DHCP\r\n").address, AddressMode::Automatic, "CR LF and upper case");
     }
 
+    /// The quick-start's own example (docs/quick-start.md), written by
+    /// Notepad: a byte order mark, CR LF, comments after the values.
+    #[test]
+    fn a_bom_and_comments_after_values_are_read_as_a_person_means_them() {
+        let s = Settings::parse(
+            b"\xef\xbb\xbfip=dhcp                 # or: ip=192.168.0.50/24 and gateway=192.168.0.1\r\n\
+              hostname=raytracer      # reach it as raytracer.local\r\n",
+        );
+        assert!(s.problems.is_empty(), "{:?}", s.problems);
+        assert_eq!((s.address, s.hostname.as_deref()), (AddressMode::Automatic, Some("raytracer")));
+    }
+
+    /// A bad byte costs its own line, not the file.
+    #[test]
+    fn a_line_that_is_not_utf8_is_named_and_the_others_read() {
+        let s = Settings::parse(b"hostname=bench\nip=10.0.0.\xff/24\nmac=02:de:1c:00:00:03\n");
+        assert_eq!(s.hostname.as_deref(), Some("bench"));
+        assert_eq!(s.mac, Some([0x02, 0xde, 0x1c, 0, 0, 3]));
+        assert_eq!(s.problems.iter().map(|p| (p.line, p.kind)).collect::<Vec<_>>(), [(2, ProblemKind::NotText)]);
+    }
+
+    /// Static addresses a host cannot use are refused, and a gateway off
+    /// the address's network (the board could never reach it).
+    #[test]
+    fn a_static_address_must_be_usable_and_its_gateway_on_its_network() {
+        for bad in ["ip=127.0.0.5/8", "ip=10.0.0.5/0", "ip=10.0.0.5/33", "ip=0.0.0.0/24", "ip=224.0.0.5/24"] {
+            let s = Settings::parse(bad.as_bytes());
+            assert_eq!((s.address, s.problems[0].kind), (AddressMode::Automatic, ProblemKind::BadAddress), "{bad}");
+        }
+        let s = Settings::parse(b"ip=192.168.0.50/24\ngateway=192.168.1.1\n");
+        assert_eq!(s.problems[0].kind, ProblemKind::GatewayOutsideSubnet);
+        assert!(matches!(s.address, AddressMode::Static { gateway: None, .. }));
+        let s = Settings::parse(b"ip=10.1.2.3/32\ngateway=10.1.2.3\n");
+        assert_eq!(s.problems[0].kind, ProblemKind::GatewayOutsideSubnet, "its own address is no gateway");
+        let s = Settings::parse(b"ip=10.1.2.3/8\ngateway=10.200.0.1\n");
+        assert!(s.problems.is_empty(), "{:?}", s.problems);
+    }
+
+    /// A file longer than the hand-off area: its whole lines that fit are
+    /// read, the cut one is not, and the file is named as too long.
+    #[test]
+    fn a_file_cut_short_keeps_its_whole_lines_and_says_it_was_too_long() {
+        let s = Settings::parse_handed(b"hostname=bench\nmac=02:de:1c:00:00:0", 9_000);
+        assert_eq!((s.hostname.as_deref(), s.mac), (Some("bench"), None), "the cut line is not read");
+        assert_eq!(s.problems.iter().map(|p| (p.line, p.kind)).collect::<Vec<_>>(), [(0, ProblemKind::TooLong)]);
+        assert!(s.problems[0].to_string().contains("longer than"));
+        let whole = Settings::parse_handed(b"hostname=bench\nrest", 15);
+        assert_eq!((whole.hostname.as_deref(), whole.problem_count), (Some("bench"), 0), "length within the bytes");
+    }
+
     #[test]
     fn a_bad_line_is_named_and_the_rest_still_read() {
         let s = Settings::parse(
@@ -273,7 +355,10 @@ mod tests {
             ]
         );
         assert_eq!(s.problem_count, 6, "the line without '=' and the gateway without a static ip count too");
-        assert_eq!(s.problems[0].to_string(), "line 1: ip must be dhcp or A.B.C.D/N");
+        assert_eq!(
+            s.problems[0].to_string(),
+            "line 1: ip must be dhcp or A.B.C.D/N (N 1-32; not 0.0.0.0, 127.x, multicast)"
+        );
     }
 
     #[test]

@@ -143,13 +143,18 @@ pub fn free_udp_port() -> Result<u16> {
 /// (firmware/memory.x, `HANDOFF`; boot/boot.cmd writes the same address).
 pub const HANDOFF_ADDR: u32 = 0x0490_0000;
 
+/// The hand-off area's size (firmware/memory.x, firmware/src/settings.rs):
+/// the 8-byte header and at most 0xff8 bytes of text.
+pub const HANDOFF_BYTES: usize = 4096;
+
 /// The settings of boards on the tests' own networks (the relays, the
 /// virtual LAN): the address plan of QEMU's user networking, fixed, so
 /// that the tests' clients know where the board is.
 pub const TEST_LAN_SETTINGS: &str = "# the tests' network plan\nip=10.0.2.15/24\ngateway=10.0.2.2\n";
 
-/// `text` as boot.cmd leaves raytracer.txt in memory ("RTCF", the length,
-/// the text), written to a file for QEMU's `-device loader`.
+/// `text` as boot.cmd leaves raytracer.txt in memory ("RTCF", the file's
+/// length, as much of the text as the area holds), written to a file for
+/// QEMU's `-device loader`.
 pub fn settings_file(text: &str) -> Result<PathBuf> {
     static SEQ: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
     let path = std::env::temp_dir().join(format!(
@@ -160,7 +165,7 @@ pub fn settings_file(text: &str) -> Result<PathBuf> {
     let len = u32::try_from(text.len()).map_err(|_| "settings too long")?;
     let mut bytes = b"RTCF".to_vec();
     bytes.extend_from_slice(&len.to_le_bytes());
-    bytes.extend_from_slice(text.as_bytes());
+    bytes.extend_from_slice(&text.as_bytes()[..text.len().min(HANDOFF_BYTES - 8)]);
     std::fs::write(&path, bytes).map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(path)
 }

@@ -585,20 +585,24 @@ pub fn check_boot_script(script: &str) -> Result<()> {
 }
 
 /// raytracer.txt reaches the firmware as firmware/src/settings.rs reads it:
-/// the header cleared, the text loaded 8 bytes into the hand-off area
-/// (firmware/memory.x), then its length, then the word "RTCF" last.
+/// the header cleared, the file's size asked for and written as the length,
+/// then at most the area's 0xff8 bytes of text loaded 8 bytes into the
+/// hand-off area (firmware/memory.x), then the word "RTCF" last.
 fn check_settings_handoff(lines: &[&str]) -> Result<()> {
     let base = super::firmware::HANDOFF_ADDR;
     let find = |want: &str| lines.iter().position(|l| l.contains(want));
     let clear = find(&format!("mw.l {base:#010x} 0"));
-    let text =
-        lines.iter().position(|l| l.starts_with("load") && l.contains(&format!("{:#010x} raytracer.txt", base + 8)));
+    let size = lines.iter().position(|l| l.starts_with("size") && l.ends_with(" raytracer.txt"));
     let len = find(&format!("mw.l {:#010x} ${{filesize}}", base + 4));
+    let limit = format!("{:#x}", super::firmware::HANDOFF_BYTES - 8);
+    let text = lines
+        .iter()
+        .position(|l| l.starts_with("load") && l.ends_with(&format!("{:#010x} raytracer.txt {limit}", base + 8)));
     let magic = find(&format!("mw.l {base:#010x} {:#010x}", u32::from_le_bytes(*b"RTCF")));
-    match (clear, text, len, magic) {
-        (Some(c), Some(t), Some(l), Some(m)) if c < t && t < l && l < m => Ok(()),
+    match (clear, size, len, text, magic) {
+        (Some(c), Some(s), Some(l), Some(t), Some(m)) if c < s && s < l && l < t && t < m => Ok(()),
         found => Err(format!(
-            "boot script: the settings hand-off at {base:#010x} (clear, load, length, word) is at {found:?}"
+            "boot script: the settings hand-off at {base:#010x} (clear, size, length, load of at most {limit} bytes, word) is at {found:?}"
         )),
     }
 }
@@ -829,6 +833,10 @@ mod tests {
             "\tmw.l 0x04900000 0x46435452\n\tmw.l 0x04900004 ${filesize}\n",
         );
         assert!(check_boot_script(&swapped).is_err(), "the word before the length");
+        let unlimited = script.replace("raytracer.txt 0xff8", "raytracer.txt");
+        assert!(check_boot_script(&unlimited).is_err(), "a load that may run past the area");
+        let late = script.replace("\tsize ${devtype} ${devnum}:${distro_bootpart} raytracer.txt\n", "");
+        assert!(check_boot_script(&late).is_err(), "the length of what was loaded, not the file's");
     }
 
     #[test]
