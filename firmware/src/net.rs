@@ -27,7 +27,7 @@ use rt_services::mdns::service::{MdnsBuffers, MdnsService};
 use rt_services::monitor::code::{hps_led, Code};
 use rt_services::multicast::Membership;
 use rt_services::seed::service::{FrameService, SocketBuffers};
-use rt_services::snoop::SynWatch;
+use rt_services::snoop::{MacClashes, SynWatch};
 use rt_services::web::service::{SocketBuffers as WebBuffers, WebService};
 use rt_services::web::status::{BoardStatus, Health, Identity, Viewers};
 use rt_services::web::WEB_PORT;
@@ -237,6 +237,11 @@ pub fn run<B: Board, P: RegisterPort>(
     let mut sockets = SocketSet::new(&mut socket_storage[..]);
     let mut addressing = Addressing::new(settings.address, mac_addr, &mut sockets, dhcp_options);
     let mut link_notes = LinkNotes::new();
+    // Another device sending with this board's MAC (`MacClashes`): said
+    // on the UART when first seen and then at most once a minute.
+    let mut clashes = MacClashes::new(mac_addr);
+    let mut clashes_said = (0u32, 0u64);
+    let mac_from = if settings.mac.is_some() { "settings" } else { "default" };
     // Connection attempts to the seed ports and the page (`SynWatch`).
     let mut syns = SynWatch::new([FRAME_PORT, PERSISTENT_PORT, WEB_PORT]);
     // NAME.local and the services, by mDNS / DNS-SD on 224.0.0.251:5353.
@@ -439,7 +444,7 @@ pub fn run<B: Board, P: RegisterPort>(
             membership.filter_groups().for_each(|g| filter.add_group(g));
             mac.set_multicast(filter);
         }
-        let learners = &mut (&mut peers, (&mut link_notes, &mut syns));
+        let learners = &mut (&mut peers, (&mut link_notes, (&mut syns, &mut clashes)));
         iface.poll(now, &mut Snoop { inner: &mut mac, peers: learners }, &mut sockets);
         let woke = link_notes.take_wake();
         if let Some(m) = mdns.as_mut().filter(|_| housekeeping || woke) {
@@ -456,6 +461,17 @@ pub fn run<B: Board, P: RegisterPort>(
                 .flatten()
                 .fold(now_us + HOUSEKEEPING_US, u64::min)
                 .max(now_us + 1);
+        }
+        if clashes.count != clashes_said.0 && (clashes_said.0 == 0 || now_us >= clashes_said.1 + 60_000_000) {
+            clashes_said = (clashes.count, now_us);
+            let m = mac_addr;
+            let _ = writeln!(
+                log,
+                "net: another device on this network sends from this board's MAC \
+                 {:02x}:{:02x}:{:02x}:{:02x}:{:02x}:{:02x} (the {mac_from} MAC; {} frames from it so far): two boards from one card \
+                 image? give each card its own mac= line (docs/networking.md)",
+                m[0], m[1], m[2], m[3], m[4], m[5], clashes.count
+            );
         }
         if peers.frames_seen() != frames_seen {
             frames_seen = peers.frames_seen();
@@ -539,6 +555,9 @@ pub fn run<B: Board, P: RegisterPort>(
                     name: mdns.as_ref().map_or(host_name.as_str(), |m| m.responder().name()),
                     address: addressing.current().map(|a| a.address),
                     address_from: addressing.current().map_or("none", |a| a.origin.as_str()),
+                    mac: Some(mac_addr),
+                    mac_from,
+                    mac_clashes: clashes.count,
                 },
                 health: Health {
                     self_test: facts.self_test,

@@ -401,6 +401,10 @@ fn serve(stream: TcpStream, shared: &Shared, mut log: Log) {
                 name: rt_services::DEFAULT_HOST_NAME,
                 address: None,
                 address_from: &facts.address_from,
+                // The host's own interface: not this program's to report.
+                mac: None,
+                mac_from: "none",
+                mac_clashes: 0,
             },
             health: Health {
                 self_test: facts.self_test.result,

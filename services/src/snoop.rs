@@ -27,6 +27,33 @@ impl<A: Learn, B: Learn> Learn for (A, B) {
     }
 }
 
+/// Frames received from another device that sends with the board's own
+/// MAC address: two boards made from one card image (whose `mac=` line is
+/// the same) on one network. A switch never sends a station its own
+/// frames back, so any such frame is another device's; both boards then
+/// lose frames as the switch moves the address between its ports.
+#[derive(Clone, Copy, Debug)]
+pub struct MacClashes {
+    own: [u8; 6],
+    /// Frames seen so far.
+    pub count: u32,
+}
+
+impl MacClashes {
+    /// Watch for `own` as a source address.
+    pub const fn new(own: [u8; 6]) -> MacClashes {
+        MacClashes { own, count: 0 }
+    }
+}
+
+impl Learn for MacClashes {
+    fn learn(&mut self, frame: &[u8]) {
+        if frame.get(6..12) == Some(&self.own[..]) {
+            self.count = self.count.saturating_add(1);
+        }
+    }
+}
+
 /// A smoltcp device whose received frames `peers` sees first.
 pub struct Snoop<'d, D, L> {
     /// The device.
@@ -140,6 +167,25 @@ mod tests {
         f[34 + 12] = 0x50;
         f[34 + 13] = flags;
         f
+    }
+
+    /// A frame whose source is the board's own MAC is another device's;
+    /// frames from others, to the board or anywhere, are not counted.
+    #[test]
+    fn frames_from_another_device_with_our_mac_are_counted() {
+        const OWN: [u8; 6] = [0x02, 0xde, 0x1c, 0, 0x46, 0x0a];
+        let mut c = MacClashes::new(OWN);
+        let mut frame = segment(80, 0x02);
+        frame[..6].copy_from_slice(&OWN);
+        frame[6..12].copy_from_slice(&[0x02, 0, 0, 0, 0, 1]);
+        c.learn(&frame);
+        c.learn(&frame[..10]);
+        assert_eq!(c.count, 0, "to us, from another MAC; a runt");
+        frame[..6].fill(0xff);
+        frame[6..12].copy_from_slice(&OWN);
+        c.learn(&frame);
+        c.learn(&frame);
+        assert_eq!(c.count, 2);
     }
 
     #[test]

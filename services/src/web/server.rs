@@ -924,7 +924,15 @@ mod tests {
         frames_sent: 8,
         viewers: Viewers { web: 0, web_max: 4, seed: 0, rtsp: 0 },
         rtsp_port: 8554,
-        identity: Identity { version: "0.1.0", name: "raytracer", address: None, address_from: "none" },
+        identity: Identity {
+            version: "0.1.0",
+            name: "raytracer",
+            address: None,
+            address_from: "none",
+            mac: None,
+            mac_from: "none",
+            mac_clashes: 0,
+        },
         health: Health {
             self_test: "pass",
             self_test_detail: "",
@@ -1090,6 +1098,9 @@ mod tests {
                 name: &name,
                 address: Some(core::net::Ipv4Addr::new(255, 255, 255, 255)),
                 address_from: "link-local",
+                mac: None,
+                mac_from: "none",
+                mac_clashes: 0,
             },
             health: Health {
                 self_test: "skipped",

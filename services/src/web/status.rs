@@ -126,6 +126,14 @@ pub struct Identity<'a> {
     /// Where the address came from: `"dhcp"`, `"link-local"`, `"static"`
     /// (docs/networking.md), `"host"` (hps-sim), `"none"`.
     pub address_from: &'a str,
+    /// Its MAC address, where it has one of its own (the firmware).
+    pub mac: Option<[u8; 6]>,
+    /// Where the MAC came from: `"settings"` (raytracer.txt's `mac=`),
+    /// `"default"` (the firmware's own, the same on every board), `"none"`.
+    pub mac_from: &'a str,
+    /// Frames received from another device sending with this MAC (two
+    /// boards from one card image, [`crate::snoop::MacClashes`]).
+    pub mac_clashes: u32,
 }
 
 impl BoardStatus<'_> {
@@ -157,6 +165,15 @@ impl BoardStatus<'_> {
         }
         w.write_str(",\"address_from\":")?;
         json_string(w, id.address_from)?;
+        match id.mac {
+            Some(m) => {
+                write!(w, ",\"mac\":\"{:02x}:{:02x}:{:02x}:{:02x}:{:02x}:{:02x}\"", m[0], m[1], m[2], m[3], m[4], m[5])?
+            }
+            None => w.write_str(",\"mac\":null")?,
+        }
+        w.write_str(",\"mac_from\":")?;
+        json_string(w, id.mac_from)?;
+        write!(w, ",\"mac_clashes\":{}", id.mac_clashes)?;
         self.write_health(w)
     }
 
@@ -239,6 +256,9 @@ mod tests {
                 name: "raytracer-2",
                 address: Some(core::net::Ipv4Addr::new(169, 254, 7, 9)),
                 address_from: "link-local",
+                mac: Some([0x02, 0xde, 0x1c, 0x00, 0x46, 0x0a]),
+                mac_from: "settings",
+                mac_clashes: 3,
             },
             health: Health {
                 self_test: "fail",
@@ -255,7 +275,7 @@ mod tests {
         s.write_json(&mut out).unwrap();
         assert_eq!(
             out,
-            r#"{"uptime_s":61,"renderer":"fpga","link":"1000 Mbit/s \"full\"\u000a","frames_rendered":7,"frames_sent":5,"viewers":{"web":1,"web_max":4,"seed":2,"rtsp":3},"rtsp_port":8554,"version":"0.1.0","name":"raytracer-2","address":"169.254.7.9","address_from":"link-local","self_test":"fail","self_test_detail":"self-test: FAIL: frame mode","mode":"rows","register_map":3,"fpga_build":"0123abc","bridges":"lwhps2fpga out of reset","vga":"off: frame mode failed","code":"E1"}"#
+            r#"{"uptime_s":61,"renderer":"fpga","link":"1000 Mbit/s \"full\"\u000a","frames_rendered":7,"frames_sent":5,"viewers":{"web":1,"web_max":4,"seed":2,"rtsp":3},"rtsp_port":8554,"version":"0.1.0","name":"raytracer-2","address":"169.254.7.9","address_from":"link-local","mac":"02:de:1c:00:46:0a","mac_from":"settings","mac_clashes":3,"self_test":"fail","self_test_detail":"self-test: FAIL: frame mode","mode":"rows","register_map":3,"fpga_build":"0123abc","bridges":"lwhps2fpga out of reset","vga":"off: frame mode failed","code":"E1"}"#
         );
     }
 }

@@ -8,13 +8,15 @@
 //! host finds it at its lease within 15 s. Before the board restarted DHCP
 //! and re-probed at link-up, it kept the lease of the network it had left.
 //! Every query is a one-shot mDNS query (tests/mdns/browse.py `--hosts`)
-//! through the relay's MAC filter.
+//! through the relay's MAC filter. Last, a frame from another device with
+//! the board's MAC (two boards from one card image): the board says so on
+//! its UART and in `/status`.
 
 use std::net::{Ipv4Addr, SocketAddr};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use super::addressing::seed_frame;
+use super::addressing::{exchange, seed_frame};
 use super::lan::{Addressing, Lan};
 use super::qemu_e2e::expected_frame;
 use crate::support::tools::root;
@@ -59,8 +61,42 @@ pub fn run(elf: &Path) -> Result<()> {
         "moved: back on the DHCP LAN: raytracer.local at {at} {:.1} s after the cable went in",
         took.as_secs_f64()
     );
+
+    // Another device with the board's MAC (a second board from the same
+    // card image): one broadcast frame from it, and the board says so.
+    let from = lan.guest.uart().len();
+    let out =
+        lan.command(0, "/usr/bin/python3").args(["-c", CLASH, MAC]).output().map_err(|e| format!("python3: {e}"))?;
+    if !out.status.success() {
+        return Err(format!("the frame from the board's MAC: {}", String::from_utf8_lossy(&out.stderr)));
+    }
+    let said = lan
+        .guest
+        .wait_for_line(from, "another device on this network sends from this board's MAC", Duration::from_secs(10))
+        .map_err(|e| lan.with_uart(e))?;
+    // The switch learnt the MAC on host 0's port; an answer from the
+    // board teaches it back before the page is asked.
+    found(&lan, 0, |a| a == LEASE)?;
+    let request = "GET /status HTTP/1.1\r\nHost: raytracer.local\r\nConnection: close\r\n\r\n";
+    let status =
+        lan.on_host(0, move || exchange(SocketAddr::from((LEASE, 80)), request)).map_err(|e| lan.with_uart(e))?;
+    let want = format!("\"mac\":\"{MAC}\",\"mac_from\":\"settings\",\"mac_clashes\":1");
+    if !status.contains(&want) {
+        return Err(format!("/status after one frame from the board's MAC lacks {want}: {status}"));
+    }
+    println!("moved: a frame from another device with the board's MAC: {said:?}; /status has {want}");
     Ok(())
 }
+
+/// One broadcast Ethernet frame from the MAC given as the argument, out
+/// of the host's eth0 (a raw packet socket).
+const CLASH: &str = r#"
+import socket, sys
+mac = bytes(int(b, 16) for b in sys.argv[1].split(":"))
+s = socket.socket(socket.AF_PACKET, socket.SOCK_RAW)
+s.bind(("eth0", 0))
+s.send(b"\xff" * 6 + mac + b"\x88\xb5" + bytes(46))
+"#;
 
 /// Take the cable out and wait until the board saw it go.
 fn unplug(lan: &mut Lan) -> Result<()> {
