@@ -132,7 +132,8 @@ pub struct Identity<'a> {
     /// `"default"` (the firmware's own, the same on every board), `"none"`.
     pub mac_from: &'a str,
     /// Frames received from another device sending with this MAC (two
-    /// boards from one card image, [`crate::snoop::MacClashes`]).
+    /// boards from one card image; `snoop::MacClashes` with the `smoltcp`
+    /// feature).
     pub mac_clashes: u32,
 }
 
