@@ -262,6 +262,9 @@ impl Guest {
         ));
         // The monitor on a socket of its own: `set_link` ([`Guest::set_link`]).
         let monitor = log.with_extension("monitor");
+        // A socket left by an earlier run whose process had this number
+        // and was killed (its guests never dropped) would stop QEMU's bind.
+        let _ = std::fs::remove_file(&monitor);
         c.args(["-display", "none", "-monitor"]).arg(format!("unix:{},server=on,wait=off", monitor.display()));
         c.arg("-serial").arg(format!("file:{}", log.display()));
         c.args(extra);
@@ -357,7 +360,11 @@ impl Guest {
                 return Ok(line.to_string());
             }
             if let Ok(Some(st)) = self.child.try_wait() {
-                return Err(format!("QEMU exited ({st}) before {needle:?}; UART:\n{after}"));
+                let said = std::fs::read_to_string(self.log.with_extension("stderr")).unwrap_or_default();
+                return Err(format!(
+                    "QEMU exited ({st}) before {needle:?}; QEMU said: {}; UART:\n{after}",
+                    said.trim()
+                ));
             }
             if start.elapsed() > timeout {
                 return Err(format!("no {needle:?} on the UART within {timeout:?}; UART:\n{after}"));
