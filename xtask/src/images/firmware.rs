@@ -231,10 +231,23 @@ impl Guest {
     /// Boot `elf` with extra QEMU arguments; wait (at most 60 s) until the
     /// firmware says it listens.
     pub fn boot(elf: &Path, extra: &[&str]) -> Result<Guest> {
-        let f = Forwards::free()?;
-        let mut g = Guest::start(qemu_command(elf, &f), elf, f.single, f.persistent, extra)?;
-        g.forwards = Some(f);
-        Ok(g)
+        // The forwarded ports are free when chosen, but another program
+        // (a client's outgoing connection) may take one before QEMU binds
+        // it; QEMU then stops at once ("Could not set up host forwarding
+        // rule"), and other ports are tried.
+        let mut refused = String::new();
+        for _ in 0..3 {
+            let f = Forwards::free()?;
+            match Guest::start(qemu_command(elf, &f), elf, f.single, f.persistent, extra) {
+                Ok(mut g) => {
+                    g.forwards = Some(f);
+                    return Ok(g);
+                }
+                Err(e) if e.contains("host forwarding") => refused = e,
+                Err(e) => return Err(e),
+            }
+        }
+        Err(refused)
     }
 
     /// Boot `elf` with the MAC on `netdev` (a `-netdev` value, `id=n0`)
