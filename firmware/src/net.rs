@@ -464,13 +464,12 @@ pub fn run<B: Board, P: RegisterPort>(
         }
         if clashes.count != clashes_said.0 && (clashes_said.0 == 0 || now_us >= clashes_said.1 + 60_000_000) {
             clashes_said = (clashes.count, now_us);
-            let m = mac_addr;
             let _ = writeln!(
                 log,
-                "net: another device on this network sends from this board's MAC \
-                 {:02x}:{:02x}:{:02x}:{:02x}:{:02x}:{:02x} (the {mac_from} MAC; {} frames from it so far): two boards from one card \
-                 image? give each card its own mac= line (docs/networking.md)",
-                m[0], m[1], m[2], m[3], m[4], m[5], clashes.count
+                "net: another device on this network sends from this board's MAC {} (the {mac_from} MAC; {} frames \
+                 from it so far): two boards from one card image? give each card its own mac= line (docs/networking.md)",
+                EthernetAddress(mac_addr),
+                clashes.count
             );
         }
         if peers.frames_seen() != frames_seen {
